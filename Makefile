@@ -1,0 +1,19 @@
+# The two entry points of README.md. Each sets the machine up on first use.
+PY := .venv/bin/python
+STAMP := .venv/.mistyle-installed
+
+.PHONY: demo test test-all setup
+
+demo: $(STAMP)
+	$(PY) -m mistyle.demo --out out/demo
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+test-all: $(STAMP)
+	$(PY) -m pytest -q -m ''
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml scripts/setup.sh
+	bash scripts/setup.sh

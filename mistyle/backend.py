@@ -1,0 +1,144 @@
+"""Mitsuba variant selection and the Dr.Jit LLVM backend check.
+
+This module owns one convention: which Mitsuba variant runs. ``use_variant`` is the only caller of
+``mi.set_variant`` in mistyle; everything else asks it for the variant that matches a torch device.
+
+Dr.Jit 1.5 compiles its CPU kernels with the system's libLLVM. With LLVM 14-16 every kernel aborts
+the process with ``LLVM ERROR: Cannot select: fminimum``; with no libLLVM at all the backend stays
+inactive. Both are caught here, before the first kernel runs, and turned into a ``BackendError``
+that names the fix.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import re
+import subprocess
+import sys
+
+MIN_LLVM_MAJOR = 17
+
+_FIX = (
+    "Fix: install a recent libLLVM (Debian/Ubuntu: `apt-get install libllvm19`, which "
+    "`make test`/`make demo` do for you), or point Dr.Jit at one with "
+    "DRJIT_LIBLLVM_PATH=/path/to/libLLVM.so.19.1"
+)
+
+
+class BackendError(RuntimeError):
+    """The requested Mitsuba/Dr.Jit backend cannot run on this machine."""
+
+
+def variant_for(device: str = "cpu") -> str:
+    """Mitsuba variant for a torch device: ``llvm_ad_rgb`` on CPU, ``cuda_ad_rgb`` on CUDA."""
+    kind = str(device).split(":")[0]
+    if kind == "cpu":
+        return "llvm_ad_rgb"
+    if kind == "cuda":
+        return "cuda_ad_rgb"
+    raise ValueError(f"Unsupported torch device {device!r}: use 'cpu' or 'cuda[:N]'.")
+
+
+def use_variant(device: str = "cpu"):
+    """Activate (once) and return the Mitsuba module in the variant matching ``device``.
+
+    Also registers mistyle's integrators for that variant.
+    """
+    name = variant_for(device)
+    if name.startswith("llvm"):
+        check_llvm_backend()
+    else:
+        _check_cuda_backend()
+    import mitsuba as mi
+
+    if mi.variant() != name:
+        if name not in mi.variants():
+            raise BackendError(f"Mitsuba was built without the {name!r} variant.")
+        mi.set_variant(name)
+    from .integrators import register
+
+    register()
+    return mi
+
+
+def active_variant():
+    """The Mitsuba module in the variant already chosen by ``use_variant``, else in the CPU one."""
+    import mitsuba as mi
+
+    if mi.variant() in ("llvm_ad_rgb", "cuda_ad_rgb"):
+        from .integrators import register
+
+        register()
+        return mi
+    return use_variant("cpu")
+
+
+def _loaded_llvm_path() -> str | None:
+    """Path of the libLLVM mapped into this process, if any (Linux only)."""
+    try:
+        with open("/proc/self/maps") as maps:
+            for line in maps:
+                if "libLLVM" in line:
+                    return line.split()[-1]
+    except OSError:
+        pass
+    return None
+
+
+def llvm_major_from_path(path: str) -> int | None:
+    """LLVM major version encoded in a library file name, e.g. ``libLLVM.so.19.1`` -> 19."""
+    match = re.search(r"libLLVM(?:-(\d+)|\.so\.(\d+))", os.path.basename(path))
+    if not match:
+        return None
+    return int(match.group(1) or match.group(2))
+
+
+@functools.lru_cache(maxsize=1)
+def check_llvm_backend() -> str:
+    """Make sure Dr.Jit's LLVM backend is active with LLVM >= 17; return the library's path.
+
+    Raises:
+        BackendError: naming the problem and the fix, instead of an LLVM abort later on.
+    """
+    import drjit as dr
+
+    if not dr.has_backend(dr.JitBackend.LLVM):
+        raise BackendError(f"Dr.Jit's LLVM backend is inactive: no usable libLLVM was found. {_FIX}.")
+    path = _loaded_llvm_path()
+    major = llvm_major_from_path(path) if path else None
+    if major is None:
+        # Unknown naming (or no /proc): run one kernel in a child process, where an abort is harmless.
+        if not _llvm_kernel_runs_in_subprocess():
+            raise BackendError(
+                f"Dr.Jit's LLVM backend loaded {path or 'a libLLVM'} but cannot compile kernels "
+                f"(likely LLVM < {MIN_LLVM_MAJOR}). {_FIX}."
+            )
+        return path or "unknown libLLVM"
+    if major < MIN_LLVM_MAJOR:
+        raise BackendError(
+            f"Dr.Jit's LLVM backend loaded {path} (LLVM {major}); Dr.Jit 1.5 needs LLVM >= "
+            f"{MIN_LLVM_MAJOR} (LLVM 14-16 abort with 'Cannot select: fminimum'). {_FIX}."
+        )
+    return path
+
+
+def _llvm_kernel_runs_in_subprocess() -> bool:
+    probe = (
+        "import drjit as dr\n"
+        "from drjit.llvm import Float\n"
+        "x = dr.arange(Float, 8)\n"
+        "assert dr.sum(dr.minimum(x, 3.0))[0] == 24.0\n"
+    )
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, timeout=300)
+    return result.returncode == 0
+
+
+def _check_cuda_backend() -> None:
+    import drjit as dr
+
+    if not dr.has_backend(dr.JitBackend.CUDA):
+        raise BackendError(
+            "Dr.Jit's CUDA backend is inactive (no NVIDIA driver/GPU visible). Run with "
+            "--device cpu to use the llvm_ad_rgb variant instead."
+        )

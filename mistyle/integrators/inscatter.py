@@ -43,6 +43,7 @@ import numpy as np
 from ..scenes.box import MediumBox
 
 METHODS = ("sheared", "bruteforce")
+MAX_BUFFER_FLOATS = 1 << 22  # optical-depth buffer per batch of directions (16 MB: stays in cache)
 
 
 def hammersley_sphere(count: int) -> np.ndarray:
@@ -136,90 +137,170 @@ def _march_bruteforce(texture, res, h: float, q, omega_table, count: int, steps:
 
 
 def _sheared(texture, box: MediumBox, omegas: np.ndarray):
+    """Sheared sweep over all directions, in batches that bound the line buffer's memory."""
     res_np = box.resolution_xyz
-    res = mi.ScalarVector3f(res_np)
-    h = box.voxel_size
-    q_voxels = _voxel_centre_positions(box)
-    visibility = dr.zeros(mi.Float, int(np.prod(box.shape_zyx)))
-
-    def opaque_vector(v):
-        return mi.Vector3f(*(dr.opaque(mi.Float, float(c)) for c in v))
-
-    for omega in omegas:
-        a = int(np.argmax(np.abs(omega)))
-        b, c = [axis for axis in range(3) if axis != a]
-        n_a = int(res_np[a])
-        step = omega / abs(omega[a])  # one slice towards the light per step, voxel units
-        # Lattice of lines, indexed by m = slice count from the light side: the line (jb, jc)
-        # passes through q(m) = origin + jb e_b + jc e_c - m * step.
-        span_b, span_c = (n_a - 1) * step[b], (n_a - 1) * step[c]
-        base_b = 0.5 + math.floor(min(0.0, span_b))
-        base_c = 0.5 + math.floor(min(0.0, span_c))
-        lines_b = int(res_np[b]) + math.ceil(abs(span_b)) + 1
-        lines_c = int(res_np[c]) + math.ceil(abs(span_c)) + 1
-        origin = np.zeros(3)
-        origin[a] = n_a - 0.5 if omega[a] > 0 else 0.5
-        origin[b], origin[c] = base_b, base_c
-        e_a, e_b, e_c = (np.eye(3)[i] for i in (a, b, c))
-        segment = h / abs(omega[a])  # world length between consecutive slice planes
-
-        tau_lines = _march_lines(
-            texture, res, opaque_vector(origin), opaque_vector(e_b), opaque_vector(e_c),
-            opaque_vector(step), dr.opaque(mi.UInt32, lines_c), lines_b * lines_c, n_a,
-            dr.opaque(mi.Float, segment),
-        )
-        # Voxel centre -> its slice count m from the light side and its lattice coordinates.
-        first, stride = (n_a - 1, -1.0) if omega[a] > 0 else (0, 1.0)
-        visibility = _gather_visibility(
-            visibility, tau_lines, q_voxels, opaque_vector(e_a), opaque_vector(e_b), opaque_vector(e_c),
-            opaque_vector(step), dr.opaque(mi.Float, base_b), dr.opaque(mi.Float, base_c),
-            dr.opaque(mi.Float, first), dr.opaque(mi.Float, stride),
-            dr.opaque(mi.UInt32, lines_c), dr.opaque(mi.UInt32, n_a),
-        )
+    plans = [_line_plan(omega, res_np, box.voxel_size) for omega in omegas]
+    q = _voxel_centre_positions(box)
+    visibility = dr.zeros(mi.Float, dr.width(q))
+    batch: list[dict] = []
+    for plan in plans:
+        if batch and sum(p["lines"] * p["slices"] for p in batch + [plan]) > MAX_BUFFER_FLOATS:
+            visibility = _sheared_batch(texture, res_np, q, visibility, batch)
+            batch = []
+        batch.append(plan)
+    visibility = _sheared_batch(texture, res_np, q, visibility, batch)
     return (visibility / len(omegas)).numpy()
 
 
-@dr.syntax
-def _march_lines(texture, res, origin, e_b, e_c, step, lines_c, line_count: int, slices: int, segment):
-    """Optical depth from the light-side boundary to each slice, for every lattice line.
+def _line_plan(omega: np.ndarray, res: np.ndarray, voxel_size: float) -> dict:
+    """Geometry of one direction's lattice of lines (all lengths in voxel units).
 
-    Returns a flat array indexed ``line * slices + m``.
+    ``a`` is the dominant axis of ``omega``; slices are the voxel-centre planes across it, counted
+    by ``m`` from the light side. Line ``(jb, jc)`` passes through
+    ``origin + jb e_b + jc e_c - m * step`` at slice ``m``; ``step`` moves one slice toward the light.
     """
-    line = dr.arange(mi.UInt32, line_count)
-    jb = mi.Float(line // lines_c)
-    jc = mi.Float(line % lines_c)
-    start = origin + e_b * jb + e_c * jc
-    tau_lines = dr.empty(mi.Float, line_count * slices)
-    n_a = dr.opaque(mi.UInt32, slices)
+    a = int(np.argmax(np.abs(omega)))
+    b, c = [axis for axis in range(3) if axis != a]
+    slices = int(res[a])
+    step = omega / abs(omega[a])
+    span_b, span_c = (slices - 1) * step[b], (slices - 1) * step[c]
+    origin = np.zeros(3)
+    origin[a] = slices - 0.5 if omega[a] > 0 else 0.5
+    # One extra line on each side feeds the outer taps of the cubic interpolation.
+    origin[b] = math.floor(min(0.0, span_b)) - 0.5
+    origin[c] = math.floor(min(0.0, span_c)) - 0.5
+    lines_b = int(res[b]) + math.ceil(abs(span_b)) + 3
+    lines_c = int(res[c]) + math.ceil(abs(span_c)) + 3
+    eye = np.eye(3)
+    return {
+        "origin": origin, "e_a": eye[a], "e_b": eye[b], "e_c": eye[c], "step": step,
+        "lines_c": lines_c, "lines": lines_b * lines_c, "slices": slices,
+        "first": float(slices - 1) if omega[a] > 0 else 0.0, "stride": -1.0 if omega[a] > 0 else 1.0,
+        "segment": voxel_size / abs(omega[a]),  # world length between consecutive slices
+    }
+
+
+def _sheared_batch(texture, res_np, q, visibility, plans: list[dict]):
+    def table(key, kind=mi.Float):
+        values = np.array([p[key] for p in plans])
+        if values.ndim == 2:
+            return mi.Vector3f(*(mi.Float(values[:, i]) for i in range(3)))
+        return kind(values)
+
+    lines = np.array([p["lines"] for p in plans], dtype=np.int64)
+    buffer_offset = np.concatenate([[0], np.cumsum(lines * [p["slices"] for p in plans])[:-1]])
+    line_offset = np.concatenate([[0], np.cumsum(lines)[:-1]])
+    direction_of_line = np.repeat(np.arange(len(plans)), lines)
+    local_line = np.arange(lines.sum()) - line_offset[direction_of_line]
+    lines_c = np.array([p["lines_c"] for p in plans])[direction_of_line]
+    tables = {
+        key: table(key) for key in ("origin", "e_a", "e_b", "e_c", "step", "first", "stride", "segment")
+    }
+    tables["lines_c"] = table("lines_c", mi.UInt32)
+    tables["slices"] = table("slices", mi.UInt32)
+    tables["buffer_offset"] = mi.UInt32(buffer_offset)
+    res = mi.ScalarVector3f(res_np)
+
+    tau_lines = dr.empty(mi.Float, int(buffer_offset[-1] + lines[-1] * plans[-1]["slices"]))
+    _march_lines(
+        texture, res, tables, mi.UInt32(direction_of_line), mi.UInt32(local_line),
+        mi.Float(local_line // lines_c), mi.Float(local_line % lines_c), tau_lines,
+    )
+    visibility = _gather_visibility(visibility, tau_lines, q, res, tables, dr.opaque(mi.UInt32, len(plans)))
+    dr.eval(visibility)
+    return visibility
+
+
+def _direction(tables, k):
+    """The per-direction constants of ``_line_plan`` for direction index ``k`` (per lane)."""
+    out = {key: dr.gather(type(value), value, k) for key, value in tables.items()}
+    return out
+
+
+@dr.syntax
+def _march_lines(texture, res, tables, direction_of_line, local_line, jb, jc, tau_lines):
+    """Optical depth from the light-side face to each slice, for every line of every direction.
+
+    Lines run through the density extended sideways by its edge values (the texture's clamp
+    mode); the gather only ever takes differences of tau over a voxel's in-box stretch. The
+    trapezoid rule samples the light-side face and then every slice crossing (finer sampling
+    along the lines was measured not to help: the error is in the interpolation between lines).
+    Writes ``tau_lines[buffer_offset + line * slices + m]``.
+    """
+    d = _direction(tables, direction_of_line)
+    face = d["origin"] + d["e_b"] * jb + d["e_c"] * jc + 0.5 * d["step"]
+    target = d["buffer_offset"] + local_line * d["slices"]
     tau = mi.Float(0.0)
-    sigma_prev = mi.Float(0.0)
+    sigma_prev = texture.eval(face / res)[0]
     m = mi.UInt32(0)
-    while m < n_a:
-        p = start - step * mi.Float(m)
-        inside = dr.all((p >= 0.0) & (p <= res))
-        sigma = dr.select(inside, texture.eval(p / res)[0], 0.0)
-        # Trapezoid between slices; the first slice covers the half voxel to the boundary face.
-        tau += dr.select(m == 0, 0.5 * sigma, 0.5 * (sigma_prev + sigma)) * segment
-        dr.scatter(tau_lines, tau, line * n_a + m)
+    while m < d["slices"]:
+        sigma = texture.eval((face - d["step"] * (mi.Float(m) + 0.5)) / res)[0]
+        tau += 0.5 * (sigma_prev + sigma) * dr.select(m == 0, 0.5, 1.0) * d["segment"]
+        dr.scatter(tau_lines, tau, target + m)
         sigma_prev = sigma
         m += 1
-    return tau_lines
 
 
-def _gather_visibility(visibility, tau_lines, q, e_a, e_b, e_c, step, base_b, base_c, first, stride, lines_c, n_a):
-    """Add exp(-tau) at every voxel centre, read bilinearly from the four surrounding lines."""
-    slice_index = dr.dot(q, e_a) - 0.5
-    m = first + stride * slice_index
-    xi_b = dr.dot(q, e_b) - base_b + m * dr.dot(step, e_b)
-    xi_c = dr.dot(q, e_c) - base_c + m * dr.dot(step, e_c)
-    jb, jc = dr.floor(xi_b), dr.floor(xi_c)
-    fb, fc = xi_b - jb, xi_c - jc
-    jb, jc, m_index = mi.UInt32(jb), mi.UInt32(jc), mi.UInt32(dr.round(m))
+def _catmull_rom_weights(t):
+    """Weights of the four taps at -1, 0, 1, 2 for Catmull-Rom interpolation at t in [0, 1)."""
+    t2, t3 = t * t, t * t * t
+    return (
+        0.5 * (-t3 + 2.0 * t2 - t),
+        0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+        0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+        0.5 * (t3 - t2),
+    )
 
-    def tau_at(db, dc):
-        return dr.gather(mi.Float, tau_lines, ((jb + db) * lines_c + (jc + dc)) * n_a + m_index)
 
-    tau = dr.lerp(dr.lerp(tau_at(0, 0), tau_at(0, 1), fc), dr.lerp(tau_at(1, 0), tau_at(1, 1), fc), fb)
-    visibility = visibility + dr.exp(-tau)
-    dr.eval(visibility)
+@dr.syntax
+def _gather_visibility(visibility, tau_lines, q, res, tables, count):
+    """Add exp(-tau) at every voxel centre, for each direction, from the lines around its own line.
+
+    The voxel's line toward the light leaves the box either through the light-side face (half a
+    slice beyond slice 0) or through a side face, at slice position ``mu`` >= -1/2. Its optical depth
+    is ``tau(m) - tau(mu)`` on the sideways-extended lines: those are smooth across the side faces,
+    so interpolation between lines stays accurate next to the faces, where the in-box optical
+    depth of grazing directions changes by a whole chord within one voxel. Between lines the
+    optical depth is interpolated bicubically (Catmull-Rom); bilinear weights leave ~4x the error.
+    """
+    k = mi.UInt32(0)
+    while k < count:
+        d = _direction(tables, k)
+        m = d["first"] + d["stride"] * (dr.dot(q, d["e_a"]) - 0.5)
+        q_b, q_c = dr.dot(q, d["e_b"]), dr.dot(q, d["e_c"])
+        step_b, step_c = dr.dot(d["step"], d["e_b"]), dr.dot(d["step"], d["e_c"])
+        xi_b = q_b - dr.dot(d["origin"], d["e_b"]) + m * step_b
+        xi_c = q_c - dr.dot(d["origin"], d["e_c"]) + m * step_c
+        jb, jc = dr.floor(xi_b), dr.floor(xi_c)
+        fb, fc = xi_b - jb, xi_c - jc
+        wb, wc = _catmull_rom_weights(fb), _catmull_rom_weights(fc)
+        corner = d["buffer_offset"] + ((mi.UInt32(jb) - 1) * d["lines_c"] + (mi.UInt32(jc) - 1)) * d["slices"]
+
+        # Slices travelled toward the light before leaving the box (step is +-1 on the slice axis).
+        to_side_b = dr.select(step_b > 0, (dr.dot(res, d["e_b"]) - q_b) / step_b, dr.select(step_b < 0, -q_b / step_b, dr.inf))
+        to_side_c = dr.select(step_c > 0, (dr.dot(res, d["e_c"]) - q_c) / step_c, dr.select(step_c < 0, -q_c / step_c, dr.inf))
+        m = dr.round(m)
+        exit_position = m - dr.minimum(m + 0.5, dr.minimum(to_side_b, to_side_c))  # in [-1/2, m]
+        below = dr.maximum(dr.floor(exit_position), 0.0)
+        above = dr.minimum(below + 1.0, m)
+        fraction = dr.clip(exit_position - below, 0.0, 1.0)
+        leaves_by_side = exit_position > -0.5
+
+        tau_here, tau_below, tau_above = mi.Float(0.0), mi.Float(0.0), mi.Float(0.0)
+        for db in range(4):
+            for dc in range(4):
+                line = corner + (db * d["lines_c"] + dc) * d["slices"]
+                tau_here += wb[db] * wc[dc] * dr.gather(mi.Float, tau_lines, line + mi.UInt32(m))
+                if db in (1, 2) and dc in (1, 2):
+                    # The exit term is small next to tau_here: bilinear is enough there.
+                    weight = dr.select(db == 1, 1.0 - fb, fb) * dr.select(dc == 1, 1.0 - fc, fc)
+                    tau_below += weight * dr.gather(mi.Float, tau_lines, line + mi.UInt32(below), leaves_by_side)
+                    tau_above += weight * dr.gather(mi.Float, tau_lines, line + mi.UInt32(above), leaves_by_side)
+        tau_exit = dr.select(
+            exit_position < 0.0,
+            tau_below * (exit_position + 0.5) / 0.5,  # first half slice: tau grows from 0 at the face
+            dr.lerp(tau_below, tau_above, fraction),
+        )
+        visibility += dr.exp(-dr.maximum(tau_here - tau_exit, 0.0))
+        k += 1
     return visibility

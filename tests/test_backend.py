@@ -1,0 +1,55 @@
+"""Variant selection and the libLLVM check: clear errors, never an LLVM abort."""
+
+import glob
+import os
+import subprocess
+import sys
+
+import pytest
+
+from mistyle.backend import MIN_LLVM_MAJOR, check_llvm_backend, llvm_major_from_path, variant_for
+
+
+def test_variant_follows_the_torch_device():
+    assert variant_for("cpu") == "llvm_ad_rgb"
+    assert variant_for("cuda") == variant_for("cuda:1") == "cuda_ad_rgb"
+    with pytest.raises(ValueError, match="Unsupported torch device"):
+        variant_for("mps")
+
+
+@pytest.mark.parametrize(
+    "name,major",
+    [("libLLVM.so.19.1", 19), ("libLLVM-15.so.1", 15), ("libLLVM-14.0.6.so.1", 14), ("libLLVM-17.so", 17), ("libfoo.so", None)],
+)
+def test_llvm_version_is_read_from_the_library_name(name, major):
+    assert llvm_major_from_path(f"/usr/lib/{name}") == major
+
+
+def test_this_machine_has_a_working_llvm_backend():
+    path = check_llvm_backend()
+    assert llvm_major_from_path(path) is None or llvm_major_from_path(path) >= MIN_LLVM_MAJOR
+
+
+def run_check_with(libllvm: str) -> subprocess.CompletedProcess:
+    code = (
+        "from mistyle.backend import use_variant, BackendError\n"
+        "try:\n    use_variant('cpu')\nexcept BackendError as e:\n    print('BackendError:', e)\n"
+    )
+    env = dict(os.environ, DRJIT_LIBLLVM_PATH=libllvm)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_missing_libllvm_gives_a_clear_error():
+    result = run_check_with("/nonexistent/libLLVM.so")
+    assert result.returncode == 0, result.stderr
+    assert "BackendError:" in result.stdout
+    assert "libllvm19" in result.stdout and "DRJIT_LIBLLVM_PATH" in result.stdout
+
+
+@pytest.mark.skipif(not glob.glob("/usr/lib/*/libLLVM-1[456].so*"), reason="no old libLLVM on this machine")
+def test_old_libllvm_is_refused_before_any_kernel_runs():
+    old = sorted(glob.glob("/usr/lib/*/libLLVM-1[456].so*"))[0]
+    result = run_check_with(old)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "BackendError:" in result.stdout and "Cannot select: fminimum" in result.stdout
+    assert "LLVM ERROR" not in result.stderr

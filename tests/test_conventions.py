@@ -1,0 +1,110 @@
+"""The grid, box and camera conventions, each checked against Mitsuba itself."""
+
+import numpy as np
+import pytest
+import torch
+
+from mistyle.scenes import CameraPath, MediumBox, View, layer_scene, prepare_density, split_views
+from mistyle.scenes.builder import heterogeneous_medium
+from mistyle.volume import read_vol, write_vol
+
+SHAPE = (8, 10, 12)  # (Z, Y, X)
+
+
+def hot_voxel_grid():
+    grid = np.zeros(SHAPE, dtype=np.float32)
+    grid[7, 5, 2] = 1.0  # voxel (x=2, y=5, z=7)
+    return grid
+
+
+def test_box_keeps_aspect_with_longest_side_one():
+    box = MediumBox(SHAPE)
+    np.testing.assert_allclose(box.extent, [1.0, 10 / 12, 8 / 12])
+    np.testing.assert_allclose(box.bbox_min, -box.bbox_max)
+    assert box.voxel_size == pytest.approx(1 / 12)
+    np.testing.assert_allclose(box.voxel_centre(2, 5, 7), box.voxel_centres()[7, 5, 2])
+    np.testing.assert_allclose(box.world_to_unit(box.voxel_centre(2, 5, 7)), [2.5 / 12, 5.5 / 10, 7.5 / 8])
+
+
+def test_texture_lookup_at_voxel_centre_reads_arr_z_y_x(mi):
+    box = MediumBox(SHAPE)
+    texture = mi.Texture3f(mi.TensorXf(hot_voxel_grid()[..., None]))
+    unit = box.world_to_unit(box.voxel_centre(2, 5, 7))
+    assert texture.eval(mi.Point3f(*map(float, unit)))[0][0] == pytest.approx(1.0)
+    # Its neighbour along x is half a voxel away from any other centre: exactly zero there.
+    unit_neighbour = box.world_to_unit(box.voxel_centre(3, 5, 7))
+    assert texture.eval(mi.Point3f(*map(float, unit_neighbour)))[0][0] == pytest.approx(0.0)
+
+
+def test_gridvolume_of_path_tracer_reads_arr_z_y_x(mi):
+    import drjit as dr
+
+    medium_dict = heterogeneous_medium(hot_voxel_grid(), 1.0, np.full(SHAPE + (3,), 0.5, np.float32))
+    volume = mi.load_dict(medium_dict["sigma_t"])
+    interaction = dr.zeros(mi.Interaction3f)
+    interaction.p = mi.Point3f(*map(float, MediumBox(SHAPE).voxel_centre(2, 5, 7)))
+    assert volume.eval_1(interaction)[0] == pytest.approx(1.0)
+
+
+def test_cube_shape_spans_the_box(mi):
+    box = MediumBox(SHAPE)
+    from mistyle.scenes.builder import _transform
+
+    scene = mi.load_dict({"type": "scene", "box": {"type": "cube", "to_world": _transform(box.cube_to_world_matrix())}})
+    for axis in range(3):
+        direction = np.zeros(3)
+        direction[axis] = 1.0
+        ray = mi.Ray3f(mi.Point3f(*map(float, -5 * direction)), mi.Vector3f(*map(float, direction)))
+        hit = scene.ray_intersect(ray)
+        assert hit.p.numpy()[axis][0] == pytest.approx(box.bbox_min[axis], abs=1e-5)
+
+
+def test_vol_file_round_trip_and_mitsuba_reads_it(mi, tmp_path):
+    grid = np.random.default_rng(0).random(SHAPE).astype(np.float32)
+    path = write_vol(tmp_path / "grid.vol", grid)
+    np.testing.assert_array_equal(read_vol(path), grid)
+    np.testing.assert_array_equal(np.array(mi.VolumeGrid(str(path))).reshape(SHAPE), grid)
+
+
+def test_image_orientation_plus_x_right_plus_y_up(mi):
+    """Seen from +z, a bright x>0, y>0 octant lands in the image's top-right quadrant."""
+    shape = (16, 16, 16)
+    density = np.full(shape, 0.5, np.float32)
+    albedo = np.full(shape + (3,), 0.05, np.float32)
+    albedo[:, 8:, 8:] = 1.0  # y >= 0 and x >= 0
+    prepared = prepare_density(density, 4.0)
+    view = View(origin=(0.0, 0.0, 3.0))
+    image = split_views(mi.render(mi.load_dict(layer_scene(prepared, albedo, [view], 32, 32))), 1)[0].mean(-1)
+    quadrants = {"top_right": image[:16, 16:], "top_left": image[:16, :16], "bottom_right": image[16:, 16:]}
+    assert quadrants["top_right"].mean() > 4 * quadrants["top_left"].mean()
+    assert quadrants["top_right"].mean() > 4 * quadrants["bottom_right"].mean()
+
+
+def test_split_views_layout():
+    film = np.arange(2 * 3 * 4 * 3, dtype=np.float32).reshape(2, 3 * 4, 3)
+    views = split_views(film, 3)
+    assert views.shape == (3, 2, 4, 3)
+    np.testing.assert_array_equal(views[1], film[:, 4:8])
+
+
+def test_camera_path_views_look_at_the_box():
+    path = CameraPath()
+    for view in path.turntable(8) + path.sample(8, np.random.default_rng(0)):
+        assert np.linalg.norm(view.origin) == pytest.approx(path.distance)
+    with pytest.raises(ValueError):
+        View(origin=(0.0, 2.0, 0.0), up=(0.0, 1.0, 0.0))  # looking straight down its up vector
+
+
+def test_torch_reference_camera_matches_mitsuba_rays(mi):
+    from mistyle.reference_torch import camera_rays
+    from mistyle.scenes.cameras import sensor_dict
+
+    view = CameraPath().view(0.3)
+    sensor = mi.load_dict(sensor_dict(view, 6, 4))
+    origins, directions = camera_rays([view], 4, 6)
+    for row, col in [(0, 0), (3, 5), (2, 1)]:
+        ray, _ = sensor.sample_ray(0.0, 0.0, mi.Point2f((col + 0.5) / 6, (row + 0.5) / 4), mi.Point2f(0.5))
+        np.testing.assert_allclose(np.array(ray.d)[:, 0], directions[0, row, col].numpy(), atol=1e-6)
+        # Mitsuba starts rays on the near clip plane: same line, same direction.
+        offset = np.array(ray.o)[:, 0] - origins[0, row, col].numpy()
+        np.testing.assert_allclose(np.cross(offset, directions[0, row, col].numpy()), 0.0, atol=1e-6)

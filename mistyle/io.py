@@ -27,6 +27,9 @@ def atomic_output(path):
     except OSError as error:
         raise OSError(f"Cannot write {path}: {error.strerror}. Choose a writable output directory.") from error
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the usual permissions
     try:
         yield Path(tmp)
         os.replace(tmp, path)

@@ -43,3 +43,9 @@ def pyroclastic_sphere(
     distance = np.linalg.norm(positions, axis=-1)
     noise = fractal_noise(shape_zyx, seed=seed)
     return np.clip((radius + amplitude * noise - distance) / falloff, 0.0, 1.0).astype(np.float32)
+
+
+def colour_noise_albedo(shape_zyx: tuple[int, int, int], seed: int = 0) -> np.ndarray:
+    """A colourful, low-frequency RGB albedo ``(Z, Y, X, 3)`` in [0.15, 0.95] (a stand-in style)."""
+    channels = [fractal_noise(shape_zyx, octaves=2, base_cells=3, seed=seed + c) for c in range(3)]
+    return (0.55 + 0.4 * np.clip(np.stack(channels, axis=-1) * 1.5, -1.0, 1.0)).astype(np.float32)

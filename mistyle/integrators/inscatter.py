@@ -18,14 +18,19 @@ Two methods, both Dr.Jit kernels in the active Mitsuba variant:
     the box boundary: ``X*Y*Z*K*steps`` trilinear lookups (64^3 x 128 x 64: about 2.1e9).
 
 ``sheared`` (default)
-    Per direction, let ``a`` be its dominant axis. Lines parallel to ``omega_k`` are started on a
-    regular lattice on the slice nearest the light side and marched slice by slice along ``a``;
-    every crossing of a voxel-centre plane ``q_a = i + 1/2`` is a bilinear lookup in that plane
-    (trilinear interpolation reduces to bilinear there), and the optical depth accumulates with the
-    trapezoid rule over segments of length ``h / |omega_a|``. Each voxel centre then lies on its own
-    slice plane, between four lattice lines, and reads its optical depth bilinearly from them.
-    This is shear-warp resampling (one interpolation along the line family, one back) and costs
-    about ``2 * X*Y*Z*K`` bilinear lookups plus ``X*Y*Z*K`` 4-tap gathers.
+    Per direction, let ``a`` be its dominant axis and call the voxel-centre planes across ``a``
+    slices. Lines parallel to ``omega_k`` start on a regular lattice (spacing one voxel) at the
+    light-side face and are marched slice by slice; on a slice plane trilinear interpolation is
+    bilinear, and the optical depth accumulates with the trapezoid rule over segments of length
+    ``h / |omega_a|``. The lines see the density extended sideways by its edge values, so their
+    optical depth is smooth across the box's side faces. A voxel centre lies on its own slice,
+    inside a cell of the lattice; its line toward the light leaves the box at slice position
+    ``mu`` (the light-side face, or a side face for grazing directions), and its optical depth
+    is ``tau(m) - tau(mu)``, both read from the 4x4 surrounding lines by Catmull-Rom interpolation.
+    This is shear-warp resampling: about ``1-4 * X*Y*Z*K`` bilinear lookups for the lines
+    (their lattice is wider than the box for oblique directions) and ``24 * X*Y*Z*K`` gathers.
+    Directions are processed in batches, each one Dr.Jit kernel for the lines and one for the
+    voxels, with a line buffer small enough to stay in cache.
 
 Directions with zero components (Hammersley's first point has one) are safe in both methods: the
 boundary distance treats a zero component as "never leaves through that pair of faces", and the
@@ -213,8 +218,7 @@ def _sheared_batch(texture, res_np, q, visibility, plans: list[dict]):
 
 def _direction(tables, k):
     """The per-direction constants of ``_line_plan`` for direction index ``k`` (per lane)."""
-    out = {key: dr.gather(type(value), value, k) for key, value in tables.items()}
-    return out
+    return {key: dr.gather(type(value), value, k) for key, value in tables.items()}
 
 
 @dr.syntax

@@ -3,9 +3,9 @@
 Times, in one run on the same inputs:
   * forward + backward of V views at S^2 through an R^3 density, for the Mitsuba layer
     (``mistyle.bridge_torch.render_views``) and the pure-torch ``grid_sample`` reference;
-  * the Ls precompute with the sheared sweep and with brute-force marching, and the error that
-    the sheared Ls causes in the layer's images (relative RMSE against images made with the
-    brute-force Ls).
+  * the Ls precompute with the sheared sweep (as used: only where the layer can use Ls; and over
+    every voxel) and with brute-force marching over every voxel, and the error that the sheared
+    Ls causes in the layer's images (relative RMSE against images made with the brute-force Ls).
 
 Prints one JSON line. Defaults are the issue's setting: 4 views at 160^2 through 64^3, N=64, K=128.
 
@@ -63,12 +63,23 @@ def main() -> None:
 
     # --- Ls: sheared vs brute force, warm-up runs compile the kernels first ---
     sigma_t = density * np.float32(scale)
-    inscattered_radiance(sigma_t, args.directions, "sheared")
-    inscattered_radiance(sigma_t, args.directions, "bruteforce")
-    ls_fast_seconds = best_of(args.repeats, lambda: inscattered_radiance(sigma_t, args.directions, "sheared"))
-    ls_brute_seconds = best_of(1, lambda: inscattered_radiance(sigma_t, args.directions, "bruteforce"))
-    fast = prepare_density(density, scale, args.directions, method="sheared")
-    brute = prepare_density(density, scale, args.directions, method="bruteforce")
+
+    def sheared():
+        return inscattered_radiance(sigma_t, args.directions, "sheared")
+
+    def sheared_every_voxel():
+        return inscattered_radiance(sigma_t, args.directions, "sheared", only_where_used=False)
+
+    def bruteforce():
+        return inscattered_radiance(sigma_t, args.directions, "bruteforce", only_where_used=False)
+
+    for warm_up in (sheared, sheared_every_voxel, bruteforce):
+        warm_up()
+    ls_fast_seconds = best_of(args.repeats, sheared)
+    ls_dense_seconds = best_of(args.repeats, sheared_every_voxel)
+    ls_brute_seconds = best_of(1, bruteforce)
+    fast = prepare_density(density, scale, args.directions, ls=sheared())
+    brute = prepare_density(density, scale, args.directions, ls=bruteforce())
 
     albedo = torch.rand((1, 3) + density.shape) * 0.8 + 0.1
     with torch.no_grad():
@@ -103,6 +114,9 @@ def main() -> None:
                 "layer_fwd_bwd_seconds": layer_seconds,
                 "torch_fwd_bwd_seconds": torch_seconds,
                 "ls_sheared_seconds": ls_fast_seconds,
+                "ls_sheared_every_voxel_seconds": ls_dense_seconds,
+                "ls_speedup_every_voxel": ls_brute_seconds / ls_dense_seconds,
+                "used_voxel_fraction": float(inscatter_used_fraction(sigma_t)),
                 "ls_bruteforce_seconds": ls_brute_seconds,
                 "setting": {
                     "res": args.res, "views": args.views, "image": args.image,
@@ -115,6 +129,12 @@ def main() -> None:
             }
         )
     )
+
+
+def inscatter_used_fraction(sigma_t) -> float:
+    from mistyle.integrators.inscatter import _used_voxels
+
+    return _used_voxels(sigma_t).mean()
 
 
 if __name__ == "__main__":

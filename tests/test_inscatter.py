@@ -16,16 +16,22 @@ def analytic_homogeneous_ls(box: MediumBox, sigma: float, omegas: np.ndarray) ->
     return np.exp(-sigma * t.min(axis=-1)).mean(axis=-1)
 
 
-def test_hammersley_directions_are_unit_and_balanced():
+def test_hammersley_directions_are_unit_balanced_and_antipodal():
     omegas = hammersley_sphere(128)
     np.testing.assert_allclose(np.linalg.norm(omegas, axis=1), 1.0, atol=1e-12)
-    assert np.abs(omegas.mean(axis=0)).max() < 0.02
+    np.testing.assert_allclose(omegas[64:], -omegas[:64])
+    assert np.abs(omegas.mean(axis=0)).max() < 1e-12
     assert len(np.unique(omegas.round(8), axis=0)) == 128
+    # Equal-area stratified: each eighth of the sphere's z range holds an eighth of the points.
+    counts, _ = np.histogram(omegas[:, 2], bins=8, range=(-1, 1))
+    assert np.all(counts == 16)
+    with pytest.raises(ValueError, match="even"):
+        hammersley_sphere(7)
 
 
 @pytest.mark.parametrize("method", ["sheared", "bruteforce"])
 def test_empty_medium_sees_the_whole_environment(mi, method):
-    ls = inscattered_radiance(np.zeros((6, 7, 8), np.float32), directions=16, method=method)
+    ls = inscattered_radiance(np.zeros((6, 7, 8), np.float32), directions=16, method=method, only_where_used=False)
     np.testing.assert_allclose(ls, 1.0, atol=1e-6)
 
 
@@ -44,12 +50,14 @@ def test_axis_aligned_directions_do_not_produce_nan(mi, method):
 
     shape, sigma = (8, 9, 10), 2.0
     box = MediumBox(shape)
-    omegas = np.concatenate([np.eye(3), -np.eye(3), [[0.0, 0.6, 0.8]]])
+    primaries = np.concatenate([np.eye(3), [[0.0, 0.6, 0.8]]])
+    omegas = np.concatenate([primaries, -primaries])
     texture = mi_module.Texture3f(mi_module.TensorXf(np.full(shape + (1,), sigma, np.float32)))
-    if method == "sheared":
-        ls = inscatter._sheared(texture, box, omegas)
+    every_voxel = inscatter._voxel_centre_positions(np.ones(shape, dtype=bool))
+    if method == "sheared":  # takes one direction of each antipodal pair
+        ls = inscatter._sheared(texture, box, every_voxel, primaries)
     else:
-        ls = inscatter._bruteforce(texture, box, omegas, steps=16)
+        ls = inscatter._bruteforce(texture, box, every_voxel, omegas, steps=16)
     ls = np.asarray(ls).reshape(shape)
     assert np.all(np.isfinite(ls))
     np.testing.assert_allclose(ls, analytic_homogeneous_ls(box, sigma, omegas), atol=2e-3)
@@ -67,3 +75,24 @@ def test_sheared_matches_bruteforce_on_a_heterogeneous_blob(mi, blob_density):
 def test_unknown_method_is_rejected(mi):
     with pytest.raises(ValueError, match="Unknown Ls method"):
         inscattered_radiance(np.zeros((4, 4, 4), np.float32), method="magic")
+
+
+def test_ls_is_only_computed_where_the_layer_uses_it(mi, blob_density):
+    """Skipping voxels far from any density changes no layer image, and only those voxels."""
+    import torch
+
+    from mistyle.bridge_torch import render_views
+    from mistyle.scenes import CameraPath, PreparedDensity
+
+    sigma_t = 25.0 * blob_density
+    dense = inscattered_radiance(sigma_t, directions=32, only_where_used=False)
+    sparse = inscattered_radiance(sigma_t, directions=32)
+    used = inscatter._used_voxels(sigma_t)
+    assert 0 < used.sum() < used.size
+    np.testing.assert_allclose(sparse[used], dense[used], rtol=1e-6)
+    assert np.all(sparse[~used] == 1.0)
+    views, albedo = CameraPath().turntable(2), torch.rand((3,) + blob_density.shape)
+    images = [
+        render_views(albedo, PreparedDensity(blob_density, 25.0, ls), views, 16) for ls in (dense, sparse)
+    ]
+    torch.testing.assert_close(images[0], images[1], rtol=0, atol=0)

@@ -52,37 +52,51 @@ MAX_BUFFER_FLOATS = 1 << 22  # optical-depth buffer per batch of directions (16 
 
 
 def hammersley_sphere(count: int) -> np.ndarray:
-    """``count`` Hammersley points on the unit sphere, shape ``(count, 3)``, ``(x, y, z)``.
+    """``count`` Hammersley directions on the unit sphere, shape ``(count, 3)``, ``(x, y, z)``.
 
-    Uniform in ``cos(theta) = 1 - 2 (i + 1/2) / count`` and ``phi = 2 pi * radical_inverse_2(i)``, so
-    the set is equal-area stratified and the poles themselves are never drawn.
+    The first half is a Hammersley set on the upper hemisphere, uniform in
+    ``cos(theta) = 1 - (i + 1/2) / (count / 2)`` and ``phi = 2 pi * radical_inverse_2(i)`` (equal-area
+    stratified, poles never drawn); the second half are their antipodes. The mirrored set sums to
+    exactly zero, and the sheared sweep serves each direction and its antipode with one set of lines.
     """
-    if count < 1:
-        raise ValueError(f"Need at least one direction, got {count}.")
-    index = np.arange(count, dtype=np.uint64)
+    if count < 2 or count % 2:
+        raise ValueError(f"The number of directions must be even and >= 2, got {count}.")
+    half = count // 2
+    index = np.arange(half, dtype=np.uint64)
     bits = index.copy()
-    radical = np.zeros(count, dtype=np.float64)
+    radical = np.zeros(half, dtype=np.float64)
     scale = 0.5
     while bits.any():
         radical += (bits & 1).astype(np.float64) * scale
         bits >>= np.uint64(1)
         scale *= 0.5
-    cos_theta = 1.0 - 2.0 * (index.astype(np.float64) + 0.5) / count
+    cos_theta = 1.0 - (index.astype(np.float64) + 0.5) / half
     sin_theta = np.sqrt(np.maximum(0.0, 1.0 - cos_theta**2))
     phi = 2.0 * math.pi * radical
-    return np.stack([sin_theta * np.cos(phi), sin_theta * np.sin(phi), cos_theta], axis=-1)
+    upper = np.stack([sin_theta * np.cos(phi), sin_theta * np.sin(phi), cos_theta], axis=-1)
+    return np.concatenate([upper, -upper])
 
 
 def inscattered_radiance(
-    sigma_t: np.ndarray, directions: int = 128, method: str = "sheared", steps: int = 64
+    sigma_t: np.ndarray,
+    directions: int = 128,
+    method: str = "sheared",
+    steps: int = 64,
+    only_where_used: bool = True,
 ) -> np.ndarray:
-    """Ls for unit environment radiance at every voxel centre.
+    """Ls for unit environment radiance at the voxel centres.
+
+    The layer weighs Ls by the extinction interpolated from the same eight voxels, so Ls only
+    matters at voxels within one voxel (3x3x3) of non-zero density. With ``only_where_used``
+    (default) it is computed there and set to 1 (unshadowed) elsewhere; smoke is mostly empty
+    space, so this skips most of the work. Images of the layer do not change.
 
     Args:
         sigma_t: extinction ``(Z, Y, X)`` in 1/world-length, the box of ``MediumBox(sigma_t.shape)``.
-        directions: K, the number of Hammersley directions.
+        directions: K, the number of Hammersley directions (even).
         method: ``"sheared"`` (fast, default) or ``"bruteforce"`` (reference).
         steps: marching steps per direction for ``"bruteforce"``.
+        only_where_used: compute Ls only where the layer can use it.
 
     Returns:
         ``(Z, Y, X)`` float32 array with values in ``(0, 1]``.
@@ -95,28 +109,41 @@ def inscattered_radiance(
     box = MediumBox(sigma_t.shape)
     texture = mi.Texture3f(mi.TensorXf(sigma_t[..., None]))
     omegas = hammersley_sphere(directions)
+    used = _used_voxels(sigma_t) if only_where_used else np.ones(sigma_t.shape, dtype=bool)
+    ls = np.ones(sigma_t.shape, dtype=np.float32)
+    if not used.any():
+        return ls
+    q = _voxel_centre_positions(used)
     if method == "bruteforce":
-        ls = _bruteforce(texture, box, omegas, steps)
+        values = _bruteforce(texture, box, q, omegas, steps)
     else:
-        ls = _sheared(texture, box, omegas)
-    return np.asarray(ls, dtype=np.float32).reshape(sigma_t.shape)
+        values = _sheared(texture, box, q, omegas[: directions // 2])
+    ls[used] = values
+    return ls
 
 
-def _voxel_centre_positions(box: MediumBox):
-    """Voxel-unit positions ``(x+1/2, y+1/2, z+1/2)`` of all voxels, in ``arr.ravel()`` order."""
-    z_res, y_res, x_res = box.shape_zyx
-    index = dr.arange(mi.UInt32, x_res * y_res * z_res)
-    x = index % x_res
-    y = (index // x_res) % y_res
-    z = index // (x_res * y_res)
-    return mi.Point3f(mi.Float(x) + 0.5, mi.Float(y) + 0.5, mi.Float(z) + 0.5)
+def _used_voxels(sigma_t: np.ndarray) -> np.ndarray:
+    """Voxels whose 3x3x3 neighbourhood holds non-zero extinction, ``(Z, Y, X)`` bool."""
+    occupied = np.pad(sigma_t > 0, 1)
+    used = np.zeros(sigma_t.shape, dtype=bool)
+    z, y, x = sigma_t.shape
+    for dz in range(3):
+        for dy in range(3):
+            for dx in range(3):
+                used |= occupied[dz : dz + z, dy : dy + y, dx : dx + x]
+    return used
 
 
-def _bruteforce(texture, box: MediumBox, omegas: np.ndarray, steps: int):
+def _voxel_centre_positions(selected: np.ndarray):
+    """Voxel-unit positions ``(x+1/2, y+1/2, z+1/2)`` of the ``selected`` voxels, in C order."""
+    z, y, x = np.nonzero(selected)
+    return mi.Point3f(mi.Float(x + 0.5), mi.Float(y + 0.5), mi.Float(z + 0.5))
+
+
+def _bruteforce(texture, box: MediumBox, q, omegas: np.ndarray, steps: int):
     omega_table = mi.Vector3f(*(mi.Float(omegas[:, i]) for i in range(3)))
     visibility = _march_bruteforce(
-        texture, mi.ScalarVector3f(box.resolution_xyz), box.voxel_size, _voxel_centre_positions(box),
-        omega_table, len(omegas), steps,
+        texture, mi.ScalarVector3f(box.resolution_xyz), box.voxel_size, q, omega_table, len(omegas), steps
     )
     return visibility.numpy()
 
@@ -141,28 +168,33 @@ def _march_bruteforce(texture, res, h: float, q, omega_table, count: int, steps:
     return visibility / count
 
 
-def _sheared(texture, box: MediumBox, omegas: np.ndarray):
-    """Sheared sweep over all directions, in batches that bound the line buffer's memory."""
+def _sheared(texture, box: MediumBox, q, primaries: np.ndarray):
+    """Mean transmittance over ``primaries`` and their antipodes, by the sheared sweep.
+
+    Directions are processed in batches that bound the line buffer (so it stays in cache), each
+    batch one Dr.Jit kernel for the lines and one for the voxels.
+    """
     res_np = box.resolution_xyz
-    plans = [_line_plan(omega, res_np, box.voxel_size) for omega in omegas]
-    q = _voxel_centre_positions(box)
+    plans = [_line_plan(omega, res_np, box.voxel_size) for omega in primaries]
     visibility = dr.zeros(mi.Float, dr.width(q))
     batch: list[dict] = []
     for plan in plans:
-        if batch and sum(p["lines"] * p["slices"] for p in batch + [plan]) > MAX_BUFFER_FLOATS:
+        if batch and sum(p["lines"] * p["samples"] for p in batch + [plan]) > MAX_BUFFER_FLOATS:
             visibility = _sheared_batch(texture, res_np, q, visibility, batch)
             batch = []
         batch.append(plan)
     visibility = _sheared_batch(texture, res_np, q, visibility, batch)
-    return (visibility / len(omegas)).numpy()
+    return (visibility / (2 * len(primaries))).numpy()
 
 
 def _line_plan(omega: np.ndarray, res: np.ndarray, voxel_size: float) -> dict:
     """Geometry of one direction's lattice of lines (all lengths in voxel units).
 
     ``a`` is the dominant axis of ``omega``; slices are the voxel-centre planes across it, counted
-    by ``m`` from the light side. Line ``(jb, jc)`` passes through
-    ``origin + jb e_b + jc e_c - m * step`` at slice ``m``; ``step`` moves one slice toward the light.
+    by ``m`` from the face that ``omega`` points to (the "near face"). Line ``(jb, jc)`` passes
+    through ``origin + jb e_b + jc e_c - m * step`` at slice position ``m``; ``step`` moves one slice
+    toward the near face. Each line stores ``samples = slices + 2`` optical depths from the near
+    face: at the near face (0), at slices 0 .. slices-1, and at the far face.
     """
     a = int(np.argmax(np.abs(omega)))
     b, c = [axis for axis in range(3) if axis != a]
@@ -179,7 +211,7 @@ def _line_plan(omega: np.ndarray, res: np.ndarray, voxel_size: float) -> dict:
     eye = np.eye(3)
     return {
         "origin": origin, "e_a": eye[a], "e_b": eye[b], "e_c": eye[c], "step": step,
-        "lines_c": lines_c, "lines": lines_b * lines_c, "slices": slices,
+        "lines_c": lines_c, "lines": lines_b * lines_c, "slices": slices, "samples": slices + 2,
         "first": float(slices - 1) if omega[a] > 0 else 0.0, "stride": -1.0 if omega[a] > 0 else 1.0,
         "segment": voxel_size / abs(omega[a]),  # world length between consecutive slices
     }
@@ -193,20 +225,20 @@ def _sheared_batch(texture, res_np, q, visibility, plans: list[dict]):
         return kind(values)
 
     lines = np.array([p["lines"] for p in plans], dtype=np.int64)
-    buffer_offset = np.concatenate([[0], np.cumsum(lines * [p["slices"] for p in plans])[:-1]])
+    sizes = lines * np.array([p["samples"] for p in plans])
+    buffer_offset = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     line_offset = np.concatenate([[0], np.cumsum(lines)[:-1]])
     direction_of_line = np.repeat(np.arange(len(plans)), lines)
     local_line = np.arange(lines.sum()) - line_offset[direction_of_line]
     lines_c = np.array([p["lines_c"] for p in plans])[direction_of_line]
-    tables = {
-        key: table(key) for key in ("origin", "e_a", "e_b", "e_c", "step", "first", "stride", "segment")
-    }
-    tables["lines_c"] = table("lines_c", mi.UInt32)
-    tables["slices"] = table("slices", mi.UInt32)
+    tables = {key: table(key) for key in ("origin", "e_a", "e_b", "e_c", "step", "first", "stride", "segment")}
+    tables["slices"] = table("slices")
+    for key in ("lines", "lines_c", "samples"):
+        tables[key] = table(key, mi.UInt32)
     tables["buffer_offset"] = mi.UInt32(buffer_offset)
     res = mi.ScalarVector3f(res_np)
 
-    tau_lines = dr.empty(mi.Float, int(buffer_offset[-1] + lines[-1] * plans[-1]["slices"]))
+    tau_lines = dr.empty(mi.Float, int(sizes.sum()))
     _march_lines(
         texture, res, tables, mi.UInt32(direction_of_line), mi.UInt32(local_line),
         mi.Float(local_line // lines_c), mi.Float(local_line % lines_c), tau_lines,
@@ -223,26 +255,32 @@ def _direction(tables, k):
 
 @dr.syntax
 def _march_lines(texture, res, tables, direction_of_line, local_line, jb, jc, tau_lines):
-    """Optical depth from the light-side face to each slice, for every line of every direction.
+    """Optical depth from the near face along every line of every direction in the batch.
 
     Lines run through the density extended sideways by its edge values (the texture's clamp
     mode); the gather only ever takes differences of tau over a voxel's in-box stretch. The
-    trapezoid rule samples the light-side face and then every slice crossing (finer sampling
+    trapezoid rule samples the near face, every slice crossing and the far face (finer sampling
     along the lines was measured not to help: the error is in the interpolation between lines).
-    Writes ``tau_lines[buffer_offset + line * slices + m]``.
+    Writes ``tau_lines[buffer_offset + sample * lines + line]`` (sample-major, so neighbouring
+    lanes store to neighbouring addresses).
     """
     d = _direction(tables, direction_of_line)
-    face = d["origin"] + d["e_b"] * jb + d["e_c"] * jc + 0.5 * d["step"]
-    target = d["buffer_offset"] + local_line * d["slices"]
+    near_face = d["origin"] + d["e_b"] * jb + d["e_c"] * jc + 0.5 * d["step"]
+    target = d["buffer_offset"] + local_line
     tau = mi.Float(0.0)
-    sigma_prev = texture.eval(face / res)[0]
-    m = mi.UInt32(0)
-    while m < d["slices"]:
-        sigma = texture.eval((face - d["step"] * (mi.Float(m) + 0.5)) / res)[0]
-        tau += 0.5 * (sigma_prev + sigma) * dr.select(m == 0, 0.5, 1.0) * d["segment"]
-        dr.scatter(tau_lines, tau, target + m)
+    dr.scatter(tau_lines, tau, target)
+    sigma_prev = texture.eval(near_face / res)[0]
+    last = d["samples"] - 1
+    u = mi.UInt32(1)
+    while u <= last:
+        # Sample u is slice u - 1; the last one is the far face, half a slice beyond the last slice.
+        position = dr.select(u < last, mi.Float(u) - 0.5, d["slices"])
+        sigma = texture.eval((near_face - d["step"] * position) / res)[0]
+        length = dr.select((u == 1) | (u == last), 0.5, 1.0) * d["segment"]
+        tau += 0.5 * (sigma_prev + sigma) * length
+        dr.scatter(tau_lines, tau, target + u * d["lines"])
         sigma_prev = sigma
-        m += 1
+        u += 1
 
 
 def _catmull_rom_weights(t):
@@ -256,16 +294,24 @@ def _catmull_rom_weights(t):
     )
 
 
+def _slices_to_side(position, speed, size):
+    """Slices travelled before leaving ``[0, size]`` on a lateral axis, moving ``speed`` per slice."""
+    return dr.select(speed > 0, (size - position) / speed, dr.select(speed < 0, -position / speed, dr.inf))
+
+
 @dr.syntax
 def _gather_visibility(visibility, tau_lines, q, res, tables, count):
-    """Add exp(-tau) at every voxel centre, for each direction, from the lines around its own line.
+    """Add exp(-tau) for each direction and its antipode at every voxel centre.
 
-    The voxel's line toward the light leaves the box either through the light-side face (half a
-    slice beyond slice 0) or through a side face, at slice position ``mu`` >= -1/2. Its optical depth
-    is ``tau(m) - tau(mu)`` on the sideways-extended lines: those are smooth across the side faces,
-    so interpolation between lines stays accurate next to the faces, where the in-box optical
-    depth of grazing directions changes by a whole chord within one voxel. Between lines the
-    optical depth is interpolated bicubically (Catmull-Rom); bilinear weights leave ~4x the error.
+    A voxel at slice ``m`` lies on a line of its own, inside a cell of the lattice. Toward the near
+    face its line leaves the box at slice position ``mu+`` (the near face, or a side face for
+    grazing directions), toward the far face at ``mu-``; the two optical depths are
+    ``tau(m) - tau(mu+)`` and ``tau(mu-) - tau(m)``. ``tau(m)`` and ``tau(far face)`` are read from the
+    4x4 surrounding lines by Catmull-Rom interpolation (bilinear leaves ~4x the error); the short
+    stretches between an exit and its face, ``tau(mu+)`` and ``tau(far face) - tau(mu-)``, bilinearly.
+    The lines see the density extended sideways, so tau is smooth across the side faces and
+    interpolation stays accurate next to them, where the in-box optical depth of grazing
+    directions changes by a whole chord within one voxel.
     """
     k = mi.UInt32(0)
     while k < count:
@@ -273,38 +319,51 @@ def _gather_visibility(visibility, tau_lines, q, res, tables, count):
         m = d["first"] + d["stride"] * (dr.dot(q, d["e_a"]) - 0.5)
         q_b, q_c = dr.dot(q, d["e_b"]), dr.dot(q, d["e_c"])
         step_b, step_c = dr.dot(d["step"], d["e_b"]), dr.dot(d["step"], d["e_c"])
+        size_b, size_c = dr.dot(res, d["e_b"]), dr.dot(res, d["e_c"])
         xi_b = q_b - dr.dot(d["origin"], d["e_b"]) + m * step_b
         xi_c = q_c - dr.dot(d["origin"], d["e_c"]) + m * step_c
         jb, jc = dr.floor(xi_b), dr.floor(xi_c)
         fb, fc = xi_b - jb, xi_c - jc
         wb, wc = _catmull_rom_weights(fb), _catmull_rom_weights(fc)
-        corner = d["buffer_offset"] + ((mi.UInt32(jb) - 1) * d["lines_c"] + (mi.UInt32(jc) - 1)) * d["slices"]
+        tap00 = d["buffer_offset"] + (mi.UInt32(jb) - 1) * d["lines_c"] + (mi.UInt32(jc) - 1)
 
-        # Slices travelled toward the light before leaving the box (step is +-1 on the slice axis).
-        to_side_b = dr.select(step_b > 0, (dr.dot(res, d["e_b"]) - q_b) / step_b, dr.select(step_b < 0, -q_b / step_b, dr.inf))
-        to_side_c = dr.select(step_c > 0, (dr.dot(res, d["e_c"]) - q_c) / step_c, dr.select(step_c < 0, -q_c / step_c, dr.inf))
-        m = dr.round(m)
-        exit_position = m - dr.minimum(m + 0.5, dr.minimum(to_side_b, to_side_c))  # in [-1/2, m]
-        below = dr.maximum(dr.floor(exit_position), 0.0)
-        above = dr.minimum(below + 1.0, m)
-        fraction = dr.clip(exit_position - below, 0.0, 1.0)
-        leaves_by_side = exit_position > -0.5
+        def tau_cubic(sample):
+            """Catmull-Rom over the 4x4 lines around the voxel's line, and bilinear over the inner 2x2."""
+            row = tap00 + sample * d["lines"]
+            cubic, inner = mi.Float(0.0), []
+            for db in range(4):
+                for dc in range(4):
+                    value = dr.gather(mi.Float, tau_lines, row + db * d["lines_c"] + dc)
+                    cubic += wb[db] * wc[dc] * value
+                    if db in (1, 2) and dc in (1, 2):
+                        inner.append(value)
+            return cubic, dr.lerp(dr.lerp(inner[0], inner[1], fc), dr.lerp(inner[2], inner[3], fc), fb)
 
-        tau_here, tau_below, tau_above = mi.Float(0.0), mi.Float(0.0), mi.Float(0.0)
-        for db in range(4):
-            for dc in range(4):
-                line = corner + (db * d["lines_c"] + dc) * d["slices"]
-                tau_here += wb[db] * wc[dc] * dr.gather(mi.Float, tau_lines, line + mi.UInt32(m))
-                if db in (1, 2) and dc in (1, 2):
-                    # The exit term is small next to tau_here: bilinear is enough there.
-                    weight = dr.select(db == 1, 1.0 - fb, fb) * dr.select(dc == 1, 1.0 - fc, fc)
-                    tau_below += weight * dr.gather(mi.Float, tau_lines, line + mi.UInt32(below), leaves_by_side)
-                    tau_above += weight * dr.gather(mi.Float, tau_lines, line + mi.UInt32(above), leaves_by_side)
-        tau_exit = dr.select(
-            exit_position < 0.0,
-            tau_below * (exit_position + 0.5) / 0.5,  # first half slice: tau grows from 0 at the face
-            dr.lerp(tau_below, tau_above, fraction),
+        tau_here, _ = tau_cubic(mi.UInt32(dr.round(m)) + 1)
+        tau_far, tau_far_bilinear = tau_cubic(d["samples"] - 1)
+
+        def tau_at(mu):
+            """tau at slice position mu in [-1/2, slices - 1/2] on the voxel's line, bilinear."""
+            inner = dr.clip(mu, 0.0, d["slices"] - 1.0)
+            sample = dr.select(mu < 0.0, 0.0, dr.select(mu > d["slices"] - 1.0, d["slices"], dr.floor(inner) + 1.0))
+            fraction = dr.select(
+                mu < 0.0, 2.0 * (mu + 0.5), dr.select(mu > d["slices"] - 1.0, 2.0 * (mu - d["slices"] + 1.0), inner - dr.floor(inner))
+            )
+            below = tap00 + mi.UInt32(sample) * d["lines"]
+            values = []
+            for offset in (below, below + d["lines"]):
+                corner = [dr.gather(mi.Float, tau_lines, offset + db * d["lines_c"] + dc) for db in (1, 2) for dc in (1, 2)]
+                values.append(dr.lerp(dr.lerp(corner[0], corner[1], fc), dr.lerp(corner[2], corner[3], fc), fb))
+            return dr.lerp(values[0], values[1], fraction)
+
+        to_near = dr.minimum(m + 0.5, dr.minimum(_slices_to_side(q_b, step_b, size_b), _slices_to_side(q_c, step_c, size_c)))
+        to_far = dr.minimum(
+            d["slices"] - 0.5 - m, dr.minimum(_slices_to_side(q_b, -step_b, size_b), _slices_to_side(q_c, -step_c, size_c))
         )
-        visibility += dr.exp(-dr.maximum(tau_here - tau_exit, 0.0))
+        # Large optical depths come from the cubic reads; the bilinear ones only cover the stretch
+        # between the exit and a face, outside the box sideways, where smoke is thin.
+        tau_toward_near = tau_here - tau_at(m - to_near)
+        tau_toward_far = (tau_far - tau_here) - (tau_far_bilinear - tau_at(m + to_far))
+        visibility += dr.exp(-dr.maximum(tau_toward_near, 0.0)) + dr.exp(-dr.maximum(tau_toward_far, 0.0))
         k += 1
     return visibility

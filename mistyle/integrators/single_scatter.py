@@ -97,17 +97,8 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
 
     def sample_rays(self, scene, sensor, sampler):
         """One ray through each pixel centre; the sampler is not consumed."""
-        film = sensor.film()
-        size = film.crop_size()
-        index = dr.arange(mi.UInt32, dr.prod(size) * sampler.sample_count())
-        index //= dr.opaque(mi.UInt32, sampler.sample_count())
-        pixel = mi.Vector2u(index % size[0], index // size[0])
-        position = (mi.Vector2f(pixel) + 0.5) / mi.ScalarVector2f(size)
-        with dr.resume_grad():
-            ray, weight = sensor.sample_ray_differential(
-                time=sensor.shutter_open(), sample1=0.0, sample2=position, sample3=mi.Point2f(0.5)
-            )
-        return ray, weight, mi.Vector2f(pixel) + mi.Vector2f(film.crop_offset())
+        ray, weight, pixel = pixel_centre_rays(sensor, sampler.sample_count())
+        return ray, weight, pixel + mi.Vector2f(sensor.film().crop_offset())
 
     @dr.syntax
     def sample(self, mode, scene, sampler, ray, δL, state_in, active, **kwargs):
@@ -173,6 +164,24 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
     def to_string(self):
         shape = self.albedo.tensor().shape
         return f"SingleScatterIntegrator[grid={shape[:3]}, steps={self.steps}, scheme={self.scheme!r}]"
+
+
+def pixel_centre_rays(sensor: mi.Sensor, rays_per_pixel: int = 1):
+    """Rays through the centre of every pixel of ``sensor``'s film, ``rays_per_pixel`` copies each.
+
+    Returns ``(ray, weight, pixel)`` with ``pixel`` the integer pixel position (``mi.Vector2f``),
+    pixels in row-major order and copies adjacent.
+    """
+    size = sensor.film().crop_size()
+    index = dr.arange(mi.UInt32, dr.prod(size) * rays_per_pixel)
+    index //= dr.opaque(mi.UInt32, rays_per_pixel)
+    pixel = mi.Vector2u(index % size[0], index // size[0])
+    position = (mi.Vector2f(pixel) + 0.5) / mi.ScalarVector2f(size)
+    with dr.resume_grad():
+        ray, weight = sensor.sample_ray_differential(
+            time=sensor.shutter_open(), sample1=0.0, sample2=position, sample3=mi.Point2f(0.5)
+        )
+    return ray, weight, mi.Vector2f(pixel)
 
 
 def _grid(props: mi.Properties, name: str, channels: int) -> mi.TensorXf:

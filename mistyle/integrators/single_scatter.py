@@ -42,6 +42,12 @@ with the weight :math:`w_i` of the chosen ``scheme``:
 * ``exact``: :math:`w_i = T_{i-1}\,(1 - e^{-\sigma_i \Delta t})`, exact for a segment of constant
   :math:`\sigma_i`, :math:`\alpha_i`, :math:`L_{s,i}`.
 
+``exact`` is the default: it converges fastest in N, and against ``volpath`` (max_depth=2, traced
+through the same pixel centres; ``experiments/layer_vs_pathtraced.py``, 64^3, N=64) it leaves
+0.9% relative RMSE where ``riemann`` leaves 9.7%. ``midpoint`` measures 0.8% there only because it
+is slightly darker and so cancels part of the trilinear-Ls bias; with Ls on a 2x finer grid
+``exact`` is ahead again (0.59% vs 0.65%).
+
 :math:`L_e` is the radiance of the scene's constant environment emitter. The image is linear in
 :math:`\alpha`, so the adjoint pass replays the march and scatters :math:`\delta L\, L_e w_i L_{s,i}`
 into the eight voxels around :math:`x_i` with their trilinear weights (Eq. 11); nothing is stored

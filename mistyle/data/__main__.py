@@ -1,0 +1,77 @@
+"""``python -m mistyle.data``: generate mistyle's training and demo data offline.
+
+    python -m mistyle.data smoke --res 64 --plumes 100 --frames 90 --out data/smoke64
+    python -m mistyle.data smoke --res 128 --plumes 20 --frames 90 --crop 64 --out data/smoke128
+    python -m mistyle.data smoke ... --shard 0/4      # one of four processes or machines
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import sys
+from pathlib import Path
+
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        index, count = (int(part) for part in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--shard takes i/n, e.g. 0/4; got {text!r}") from None
+    if count < 1 or not 0 <= index < count:
+        raise argparse.ArgumentTypeError(f"--shard i/n needs 0 <= i < n, got {text!r}")
+    return index, count
+
+
+def _frames(text: str) -> tuple[int, int]:
+    try:
+        first, last = (int(part) for part in text.split("-"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--keep takes first-last, e.g. 61-90; got {text!r}") from None
+    return first, last
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m mistyle.data", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    commands = parser.add_subparsers(dest="command", required=True)
+    smoke = commands.add_parser("smoke", help="simulate smoke plumes and write density/velocity/Ls frames")
+    smoke.add_argument("--res", type=int, default=64, help="simulation resolution (cubic)")
+    smoke.add_argument("--plumes", type=int, default=100)
+    smoke.add_argument("--frames", type=int, default=90, help="frames simulated per plume")
+    smoke.add_argument("--keep", type=_frames, default=None, help="kept frames, first-last (1-based); default: the last third")
+    smoke.add_argument("--crop", type=int, default=0, help="store random crops of this size (for high-resolution plumes)")
+    smoke.add_argument("--crops-per-frame", type=int, default=5)
+    smoke.add_argument("--seed", type=int, default=0)
+    smoke.add_argument("--density-scale", type=float, default=20.0, help="extinction scale the cached Ls is made for")
+    smoke.add_argument("--directions", type=int, default=128, help="K for the cached Ls")
+    smoke.add_argument("--shard", type=_shard, default=(0, 1), help="i/n: this process's share of the plumes")
+    smoke.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args(argv)
+
+    from .generate import SmokeDatasetSpec, generate_smoke
+
+    first, last = args.keep if args.keep else (args.frames - args.frames // 3 + 1, args.frames)
+    spec = SmokeDatasetSpec(
+        resolution=args.res, plumes=args.plumes, frames=args.frames, keep_first=first, keep_last=last,
+        crop=args.crop, crops_per_frame=args.crops_per_frame, seed=args.seed,
+        density_scale=args.density_scale, directions=args.directions,
+    )
+    try:
+        manifest = generate_smoke(spec, args.out, args.shard)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        if error.errno == errno.ENOSPC:
+            print(f"error: the disk under {args.out} is full; free space and re-run the same command "
+                  "(finished files are kept, none is half-written).", file=sys.stderr)
+        else:
+            print(f"error: cannot write under {args.out}: {error}", file=sys.stderr)
+        return 1
+    print(f"wrote {manifest}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -2,8 +2,9 @@
 
 Layout of an output directory::
 
-    plume0003/frame0061.npz     density (Z,Y,X) float32, velocity (Z,Y,X,3) float32 (x,y,z),
-                                ls (Z,Y,X) float32 for density_scale, plus scalar metadata
+    plume0003/frame0061.npz     density (Z,Y,X) float32, velocity (Z,Y,X,3) float16 (x,y,z),
+                                ls (Z,Y,X) float16 for density_scale, plus scalar metadata
+                                (``load_frame`` returns float32 arrays)
     plume0003/frame0061_crop2.npz   the same for random crops of high-resolution plumes
     manifest.json               (manifest.shard-I-of-N.json for a shard) files, shapes, pairs, seed...
 
@@ -116,8 +117,8 @@ def generate_smoke(spec: SmokeDatasetSpec, out: Path, shard: tuple[int, int] = (
         "shard": [index, count],
         "files": records,
         "pairs": pairs,
-        "arrays": {"density": "(Z,Y,X) float32", "velocity": "(Z,Y,X,3) float32, (x,y,z), voxels/frame",
-                   "ls": "(Z,Y,X) float32, Ls for unit radiance at spec.density_scale"},
+        "arrays": {"density": "(Z,Y,X) float32", "velocity": "(Z,Y,X,3) float16, (x,y,z), voxels/frame",
+                   "ls": "(Z,Y,X) float16, Ls for unit radiance at spec.density_scale"},
         "seconds": time.perf_counter() - started,
         "simulated_frames": simulated,
     }
@@ -144,8 +145,9 @@ def _write_frame(path: Path, density, velocity, ls, spec: SmokeDatasetSpec, plum
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as handle:
             np.savez_compressed(
-                handle, density=density.astype(np.float32), velocity=velocity.astype(np.float32),
-                ls=ls.astype(np.float32), density_scale=np.float32(spec.density_scale),
+                # float16 halves the disk for the two fields that tolerate it (1e-3 relative).
+                handle, density=density.astype(np.float32), velocity=velocity.astype(np.float16),
+                ls=ls.astype(np.float16), density_scale=np.float32(spec.density_scale),
                 directions=np.int32(spec.directions), plume=np.int32(plume), frame=np.int32(frame),
             )
             handle.flush()
@@ -162,4 +164,6 @@ def load_frame(path) -> dict:
     missing = {"density", "velocity", "ls"} - frame.keys()
     if missing:
         raise ValueError(f"{path} lacks {sorted(missing)}; it was not written by mistyle.data.")
+    for key in ("density", "velocity", "ls"):
+        frame[key] = frame[key].astype(np.float32)
     return frame

@@ -108,25 +108,18 @@ def voxelize(
         margin: empty border on each side, as a fraction of the box.
         supersample: ``s^3`` parity tests per voxel, averaged (``1``: a binary grid).
     """
+    import drjit as dr
+
     from ..backend import active_variant
-    from ..scenes.box import MediumBox
 
     mi = active_variant()
-    import drjit as dr
 
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     check_closed(faces)
     if resolution < 2 or not 0 <= margin < 0.5 or supersample < 1:
         raise ValueError(f"Need resolution >= 2, margin in [0, 0.5) and supersample >= 1; got {resolution}, {margin}, {supersample}.")
-    low, high = vertices.min(axis=0), vertices.max(axis=0)
-    extent = high - low
-    if extent.max() <= 0:
-        raise ValueError("The mesh has no extent (all vertices coincide).")
-    scale = (1.0 - 2.0 * margin) / extent.max()
-    placed = (vertices - 0.5 * (low + high)) * scale  # centred, longest side 1 - 2 margin
-    shape_xyz = np.maximum(1, np.ceil((extent * scale + 2 * margin) * resolution - 1e-9)).astype(int)
-    box = MediumBox((int(shape_xyz[2]), int(shape_xyz[1]), int(shape_xyz[0])))
+    placed, box = fit_to_box(vertices, resolution, margin)
 
     mesh = mi.Mesh("voxelized", len(placed), len(faces))
     params = mi.traverse(mesh)
@@ -145,6 +138,24 @@ def voxelize(
                 votes = sum(_odd_crossings(mi, dr, scene, points, d / np.linalg.norm(d)) for d in _DIRECTIONS)
                 inside += (votes >= 2).reshape(box.shape_zyx)
     return (inside / supersample**3).astype(np.float32)
+
+
+def fit_to_box(vertices: np.ndarray, resolution: int, margin: float):
+    """Centre and scale vertices into a medium box; returns ``(placed (V, 3), MediumBox)``.
+
+    The longest side of the vertices' bounding box spans ``1 - 2 * margin``; the grid has
+    ``resolution`` voxels along that side and keeps the aspect ratio.
+    """
+    from ..scenes.box import MediumBox
+
+    low, high = vertices.min(axis=0), vertices.max(axis=0)
+    extent = high - low
+    if extent.max() <= 0:
+        raise ValueError("The mesh has no extent (all vertices coincide).")
+    scale = (1.0 - 2.0 * margin) / extent.max()
+    placed = (vertices - 0.5 * (low + high)) * scale
+    shape_xyz = np.maximum(1, np.ceil((extent * scale + 2 * margin) * resolution - 1e-9)).astype(int)
+    return placed, MediumBox((int(shape_xyz[2]), int(shape_xyz[1]), int(shape_xyz[0])))
 
 
 def _odd_crossings(mi, dr, scene, points: np.ndarray, direction: np.ndarray) -> np.ndarray:

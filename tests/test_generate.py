@@ -79,3 +79,12 @@ def test_damaged_frame_file_gives_a_clear_error(tmp_path):
     broken.write_bytes(b"not a zip")
     with pytest.raises(ValueError, match="not a readable mistyle frame"):
         load_frame(broken)
+
+
+def test_fire_cli_writes_flame_frames(tmp_path):
+    assert data_cli(["fire", "--res", "12", "--frames", "6", "--keep", "5-6", "--out", str(tmp_path)]) == 0
+    frames = sorted(tmp_path.glob("frame*.npz"))
+    assert [f.name for f in frames] == ["frame0005.npz", "frame0006.npz"]
+    with np.load(frames[0]) as data:
+        assert data["density"].shape == (12, 12, 12) and data["velocity"].shape == (12, 12, 12, 3)
+        assert 0 <= data["density"].min() and data["density"].max() < 1

@@ -105,3 +105,19 @@ def test_random_plumes_differ_and_stay_in_range():
 def test_tiny_grids_are_refused():
     with pytest.raises(ValueError, match="at least 4"):
         SmokeSolver(PlumeConfig(resolution=(3, 8, 8)))
+
+
+def test_fire_burns_rises_and_cools():
+    from mistyle.data.smoke import FireConfig, FireSolver
+
+    solver = FireSolver(FireConfig(resolution=(24, 32, 24), source_radius=0.15), seed=0)
+    for _ in range(25):
+        flame, velocity = solver.step()
+    assert 0 <= flame.min() and flame.max() < 1
+    assert float(solver.state.extras["fuel"].sum()) > 0 and float(solver.state.density.sum()) > 0  # soot
+    profile = flame.mean(axis=(0, 2))  # by height y
+    peak = int(profile.argmax())
+    assert profile[peak:].max() == profile[peak] and profile[-1] < 0.8 * profile[peak]  # cools as it rises
+    assert velocity[..., 1][flame > 0.3].mean() > 0  # hot gas rises
+    solver._inflow(), solver._burn(), solver._add_forces(), solver._project()
+    assert float(solver.divergence().abs().max()) < 1e-4

@@ -3,6 +3,7 @@
     python -m mistyle.data smoke --res 64 --plumes 100 --frames 90 --out data/smoke64
     python -m mistyle.data smoke --res 128 --plumes 20 --frames 90 --crop 64 --out data/smoke128
     python -m mistyle.data smoke ... --shard 0/4      # one of four processes or machines
+    python -m mistyle.data fire --res 64 --frames 120 --out data/fire
     python -m mistyle.data mesh --mesh bunny.ply --res 64 --out bunny.vol
 """
 
@@ -48,6 +49,12 @@ def main(argv=None) -> int:
     smoke.add_argument("--directions", type=int, default=128, help="K for the cached Ls")
     smoke.add_argument("--shard", type=_shard, default=(0, 1), help="i/n: this process's share of the plumes")
     smoke.add_argument("--out", type=Path, required=True)
+    fire = commands.add_parser("fire", help="simulate a burning plume and write its flame density frames")
+    fire.add_argument("--res", type=int, default=64)
+    fire.add_argument("--frames", type=int, default=120)
+    fire.add_argument("--keep", type=_frames, default=None, help="kept frames, first-last (1-based); default: the last half")
+    fire.add_argument("--seed", type=int, default=0)
+    fire.add_argument("--out", type=Path, required=True)
     mesh = commands.add_parser("mesh", help="voxelize a closed .ply/.obj mesh into a density (.vol or .npy)")
     mesh.add_argument("--mesh", type=Path, default=None, help="closed triangle mesh; default: a generated icosphere")
     mesh.add_argument("--res", type=int, default=64, help="voxels along the longest side")
@@ -57,6 +64,16 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.command == "mesh":
         return _mesh_command(args)
+    if args.command == "fire":
+        from .generate import generate_fire
+
+        keep = args.keep or (args.frames // 2 + 1, args.frames)
+        try:
+            generate_fire(args.res, args.frames, keep, args.out, args.seed)
+        except ValueError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        return 0
 
     from .generate import SmokeDatasetSpec, generate_smoke
 

@@ -141,17 +141,44 @@ def _cropped(array: np.ndarray, window, size: int) -> np.ndarray:
 
 
 def _write_frame(path: Path, density, velocity, ls, spec: SmokeDatasetSpec, plume: int, frame: int) -> None:
+    # float16 halves the disk for the two fields that tolerate it (1e-3 relative).
+    write_arrays(
+        path, density=density.astype(np.float32), velocity=velocity.astype(np.float16),
+        ls=ls.astype(np.float16), density_scale=np.float32(spec.density_scale),
+        directions=np.int32(spec.directions), plume=np.int32(plume), frame=np.int32(frame),
+    )
+
+
+def write_arrays(path: Path, **arrays) -> None:
+    """A compressed ``.npz``, written to a temporary file and renamed into place."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as handle:
-            np.savez_compressed(
-                # float16 halves the disk for the two fields that tolerate it (1e-3 relative).
-                handle, density=density.astype(np.float32), velocity=velocity.astype(np.float16),
-                ls=ls.astype(np.float16), density_scale=np.float32(spec.density_scale),
-                directions=np.int32(spec.directions), plume=np.int32(plume), frame=np.int32(frame),
-            )
+            np.savez_compressed(handle, **arrays)
             handle.flush()
             os.fsync(handle.fileno())
+
+
+def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path, seed: int = 0, log=print) -> list[Path]:
+    """One fire sequence: ``frameNNNN.npz`` with the flame ``density`` and ``velocity`` for each kept frame."""
+    import torch
+
+    from .smoke import FireConfig, simulate
+
+    if resolution < 8 or not 1 <= keep[0] <= keep[1] <= frames:
+        raise ValueError(f"Need --res >= 8 and kept frames within 1-{frames}; got {resolution}, {keep}.")
+    torch.set_flush_denormal(True)
+    config = FireConfig(resolution=(resolution,) * 3, source_radius=0.1)
+    written = []
+    for frame0, flame, velocity in simulate(config, keep[1], seed=seed):
+        frame = frame0 + 1
+        if frame >= keep[0]:
+            path = out / f"frame{frame:04d}.npz"
+            if not path.is_file():
+                write_arrays(path, density=flame.astype(np.float32), velocity=velocity.astype(np.float16), frame=np.int32(frame))
+            written.append(path)
+    log(f"fire: {len(written)} frames in {out}")
+    return written
 
 
 def load_frame(path) -> dict:

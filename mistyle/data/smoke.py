@@ -69,7 +69,7 @@ class SmokeState:
     v: torch.Tensor  # (Z, Y + 1, X) y-velocity on y-faces
     w: torch.Tensor  # (Z + 1, Y, X) z-velocity on z-faces
     frame: int = 0
-    extras: dict = field(default_factory=dict)
+    extras: dict = field(default_factory=dict)  # further cell-centred scalars, advected like density
 
 
 class SmokeSolver:
@@ -114,7 +114,7 @@ class SmokeSolver:
 
     def _add_forces(self):
         state, config = self.state, self.config
-        state.v = state.v + config.buoyancy * _cells_to_faces(state.density, 1)
+        state.v = state.v + config.buoyancy * _cells_to_faces(self._buoyant(), 1)
         if config.vorticity > 0:
             fx, fy, fz = _vorticity_confinement(self.cell_velocity(), config.vorticity)
             state.u = state.u + _cells_to_faces(fx, 2)
@@ -140,7 +140,10 @@ class SmokeSolver:
         )
         # Density at cell centres.
         vx, vy, vz = velocity_at(self._cx, self._cy, self._cz)
-        density = _sample_cells(state.density, self._cx - vx, self._cy - vy, self._cz - vz)
+        back = (self._cx - vx, self._cy - vy, self._cz - vz)
+        density = _sample_cells(state.density, *back)
+        for name, values in state.extras.items():
+            state.extras[name] = _sample_cells(values, *back).clamp_min(0.0)
         # Each velocity component at its own faces.
         new_faces = []
         for name, dim in (("u", 2), ("v", 1), ("w", 0)):
@@ -150,6 +153,10 @@ class SmokeSolver:
             new_faces.append(_sample_faces(faces, dim, px - vx, py - vy, pz - vz))
         state.density = density.clamp_min(0.0)
         state.u, state.v, state.w = new_faces
+
+    def _buoyant(self) -> torch.Tensor:
+        """The cell field that buoyancy lifts: smoke density here, temperature for fire."""
+        return self.state.density
 
     # --------------------------------------------------------------- queries
     def divergence(self) -> torch.Tensor:
@@ -269,9 +276,66 @@ class _NeumannPoisson:
         return (volume.permute(1, 2, 0) @ mz.T).permute(2, 0, 1)  # z
 
 
+@dataclass
+class FireConfig(PlumeConfig):
+    """A burning plume: hot fuel enters, burns while above ignition, heats, cools, leaves soot."""
+
+    buoyancy: float = 0.12  # per unit temperature
+    source_velocity: tuple[float, float, float] = (0.0, 0.8, 0.0)
+    burn_rate: float = 0.3  # fraction of the fuel burned per frame above ignition
+    ignition: float = 0.2
+    heat: float = 2.0  # temperature released per unit fuel burned
+    cooling: float = 0.15  # fraction of the temperature lost per frame
+    soot: float = 0.2  # smoke density left per unit fuel burned
+
+
+class FireSolver(SmokeSolver):
+    """Fuel and temperature on top of the smoke solver; ``step()`` records the flame.
+
+    The recorded ``density`` is the flame, ``1 - exp(-temperature)`` in [0, 1): hot gas, the part of
+    a fire that glows and that the paper stylizes (its Fig. 19). ``state.density`` is the soot.
+    """
+
+    def __init__(self, config: FireConfig, seed: int = 0, dtype=torch.float32):
+        super().__init__(config, seed, dtype)
+        self.state.extras = {"fuel": torch.zeros_like(self.state.density), "temperature": torch.zeros_like(self.state.density)}
+
+    def step(self) -> tuple[np.ndarray, np.ndarray]:
+        state, config = self.state, self.config
+        self._inflow()
+        self._burn()
+        self._add_forces()
+        self._project()
+        flame = 1.0 - torch.exp(-state.extras["temperature"])
+        velocity = self.cell_velocity()
+        self._advect()
+        state.frame += 1
+        return flame.numpy(), velocity.numpy()
+
+    def _inflow(self):
+        super()._inflow()
+        fuel = self._source * (1.0 + self.config.source_noise * (2.0 * torch.rand(self._source.shape, generator=self.generator) - 1.0))
+        self.state.extras["fuel"] = torch.maximum(self.state.extras["fuel"], fuel)
+        self.state.extras["temperature"] = torch.maximum(self.state.extras["temperature"], self._source * 0.5)
+        self.state.density = self.state.density * (1.0 - self._source)  # the inflow itself carries no soot
+
+    def _burn(self):
+        config, extras = self.config, self.state.extras
+        burned = config.burn_rate * extras["fuel"] * (extras["temperature"] > config.ignition)
+        extras["fuel"] = extras["fuel"] - burned
+        extras["temperature"] = (extras["temperature"] + config.heat * burned) * (1.0 - config.cooling)
+        self.state.density = self.state.density + config.soot * burned
+
+    def _buoyant(self) -> torch.Tensor:
+        return self.state.extras["temperature"]
+
+
 def simulate(config: PlumeConfig, frames: int, seed: int = 0):
-    """Yield ``(frame, density (Z,Y,X) float32, velocity (Z,Y,X,3) float32)`` for ``frames`` frames."""
-    solver = SmokeSolver(config, seed=seed)
+    """Yield ``(frame, density (Z,Y,X) float32, velocity (Z,Y,X,3) float32)`` for ``frames`` frames.
+
+    A ``FireConfig`` runs the fire solver, whose ``density`` is the flame.
+    """
+    solver = (FireSolver if isinstance(config, FireConfig) else SmokeSolver)(config, seed=seed)
     for frame in range(frames):
         density, velocity = solver.step()
         yield frame, density, velocity

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-import torch
 
 from mistyle.scenes import CameraPath, MediumBox, View, layer_scene, prepare_density, split_views
 from mistyle.scenes.builder import heterogeneous_medium

@@ -92,7 +92,7 @@ class SmokeSolver:
         self._source = (distance <= radius).to(dtype)
 
     def step(self) -> tuple[np.ndarray, np.ndarray]:
-        state, config = self.state, self.config
+        state = self.state
         self._inflow()
         self._add_forces()
         self._project()
@@ -301,7 +301,7 @@ class FireSolver(SmokeSolver):
         self.state.extras = {"fuel": torch.zeros_like(self.state.density), "temperature": torch.zeros_like(self.state.density)}
 
     def step(self) -> tuple[np.ndarray, np.ndarray]:
-        state, config = self.state, self.config
+        state = self.state
         self._inflow()
         self._burn()
         self._add_forces()

@@ -4,6 +4,7 @@
     python -m mistyle.data smoke --res 128 --plumes 20 --frames 90 --crop 64 --out data/smoke128
     python -m mistyle.data smoke ... --shard 0/4      # one of four processes or machines
     python -m mistyle.data fire --res 64 --frames 120 --out data/fire
+    python -m mistyle.data styles --out data/styles
     python -m mistyle.data mesh --mesh bunny.ply --res 64 --out bunny.vol
 """
 
@@ -55,6 +56,10 @@ def main(argv=None) -> int:
     fire.add_argument("--keep", type=_frames, default=None, help="kept frames, first-last (1-based); default: the last half")
     fire.add_argument("--seed", type=int, default=0)
     fire.add_argument("--out", type=Path, required=True)
+    styles = commands.add_parser("styles", help="write the offline default style set as PNGs, with a summary")
+    styles.add_argument("--size", type=int, default=128)
+    styles.add_argument("--seed", type=int, default=0)
+    styles.add_argument("--out", type=Path, required=True)
     mesh = commands.add_parser("mesh", help="voxelize a closed .ply/.obj mesh into a density (.vol or .npy)")
     mesh.add_argument("--mesh", type=Path, default=None, help="closed triangle mesh; default: a generated icosphere")
     mesh.add_argument("--res", type=int, default=64, help="voxels along the longest side")
@@ -64,6 +69,19 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.command == "mesh":
         return _mesh_command(args)
+    if args.command == "styles":
+        import json
+
+        from ..io import atomic_write_bytes, write_png
+        from .styles import offline_style_set, style_set_diversity
+
+        styles = offline_style_set(size=args.size, seed=args.seed)
+        for name, image in styles:
+            write_png(args.out / f"{name}.png", image, srgb=False)  # already sRGB-encoded
+        summary = style_set_diversity(styles)
+        atomic_write_bytes(args.out / "styles.json", (json.dumps(summary, indent=1) + "\n").encode())
+        print(json.dumps(summary))
+        return 0
     if args.command == "fire":
         from .generate import generate_fire
 

@@ -88,3 +88,38 @@ def test_fire_cli_writes_flame_frames(tmp_path):
     with np.load(frames[0]) as data:
         assert data["density"].shape == (12, 12, 12) and data["velocity"].shape == (12, 12, 12, 3)
         assert 0 <= data["density"].min() and data["density"].max() < 1
+
+
+def test_tiny_dataset_is_quick_and_complete(tmp_path, mi):
+    from mistyle.data.styles import ImageFolder
+    from mistyle.data.tiny import make_tiny_dataset
+
+    out = make_tiny_dataset(tmp_path / "tiny", log=quiet)
+    manifest = json.loads((out / "smoke" / "manifest.json").read_text())
+    assert len(manifest["files"]) == 8 and len(manifest["pairs"]) == 6
+    assert len(ImageFolder(out / "styles").load_all()) == 6
+
+
+def test_a_full_disk_leaves_no_half_written_frame(tmp_path, mi, monkeypatch, capsys):
+    """The third frame's write fails with ENOSPC: two complete frames stay, nothing partial."""
+    import errno
+
+    import mistyle.data.generate as generate
+
+    real_savez, calls = np.savez_compressed, {"count": 0}
+
+    def savez_until_full(handle, **arrays):
+        calls["count"] += 1
+        if calls["count"] == 3:
+            handle.write(b"partial")
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real_savez(handle, **arrays)
+
+    monkeypatch.setattr(generate.np, "savez_compressed", savez_until_full)
+    status = data_cli(["smoke", "--res", "12", "--plumes", "1", "--frames", "6", "--keep", "2-6",
+                       "--directions", "16", "--out", str(tmp_path)])
+    assert status == 1 and "disk" in capsys.readouterr().err
+    files = sorted(p.name for p in tmp_path.rglob("*") if p.is_file())
+    assert files == ["frame0002.npz", "frame0003.npz"]  # no temporary leftovers, no manifest yet
+    for path in tmp_path.rglob("*.npz"):
+        load_frame(path)

@@ -60,6 +60,8 @@ def main(argv=None) -> int:
     styles.add_argument("--size", type=int, default=128)
     styles.add_argument("--seed", type=int, default=0)
     styles.add_argument("--out", type=Path, required=True)
+    tiny = commands.add_parser("tiny", help="the tiny fixed dataset for tests and CI (seconds)")
+    tiny.add_argument("--out", type=Path, required=True)
     mesh = commands.add_parser("mesh", help="voxelize a closed .ply/.obj mesh into a density (.vol or .npy)")
     mesh.add_argument("--mesh", type=Path, default=None, help="closed triangle mesh; default: a generated icosphere")
     mesh.add_argument("--res", type=int, default=64, help="voxels along the longest side")
@@ -69,6 +71,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.command == "mesh":
         return _mesh_command(args)
+    if args.command == "tiny":
+        from .tiny import make_tiny_dataset
+
+        print(f"wrote {make_tiny_dataset(args.out)}")
+        return 0
     if args.command == "styles":
         import json
 

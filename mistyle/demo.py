@@ -1,8 +1,7 @@
 """``python -m mistyle.demo``: the bundled example volume through the fast layer and the path tracer.
 
 Until the stylization network exists this is the main job: it renders the bundled smoke frame
-``examples/smoke_64.vol``
-with a procedural colour albedo from three views on the training orbit with
+``examples/smoke_64.vol`` with a procedural colour albedo from three views on the training orbit with
   1. the fast layer (single scattering, the training renderer),
   2. Mitsuba's ``volpath`` with ``max_depth=2`` (single scattering, the layer's reference),
   3. ``volpath`` with full multiple scattering (what final renders look like),

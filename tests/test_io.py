@@ -1,0 +1,39 @@
+"""Files: EXR and PNG round trips, atomic writes."""
+
+import os
+
+import numpy as np
+import pytest
+
+from mistyle.io import atomic_output, linear_to_srgb, read_exr, write_exr, write_png
+
+
+def test_exr_round_trip_is_lossless(tmp_path):
+    image = np.random.default_rng(0).random((5, 7, 3)).astype(np.float32) * 10
+    np.testing.assert_array_equal(read_exr(write_exr(tmp_path / "a.exr", image)), image)
+
+
+def test_png_is_a_valid_srgb_png(tmp_path):
+    from PIL import Image
+
+    image = np.linspace(0, 1, 4 * 6 * 3, dtype=np.float32).reshape(4, 6, 3)
+    path = write_png(tmp_path / "a.png", image)
+    with Image.open(path) as png:
+        decoded = np.asarray(png)
+    np.testing.assert_array_equal(decoded, np.round(linear_to_srgb(image) * 255).astype(np.uint8))
+    assert oct(os.stat(path).st_mode & 0o777) != oct(0o600)  # not mkstemp's private mode
+
+
+def test_failed_write_leaves_nothing_behind(tmp_path):
+    with pytest.raises(RuntimeError):
+        with atomic_output(tmp_path / "frame.npz") as tmp:
+            tmp.write_bytes(b"half")
+            raise RuntimeError("interrupted")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_directory_names_the_fix(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(OSError, match="writable output directory"):
+        write_png(blocker / "sub" / "a.png", np.zeros((2, 2, 3), np.float32))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..integrators import DEFAULT_SCHEME
+from ..backend import active_variant
 from ..volume import validate_albedo
 from .box import MediumBox
 from .cameras import View, batch_sensor_dict
@@ -23,7 +24,7 @@ def constant_environment(radiance: float = DEFAULT_ENV_RADIANCE) -> dict:
 
 
 def _transform(matrix: np.ndarray):
-    import mitsuba as mi
+    mi = active_variant()
 
     return mi.ScalarTransform4f(matrix.tolist())
 
@@ -39,7 +40,7 @@ def layer_scene(
     radiance: float = DEFAULT_ENV_RADIANCE,
 ) -> dict:
     """Scene rendered by the fast layer: all ``views`` side by side in one batch film."""
-    import mitsuba as mi
+    mi = active_variant()
 
     albedo = validate_albedo(albedo, prepared.shape)
     box = prepared.box
@@ -62,7 +63,7 @@ def layer_scene(
 
 def heterogeneous_medium(density: np.ndarray, density_scale: float, albedo: np.ndarray) -> dict:
     """Mitsuba ``heterogeneous`` medium filling the medium box, trilinear grids, isotropic phase."""
-    import mitsuba as mi
+    mi = active_variant()
 
     box = MediumBox(density.shape)
     to_world = _transform(box.unit_to_world_matrix())

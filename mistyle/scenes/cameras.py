@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..backend import active_variant
+
 
 @dataclass(frozen=True)
 class View:
@@ -68,7 +70,7 @@ class CameraPath:
 
 def sensor_dict(view: View, width: int, height: int, spp: int = 1, seed: int = 0) -> dict:
     """Mitsuba ``perspective`` sensor for ``view`` with a box-filtered linear RGB film."""
-    import mitsuba as mi
+    mi = active_variant()
 
     if width < 1 or height < 1:
         raise ValueError(f"Image size must be at least 1x1, got {width}x{height}.")

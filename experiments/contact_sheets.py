@@ -26,7 +26,12 @@ def main() -> None:
 
     from mistyle.backend import use_variant
     from mistyle.data.mesh import icosphere, voxelize
-    from mistyle.data.procedural import noise_filled_level_set, pyroclastic_sphere, spot_noise, torus_sdf
+    from mistyle.data.procedural import (
+        noise_filled_level_set,
+        pyroclastic_sphere,
+        spot_noise,
+        torus_sdf,
+    )
     from mistyle.data.smoke import FireConfig, PlumeConfig, simulate
     from mistyle.data.styles import offline_style_set
     from mistyle.io import write_png

@@ -48,10 +48,18 @@ def main() -> None:
     from mistyle.backend import use_variant
     from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
     from mistyle.integrators import DEFAULT_SCHEME, SCHEMES
-    from mistyle.scenes import CameraPath, layer_scene, pathtraced_scene, prepare_density, split_views
+    from mistyle.scenes import (
+        CameraPath,
+        layer_scene,
+        pathtraced_scene,
+        prepare_density,
+        split_views,
+    )
 
     mi = use_variant("cpu")
-    from mistyle.integrators.single_scatter import pixel_centre_rays  # needs the variant
+    from mistyle.integrators.single_scatter import (
+        pixel_centre_rays,  # needs the variant
+    )
 
     density = pyroclastic_sphere((args.res,) * 3, seed=7)
     albedo = colour_noise_albedo(density.shape, seed=11)

@@ -34,7 +34,14 @@ def main(argv=None) -> None:
     from .backend import use_variant
     from .data.procedural import colour_noise_albedo
     from .io import write_exr, write_png
-    from .scenes import DEFAULT_DENSITY_SCALE, CameraPath, layer_scene, pathtraced_scene, prepare_density, split_views
+    from .scenes import (
+        DEFAULT_DENSITY_SCALE,
+        CameraPath,
+        layer_scene,
+        pathtraced_scene,
+        prepare_density,
+        split_views,
+    )
     from .volume import load_density
 
     mi = use_variant("cpu")

@@ -7,7 +7,12 @@ import sys
 
 import pytest
 
-from mistyle.backend import MIN_LLVM_MAJOR, check_llvm_backend, llvm_major_from_path, variant_for
+from mistyle.backend import (
+    MIN_LLVM_MAJOR,
+    check_llvm_backend,
+    llvm_major_from_path,
+    variant_for,
+)
 
 
 def test_variant_follows_the_torch_device():

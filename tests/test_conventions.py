@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from mistyle.scenes import CameraPath, MediumBox, View, layer_scene, prepare_density, split_views
+from mistyle.scenes import (
+    CameraPath,
+    MediumBox,
+    View,
+    layer_scene,
+    prepare_density,
+    split_views,
+)
 from mistyle.scenes.builder import heterogeneous_medium
 from mistyle.volume import read_vol, write_vol
 

@@ -3,7 +3,13 @@
 import numpy as np
 
 from mistyle.data.procedural import colour_noise_albedo
-from mistyle.scenes import CameraPath, layer_scene, pathtraced_scene, prepare_density, split_views
+from mistyle.scenes import (
+    CameraPath,
+    layer_scene,
+    pathtraced_scene,
+    prepare_density,
+    split_views,
+)
 
 
 def test_layer_agrees_with_single_scattering_path_tracer(mi):

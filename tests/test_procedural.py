@@ -4,7 +4,11 @@ import numpy as np
 
 from mistyle.data.mesh import icosphere
 from mistyle.data.procedural import (
-    noise_filled_level_set, pyroclastic_sphere, sphere_sdf, spot_noise, torus_sdf,
+    noise_filled_level_set,
+    pyroclastic_sphere,
+    sphere_sdf,
+    spot_noise,
+    torus_sdf,
 )
 from mistyle.scenes import MediumBox
 

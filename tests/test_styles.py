@@ -5,7 +5,12 @@ import pytest
 from PIL import Image
 
 from mistyle.data.styles import (
-    ImageFolder, load_image, material_texture, offline_style_set, random_crop, style_set_diversity,
+    ImageFolder,
+    load_image,
+    material_texture,
+    offline_style_set,
+    random_crop,
+    style_set_diversity,
 )
 
 

@@ -163,7 +163,10 @@ def apply_palette(gray: np.ndarray, colours: np.ndarray) -> np.ndarray:
 def material_texture(kind: str, size: int = 128, seed: int = 0) -> np.ndarray:
     """A procedural material texture ``(size, size, 3)`` in [0, 1]."""
     from pyfastnoiselite.pyfastnoiselite import (
-        CellularReturnType, FastNoiseLite, FractalType, NoiseType,
+        CellularReturnType,
+        FastNoiseLite,
+        FractalType,
+        NoiseType,
     )
 
     if kind not in MATERIALS:

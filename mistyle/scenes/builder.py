@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..integrators import DEFAULT_SCHEME
 from ..backend import active_variant
+from ..integrators import DEFAULT_SCHEME
 from ..volume import validate_albedo
 from .box import MediumBox
 from .cameras import View, batch_sensor_dict

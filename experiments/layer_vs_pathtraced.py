@@ -48,6 +48,11 @@ def main() -> None:
     from mistyle.backend import use_variant
     from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
     from mistyle.integrators import DEFAULT_SCHEME, SCHEMES
+    from mistyle.pathtrace import (
+        net_rel_rmse,
+        pixel_centre_estimate,
+        two_seed_reference,
+    )
     from mistyle.scenes import (
         CameraPath,
         layer_scene,
@@ -57,9 +62,6 @@ def main() -> None:
     )
 
     mi = use_variant("cpu")
-    from mistyle.integrators.single_scatter import (
-        pixel_centre_rays,  # needs the variant
-    )
 
     density = pyroclastic_sphere((args.res,) * 3, seed=7)
     albedo = colour_noise_albedo(density.shape, seed=11)
@@ -75,33 +77,13 @@ def main() -> None:
         image = mi.render(scenes[max_depth], spp=spp, seed=seed)
         return split_views(image, len(views)), time.perf_counter() - start
 
-    def path_trace_pixel_centres(spp: int, max_depth: int, seed: int, chunk: int = 256):
-        """volpath's estimate of the radiance along the layer's own pixel-centre rays."""
-        scene = scenes[max_depth]
-        pixels = len(views) * size[0] * size[1]
-        total = np.zeros((pixels, 3))
+    def path_trace_pixel_centres(spp: int, max_depth: int, seed: int):
         start = time.perf_counter()
-        for first in range(0, spp, chunk):
-            count = min(chunk, spp - first)
-            ray, weight, _ = pixel_centre_rays(scene.sensors()[0], count)
-            sampler = mi.load_dict({"type": "independent"})
-            sampler.seed(seed * 1_000_003 + first, pixels * count)
-            radiance, _, _ = scene.integrator().sample(scene, sampler, ray, None, True)
-            radiance = radiance * weight
-            channels = np.stack([np.asarray(radiance[c]) for c in range(3)], axis=-1)
-            total += channels.reshape(pixels, count, 3).sum(axis=1)
-        image = (total / spp).astype(np.float32).reshape(size[0], len(views) * size[1], 3)
-        return split_views(image, len(views)), time.perf_counter() - start
+        image = pixel_centre_estimate(scenes[max_depth], spp, seed, len(views))
+        return image, time.perf_counter() - start
 
     def reference(render, spp: int, max_depth: int):
-        first, _ = render(spp, max_depth, seed=1)
-        second, _ = render(spp, max_depth, seed=2)
-        noise_var_of_mean = np.mean((first - second) ** 2) / 4.0  # var(a - b) = 2 var; the mean halves it
-        return 0.5 * (first + second), noise_var_of_mean
-
-    def net_rel_rmse(image, ref, ref_noise_var):
-        mse = np.mean((image - ref) ** 2) - ref_noise_var
-        return float(np.sqrt(max(mse, 0.0)) / np.sqrt(np.mean(ref**2)))
+        return two_seed_reference(lambda count, seed: render(count, max_depth, seed)[0], spp)
 
     start = time.perf_counter()
     prepared = prepare_density(density, args.density_scale, args.directions)

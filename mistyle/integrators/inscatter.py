@@ -122,6 +122,18 @@ def inscattered_radiance(
     return ls
 
 
+def inscattered_radiance_at(sigma_t: np.ndarray, points: np.ndarray, directions: int = 128, steps: int = 64) -> np.ndarray:
+    """Ls for unit radiance at arbitrary ``points (P, 3)``, given in voxel units ``(x, y, z)``.
+
+    Brute-force marching (the reference); used to study Ls on grids finer than the density's.
+    """
+    sigma_t = np.ascontiguousarray(sigma_t, dtype=np.float32)
+    box = MediumBox(sigma_t.shape)
+    texture = mi.Texture3f(mi.TensorXf(sigma_t[..., None]))
+    q = mi.Point3f(*(mi.Float(np.asarray(points, dtype=np.float32)[:, i]) for i in range(3)))
+    return np.asarray(_bruteforce(texture, box, q, hammersley_sphere(directions), steps), dtype=np.float32)
+
+
 def _used_voxels(sigma_t: np.ndarray) -> np.ndarray:
     """Voxels whose 3x3x3 neighbourhood holds non-zero extinction, ``(Z, Y, X)`` bool."""
     occupied = np.pad(sigma_t > 0, 1)

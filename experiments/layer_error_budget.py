@@ -1,0 +1,92 @@
+"""Where the fast layer's error against the path tracer comes from.
+
+One pixel-centre ``volpath`` reference (max_depth=2, two seeds, noise taken out; see
+``layer_vs_pathtraced.py``), then the layer with one ingredient changed at a time:
+  * K, the number of directions for Ls, and the Ls method (sheared or brute force);
+  * N, the number of ray-marching steps;
+  * the resolution of the Ls grid (1x: the density's own grid, as in the paper; 2x: Ls computed by
+    brute force at the centres of a grid twice as fine, from the same trilinear extinction).
+
+Prints one JSON line: ``{"noise": ..., "rows": [{"K", "method", "ls_grid", "N", "rel_rmse", "brightness"}]}``.
+
+    python experiments/layer_error_budget.py            # 64^3, 2 views at 128^2, 2 x 8192 spp (~15 min)
+    python experiments/layer_error_budget.py --quick    # 24^3, 32^2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    res, image, spp = (24, 32, 1024) if args.quick else (64, 128, 8192)
+
+    from mistyle.backend import use_variant
+    from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
+    from mistyle.integrators.inscatter import (
+        _used_voxels,
+        inscattered_radiance,
+        inscattered_radiance_at,
+    )
+    from mistyle.pathtrace import (
+        net_rel_rmse,
+        pixel_centre_estimate,
+        two_seed_reference,
+    )
+    from mistyle.scenes import (
+        CameraPath,
+        PreparedDensity,
+        layer_scene,
+        pathtraced_scene,
+        split_views,
+    )
+
+    mi = use_variant("cpu")
+    scale = 20.0
+    density = pyroclastic_sphere((res,) * 3, seed=7)
+    albedo = colour_noise_albedo(density.shape, seed=11)
+    views = CameraPath().turntable(2, offset=0.125)
+    sigma_t = density * np.float32(scale)
+    reference_scene = mi.load_dict(pathtraced_scene(density, scale, albedo, views, image, image, max_depth=2))
+    reference, noise = two_seed_reference(lambda count, seed: pixel_centre_estimate(reference_scene, count, seed, 2), spp)
+
+    def layer(ls: np.ndarray, steps: int) -> np.ndarray:
+        scene = layer_scene(PreparedDensity(density, scale, np.ones_like(density)), albedo, views, image, image, steps=steps)
+        scene["integrator"]["ls"] = mi.TensorXf(np.ascontiguousarray(ls, dtype=np.float32)[..., None])
+        return split_views(mi.render(mi.load_dict(scene)), 2)
+
+    def fine_ls(factor: int, directions: int) -> np.ndarray:
+        used = _used_voxels(sigma_t)
+        for axis in range(3):
+            used = np.repeat(used, factor, axis=axis)
+        z, y, x = np.nonzero(used)
+        ls = np.ones(used.shape, dtype=np.float32)
+        ls[used] = inscattered_radiance_at(sigma_t, (np.stack([x, y, z], axis=1) + 0.5) / factor, directions)
+        return ls
+
+    grids = {
+        (128, "sheared", 1): inscattered_radiance(sigma_t, 128, "sheared"),
+        (128, "bruteforce", 1): inscattered_radiance(sigma_t, 128, "bruteforce"),
+        (2048, "sheared", 1): inscattered_radiance(sigma_t, 2048, "sheared"),
+        (128, "bruteforce", 2): fine_ls(2, 128),
+    }
+    rows = []
+    for (directions, method, factor), ls in grids.items():
+        for steps in (64, 128, 256):
+            rendered = layer(ls, steps)
+            rows.append({
+                "K": directions, "method": method, "ls_grid": factor, "N": steps,
+                "rel_rmse": net_rel_rmse(rendered, reference, noise),
+                "brightness": float(rendered.mean() / reference.mean()),
+            })
+    print(json.dumps({"noise": float(np.sqrt(noise / np.mean(reference**2))), "res": res, "image": image, "rows": rows}))
+
+
+if __name__ == "__main__":
+    main()

@@ -342,18 +342,15 @@ def simulate(config: PlumeConfig, frames: int, seed: int = 0):
 
 
 def warp(field: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """Semi-Lagrangian warp: ``field(x - velocity(x))``, trilinear, clamped at the border.
+    """``mistyle.warp.semi_lagrangian_warp`` on numpy grids: ``field(x - velocity(x))``.
 
     ``field`` is ``(Z, Y, X)`` or ``(Z, Y, X, C)``; ``velocity`` ``(Z, Y, X, 3)`` in voxels, ``(x, y, z)``.
     """
-    values = torch.as_tensor(field, dtype=torch.float32)
-    flow = torch.as_tensor(velocity, dtype=torch.float32)
-    z, y, x = flow.shape[:3]
-    centres = [torch.arange(n, dtype=torch.float32) for n in (z, y, x)]
-    iz, iy, ix = torch.meshgrid(*centres, indexing="ij")
-    if values.dim() == 3:
-        return _sample(values, ix - flow[..., 0], iy - flow[..., 1], iz - flow[..., 2]).numpy()
-    return np.stack(
-        [_sample(values[..., c], ix - flow[..., 0], iy - flow[..., 1], iz - flow[..., 2]).numpy() for c in range(values.shape[-1])],
-        axis=-1,
-    )
+    from ..warp import semi_lagrangian_warp
+
+    values = torch.as_tensor(np.asarray(field, dtype=np.float32))
+    channels_last = values.dim() == 4
+    volume = values.permute(3, 0, 1, 2)[None] if channels_last else values[None, None]
+    flow = torch.as_tensor(np.asarray(velocity, dtype=np.float32)).permute(3, 0, 1, 2)[None]
+    warped = semi_lagrangian_warp(volume, flow)[0]
+    return (warped.permute(1, 2, 3, 0) if channels_last else warped[0]).numpy()

@@ -1,0 +1,1 @@
+"""SKPN, its feature extractors, losses and metrics, datasets and the training loop."""

@@ -1,0 +1,74 @@
+"""Style-match metrics for experiments and training logs.
+
+Images are numpy or torch ``(H, W, 3)``. Renders are linear radiance and go through the training
+tone curve (``losses.tone_map``) so they are compared with style images in display space.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..warp import semi_lagrangian_warp
+from .losses import tone_map
+
+
+def foreground_pixels(render: np.ndarray, threshold: float = 1e-3) -> np.ndarray:
+    """Tone-mapped RGB of the pixels that see the medium (any channel above ``threshold``): ``(N, 3)``."""
+    render = np.asarray(render, dtype=np.float32)
+    keep = render.max(axis=-1) > threshold
+    mapped = tone_map(torch.from_numpy(render[keep])).numpy()
+    return mapped.reshape(-1, 3)
+
+
+def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, seed: int = 0) -> float:
+    """Sliced 2-Wasserstein distance between two RGB point sets ``(N, 3)`` and ``(M, 3)``.
+
+    ``sqrt(mean over random unit directions of W2^2 between the 1D projections)``; quantiles are
+    compared at a common count, so the sets need not have equal sizes.
+    """
+    a, b = np.asarray(a, dtype=np.float64).reshape(-1, 3), np.asarray(b, dtype=np.float64).reshape(-1, 3)
+    if len(a) == 0 or len(b) == 0:
+        raise ValueError("sliced_wasserstein needs non-empty point sets (did the render see any medium?).")
+    directions = np.random.default_rng(seed).normal(size=(projections, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    count = max(len(a), len(b))
+    levels = (np.arange(count) + 0.5) / count
+    qa = np.quantile(a @ directions.T, levels, axis=0)
+    qb = np.quantile(b @ directions.T, levels, axis=0)
+    return float(np.sqrt(np.mean((qa - qb) ** 2)))
+
+
+def colour_histogram_distance(a: np.ndarray, b: np.ndarray, bins: int = 8) -> float:
+    """Total-variation distance between normalised ``bins^3`` RGB histograms of two point sets, in [0, 1]."""
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    ha, _ = np.histogramdd(np.clip(np.asarray(a).reshape(-1, 3), 0, 1), bins=(edges,) * 3)
+    hb, _ = np.histogramdd(np.clip(np.asarray(b).reshape(-1, 3), 0, 1), bins=(edges,) * 3)
+    return float(0.5 * np.abs(ha / max(ha.sum(), 1) - hb / max(hb.sum(), 1)).sum())
+
+
+def style_distance(render: np.ndarray, style: np.ndarray) -> dict:
+    """Sliced Wasserstein and colour-histogram distances between a render's foreground and a style."""
+    pixels = foreground_pixels(render)
+    style_pixels = np.asarray(style, dtype=np.float32).reshape(-1, 3)
+    return {"swd": sliced_wasserstein(pixels, style_pixels), "hist": colour_histogram_distance(pixels, style_pixels)}
+
+
+def temporal_flicker(volumes: np.ndarray, velocities: np.ndarray) -> float:
+    """Mean ``|V_t - W(V_{t-1}, U_{t-1})|`` over a sequence of ``(T, Z, Y, X, C)`` volumes.
+
+    ``velocities (T, Z, Y, X, 3)`` are each frame's own (frame t-1's moves it to frame t).
+    """
+    volumes = torch.as_tensor(np.asarray(volumes, dtype=np.float32)).permute(0, 4, 1, 2, 3)
+    flow = torch.as_tensor(np.asarray(velocities, dtype=np.float32)).permute(0, 4, 1, 2, 3)
+    if len(volumes) < 2:
+        raise ValueError("temporal_flicker needs at least two frames.")
+    warped = semi_lagrangian_warp(volumes[:-1], flow[:-1])
+    return float((volumes[1:] - warped).abs().mean())
+
+
+def multiview_spread(values) -> dict:
+    """Spread of a per-view style metric over held-out views: mean, std and relative std."""
+    values = np.asarray(list(values), dtype=np.float64)
+    mean = float(values.mean())
+    return {"mean": mean, "std": float(values.std()), "relative_std": float(values.std() / mean) if mean else 0.0}

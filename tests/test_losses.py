@@ -1,0 +1,129 @@
+"""Losses and metrics: exact matching, zero where they should be, finite gradients, the warp."""
+
+import numpy as np
+import pytest
+import torch
+
+from mistyle.train.losses import (
+    gram_loss,
+    histogram_loss,
+    histogram_match,
+    mean_std_loss,
+    pool_mask,
+    render_mask,
+    temporal_loss,
+    tone_map,
+    tv_loss,
+)
+from mistyle.train.metrics import (
+    colour_histogram_distance,
+    multiview_spread,
+    sliced_wasserstein,
+    style_distance,
+    temporal_flicker,
+)
+from mistyle.warp import semi_lagrangian_warp
+
+GEN = torch.Generator().manual_seed(0)
+
+
+def test_histogram_match_is_exact_for_equal_sizes():
+    values = torch.randn(50, generator=GEN)
+    target = torch.sort(torch.rand(50, generator=GEN) * 7).values
+    matched = histogram_match(values, target)
+    assert torch.equal(torch.sort(matched).values, target)
+    assert torch.equal(torch.argsort(matched), torch.argsort(values))  # ranks preserved
+
+
+def test_histogram_match_interpolates_other_sizes():
+    matched = histogram_match(torch.tensor([3.0, 1.0, 2.0]), torch.tensor([0.0, 1.0, 2.0, 3.0, 4.0]))
+    torch.testing.assert_close(matched, torch.tensor([4.0, 0.0, 2.0]))
+
+
+def test_style_losses_vanish_on_the_style_itself_and_have_finite_gradients():
+    style = torch.rand(4, 6, 5, generator=GEN)
+    features = style[None].clone().requires_grad_()
+    mask = torch.ones(1, 1, 6, 5)
+    for loss_fn in (histogram_loss, gram_loss, mean_std_loss):
+        assert float(loss_fn(features, style, mask).detach()) == pytest.approx(0.0, abs=1e-10)
+    shifted = (style[None] * 2 + 1).requires_grad_()
+    for loss_fn in (histogram_loss, gram_loss, mean_std_loss):
+        loss = loss_fn(shifted, style, mask)
+        assert float(loss.detach()) > 0
+        (grad,) = torch.autograd.grad(loss, shifted)
+        assert torch.isfinite(grad).all()
+
+
+def test_histogram_loss_ignores_masked_out_values_and_empty_masks():
+    style = torch.rand(2, 4, 4, generator=GEN)
+    features = torch.cat([style, torch.full((2, 4, 4), 99.0)], dim=2)[None]  # background is way off
+    mask = torch.cat([torch.ones(1, 1, 4, 4), torch.zeros(1, 1, 4, 4)], dim=3)
+    assert float(histogram_loss(features, style, mask)) == pytest.approx(0.0, abs=1e-10)
+    assert float(histogram_loss(features, style, torch.zeros_like(mask))) == 0.0
+
+
+def test_tv_is_zero_for_constants_and_positive_otherwise():
+    assert float(tv_loss(torch.full((1, 3, 4, 5, 6), 0.3))) == 0.0
+    ramp = torch.arange(6.0).expand(1, 1, 4, 5, 6)
+    assert float(tv_loss(ramp)) == pytest.approx(1.0)
+
+
+def test_warp_is_exact_for_integer_translations():
+    volume = torch.rand(1, 2, 8, 9, 10, generator=GEN)
+    velocity = torch.zeros(1, 3, 8, 9, 10)
+    velocity[:, 0], velocity[:, 1], velocity[:, 2] = 2.0, -1.0, 1.0  # (x, y, z) voxels per frame
+    warped = semi_lagrangian_warp(volume, velocity)
+    # warped(x, y, z) = volume(x - 2, y + 1, z - 1) away from the clamped border
+    torch.testing.assert_close(warped[..., 1:, :-1, 2:], volume[..., :-1, 1:, :-2], rtol=0, atol=1e-6)
+
+
+def test_temporal_loss_is_zero_for_a_correctly_advected_sequence():
+    previous = torch.rand(1, 3, 6, 6, 6, generator=GEN, requires_grad=True)
+    velocity = torch.rand(1, 3, 6, 6, 6, generator=GEN)
+    current = semi_lagrangian_warp(previous, velocity).detach()
+    assert float(temporal_loss(current, previous, velocity)) == pytest.approx(0.0, abs=1e-12)
+    loss = temporal_loss(current + 0.1, previous, velocity)
+    loss.backward()
+    assert float(loss.detach()) == pytest.approx(0.01, rel=1e-4) and torch.isfinite(previous.grad).all()
+
+
+def test_tone_map_is_bounded_monotone_and_smooth_at_zero():
+    x = torch.tensor([0.0, 0.01, 1.0, 100.0, 1e6], requires_grad=True)
+    y = tone_map(x)
+    assert float(y[0]) == 0.0 and torch.all(torch.diff(y) > 0) and float(y[-1]) < 1.0
+    y.sum().backward()
+    assert torch.isfinite(x.grad).all()
+
+
+def test_masks_threshold_and_max_pool():
+    images = torch.zeros(1, 3, 8, 8)
+    images[0, 1, 2, 3] = 0.01
+    mask = render_mask(images)
+    assert float(mask.sum()) == 1 and float(pool_mask(mask, (4, 4))[0, 0, 1, 1]) == 1.0
+
+
+def test_style_metrics():
+    rng = np.random.default_rng(0)
+    a, b = rng.random((500, 3)), rng.random((800, 3))
+    assert sliced_wasserstein(a, a) == 0.0
+    assert sliced_wasserstein(a, b) < 0.05 < sliced_wasserstein(a, b * 0.3)
+    assert colour_histogram_distance(a, a) == 0.0 and colour_histogram_distance(a, a * 0.2) > 0.5
+    render = np.zeros((8, 8, 3), np.float32)
+    render[2:6, 2:6] = 0.5
+    distances = style_distance(render, np.full((4, 4, 3), float(tone_map(torch.tensor(0.5)))))
+    assert distances["swd"] == pytest.approx(0.0, abs=1e-6) and distances["hist"] == 0.0
+    with pytest.raises(ValueError, match="non-empty"):
+        style_distance(np.zeros((4, 4, 3), np.float32), np.ones((4, 4, 3)))
+    assert multiview_spread([1.0, 1.0])["relative_std"] == 0.0
+
+
+def test_temporal_flicker_is_zero_for_advected_frames():
+    rng = np.random.default_rng(1)
+    first = rng.random((6, 6, 6, 3)).astype(np.float32)
+    velocity = np.zeros((6, 6, 6, 3), np.float32)
+    velocity[..., 0] = 1.0
+    from mistyle.data.smoke import warp
+
+    second = warp(first, velocity)
+    assert temporal_flicker(np.stack([first, second]), np.stack([velocity, velocity])) == pytest.approx(0.0, abs=1e-7)
+    assert temporal_flicker(np.stack([first, first]), np.stack([velocity, velocity])) > 0.01

@@ -81,7 +81,7 @@ def test_temporal_loss_is_zero_for_a_correctly_advected_sequence():
     previous = torch.rand(1, 3, 6, 6, 6, generator=GEN, requires_grad=True)
     velocity = torch.rand(1, 3, 6, 6, 6, generator=GEN)
     current = semi_lagrangian_warp(previous, velocity).detach()
-    assert float(temporal_loss(current, previous, velocity)) == pytest.approx(0.0, abs=1e-12)
+    assert float(temporal_loss(current, previous, velocity).detach()) == pytest.approx(0.0, abs=1e-12)
     loss = temporal_loss(current + 0.1, previous, velocity)
     loss.backward()
     assert float(loss.detach()) == pytest.approx(0.01, rel=1e-4) and torch.isfinite(previous.grad).all()

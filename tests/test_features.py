@@ -4,7 +4,11 @@ import pytest
 import torch
 
 from mistyle.train.features import (
-    FilterBankFeatures, VGG16Features, make_extractor, random_vgg16, vgg16_weights_path,
+    FilterBankFeatures,
+    VGG16Features,
+    make_extractor,
+    random_vgg16,
+    vgg16_weights_path,
 )
 
 

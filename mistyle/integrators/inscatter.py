@@ -18,19 +18,21 @@ Two methods, both Dr.Jit kernels in the active Mitsuba variant:
     the box boundary: ``X*Y*Z*K*steps`` trilinear lookups (64^3 x 128 x 64: about 2.1e9).
 
 ``sheared`` (default)
-    Per direction, let ``a`` be its dominant axis and call the voxel-centre planes across ``a``
-    slices. Lines parallel to ``omega_k`` start on a regular lattice (spacing one voxel) at the
-    light-side face and are marched slice by slice; on a slice plane trilinear interpolation is
-    bilinear, and the optical depth accumulates with the trapezoid rule over segments of length
-    ``h / |omega_a|``. The lines see the density extended sideways by its edge values, so their
-    optical depth is smooth across the box's side faces. A voxel centre lies on its own slice,
-    inside a cell of the lattice; its line toward the light leaves the box at slice position
-    ``mu`` (the light-side face, or a side face for grazing directions), and its optical depth
-    is ``tau(m) - tau(mu)``, both read from the 4x4 surrounding lines by Catmull-Rom interpolation.
-    This is shear-warp resampling: about ``1-4 * X*Y*Z*K`` bilinear lookups for the lines
-    (their lattice is wider than the box for oblique directions) and ``24 * X*Y*Z*K`` gathers.
-    Directions are processed in batches, each one Dr.Jit kernel for the lines and one for the
-    voxels, with a line buffer small enough to stay in cache.
+    The Hammersley set is mirrored (see ``hammersley_sphere``), so directions come in antipodal
+    pairs, and one family of lines serves both. Per pair, let ``a`` be the dominant axis and call
+    the voxel-centre planes across ``a`` slices. Lines parallel to ``omega`` start on a regular
+    lattice (spacing one voxel) at one face and are marched slice by slice to the other; on a
+    slice plane trilinear interpolation is bilinear, and the optical depth from the near face
+    accumulates with the trapezoid rule over segments of length ``h / |omega_a|``. The lines see
+    the density extended sideways by its edge values, so their optical depth is smooth across the
+    box's side faces. Each voxel centre lies on its own slice inside a cell of the lattice; along
+    its own line it leaves the box toward either face (or through a side face, for grazing
+    directions), and the two optical depths are differences of the lines' cumulative depths,
+    interpolated between lines (Catmull-Rom for the long stretches, bilinear for the short ones).
+    This is shear-warp resampling: about ``1-4 * X*Y*Z*K/2`` bilinear lookups for the lines and
+    ``24 * X*Y*Z*K`` gathers. Directions are processed in batches, each one Dr.Jit kernel for the
+    lines and one for the voxels, with a line buffer small enough to stay in cache, and only
+    voxels where the layer can use Ls are computed (see ``inscattered_radiance``).
 
 Directions with zero components (Hammersley's first point has one) are safe in both methods: the
 boundary distance treats a zero component as "never leaves through that pair of faces", and the

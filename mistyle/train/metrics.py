@@ -34,9 +34,18 @@ def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, see
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     count = max(len(a), len(b))
     levels = (np.arange(count) + 0.5) / count
-    qa = np.quantile(a @ directions.T, levels, axis=0)
-    qb = np.quantile(b @ directions.T, levels, axis=0)
+    qa = _sorted_quantiles(np.sort(a @ directions.T, axis=0), levels)
+    qb = _sorted_quantiles(np.sort(b @ directions.T, axis=0), levels)
     return float(np.sqrt(np.mean((qa - qb) ** 2)))
+
+
+def _sorted_quantiles(sorted_values: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """Quantiles at ``levels`` in (0, 1) of each column of column-sorted ``(N, P)`` values (linear)."""
+    position = np.clip(levels * len(sorted_values) - 0.5, 0, len(sorted_values) - 1)
+    low = np.floor(position).astype(np.int64)
+    high = np.minimum(low + 1, len(sorted_values) - 1)
+    weight = (position - low)[:, None]
+    return sorted_values[low] * (1 - weight) + sorted_values[high] * weight
 
 
 def colour_histogram_distance(a: np.ndarray, b: np.ndarray, bins: int = 8) -> float:

@@ -31,6 +31,7 @@ def main() -> None:
     parser.add_argument("--image", type=int, default=96)
     parser.add_argument("--res", type=int, default=64)
     parser.add_argument("--lr", type=float, default=0.05)
+    parser.add_argument("--radiance", type=float, default=1.0, help="constant environment radiance Le")
     args = parser.parse_args()
     if args.quick:
         args.steps, args.image, args.res = 60, 48, 32
@@ -64,7 +65,7 @@ def main() -> None:
 
     def held_out_swd(albedo: torch.Tensor, style: np.ndarray) -> float:
         with torch.no_grad():
-            images = render_views(albedo, prepared, held_out, size)
+            images = render_views(albedo, prepared, held_out, size, radiance=args.radiance)
         return float(np.mean([style_distance(img.permute(1, 2, 0).numpy(), style)["swd"] for img in images]))
 
     summary = {}
@@ -82,7 +83,7 @@ def main() -> None:
             start = time.perf_counter()
             for _ in range(args.steps):
                 albedo = torch.sigmoid(logits)
-                images = tone_map(render_views(albedo, prepared, path.sample(4, rng), size))  # (4, 3, H, W)
+                images = tone_map(render_views(albedo, prepared, path.sample(4, rng), size, radiance=args.radiance))
                 mask = render_mask(images)
                 loss = histogram_loss(images, style_tensor[0], mask)  # RGB
                 for level, target in zip(extractor(images), style_levels):
@@ -93,7 +94,7 @@ def main() -> None:
                 optimizer.step()
             seconds = time.perf_counter() - start
             after = held_out_swd(torch.sigmoid(logits), style)
-            row = {"extractor": extractor.name, "style": name, "swd_before": before, "swd_after": after,
+            row = {"extractor": extractor.name, "style": name, "radiance": args.radiance, "swd_before": before, "swd_after": after,
                    "steps": args.steps, "seconds": seconds}
             results.append(row)
             print(json.dumps(row), flush=True)

@@ -1,0 +1,159 @@
+"""SKPN (paper Sec. 4.2): a stylizing kernel predictor (SKP) and a volume autoencoder (VolAE).
+
+SKP: for each style feature level, the channel means and standard deviations go through three FC
+layers (LeakyReLU) that predict a stylizing kernel: a ``k^3`` convolution ``C x C`` with its bias,
+and the DAIN affine ``gamma, beta`` (``k^3 C^2 + 3 C`` numbers). With ``stylize="adain"`` only
+``gamma, beta`` are predicted (AdaIN-style modulation, the paper's Fig. 15 comparison).
+
+VolAE: an encoder of three 3^3 conv blocks (strides 1, 2, 2) with residual blocks and LeakyReLU,
+and a mirrored decoder (trilinear x2 upsampling, skip connections, ReLU) ending in tanh mapped to
+albedo in [0, 1]. Stylizing kernels act at the bottleneck and before the decoder's last three
+convolutions: ``x <- DAIN(K * x + b; m) * gamma + beta``, with the density mask ``m`` at that
+resolution. Any ``D, H, W`` is accepted: the volume is padded to a multiple of 4 and cropped back.
+
+Shapes: density ``(B, 1, D, H, W)``; style levels ``[(B, C_l, H_l, W_l)]`` (4 levels); output albedo
+``(B, 3, D, H, W)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+from .dain import dain, density_mask
+
+
+@dataclass
+class SKPNConfig:
+    widths: tuple[int, int, int] = (16, 32, 64)  # encoder block widths (full, 1/2, 1/4 resolution)
+    residual_blocks: int = 1  # per encoder block
+    style_channels: tuple[int, int, int, int] = (64, 128, 256, 512)  # the extractor's level widths
+    style_hidden: int = 256
+    kernels: int = 4  # 1: bottleneck only; 2: + before the last conv; 4: bottleneck + last three
+    kernel_size: int = 1
+    norm: str = "dain"  # or "in"
+    stylize: str = "kernel"  # or "adain"
+
+    def __post_init__(self):
+        if self.kernels not in (1, 2, 4):
+            raise ValueError(f"kernels must be 1, 2 or 4, got {self.kernels}.")
+        if self.kernel_size not in (1, 3):
+            raise ValueError(f"kernel_size must be 1 or 3, got {self.kernel_size}.")
+        if self.norm not in ("dain", "in") or self.stylize not in ("kernel", "adain"):
+            raise ValueError(f"norm must be dain|in and stylize kernel|adain, got {self.norm}, {self.stylize}.")
+
+
+class StylizingKernelPredictor(nn.Module):
+    """Three FC layers from one level's (mean, std) to one stylizing kernel."""
+
+    def __init__(self, style_channels: int, channels: int, hidden: int, kernel_size: int, with_kernel: bool):
+        super().__init__()
+        self.channels, self.kernel_size, self.with_kernel = channels, kernel_size, with_kernel
+        outputs = (channels * channels * kernel_size**3 + channels if with_kernel else 0) + 2 * channels
+        self.mlp = nn.Sequential(
+            nn.Linear(2 * style_channels, hidden), nn.LeakyReLU(0.2),
+            nn.Linear(hidden, hidden), nn.LeakyReLU(0.2),
+            nn.Linear(hidden, outputs),
+        )
+
+    def forward(self, style_level: torch.Tensor) -> dict:
+        flat = style_level.flatten(2)
+        statistics = torch.cat([flat.mean(2), flat.std(2, unbiased=False)], dim=1)
+        out = self.mlp(statistics)
+        c, k = self.channels, self.kernel_size
+        result = {"gamma": 1.0 + out[:, :c], "beta": out[:, c : 2 * c]}
+        if self.with_kernel:
+            weights = out[:, 2 * c : 2 * c + c * c * k**3].view(-1, c, c, k, k, k)
+            # Start near the identity so an untrained kernel passes features through.
+            identity = torch.zeros_like(weights)
+            identity[:, torch.arange(c), torch.arange(c), k // 2, k // 2, k // 2] = 1.0
+            result["weight"] = identity + weights / (c * k**3) ** 0.5
+            result["bias"] = out[:, 2 * c + c * c * k**3 :]
+        return result
+
+
+def _apply_kernel(x: torch.Tensor, kernel: dict) -> torch.Tensor:
+    """Per-sample convolution: ``x (B, C, D, H, W)`` with ``weight (B, C, C, k, k, k)`` and ``bias (B, C)``."""
+    if "weight" not in kernel:
+        return x
+    batch, channels = x.shape[:2]
+    weight = kernel["weight"]
+    k = weight.shape[-1]
+    if k == 1:
+        y = torch.einsum("boi,bidhw->bodhw", weight[..., 0, 0, 0], x)
+    else:
+        y = F.conv3d(x.reshape(1, batch * channels, *x.shape[2:]), weight.reshape(batch * channels, channels, k, k, k),
+                     padding=k // 2, groups=batch).reshape(x.shape)
+    return y + kernel["bias"][..., None, None, None]
+
+
+class _ResidualBlock(nn.Module):
+    def __init__(self, channels: int):
+        super().__init__()
+        self.conv1 = nn.Conv3d(channels, channels, 3, padding=1)
+        self.conv2 = nn.Conv3d(channels, channels, 3, padding=1)
+
+    def forward(self, x):
+        return x + self.conv2(F.leaky_relu(self.conv1(x), 0.2))
+
+
+class SKPN(nn.Module):
+    def __init__(self, config: SKPNConfig = SKPNConfig()):
+        super().__init__()
+        self.config = config
+        w0, w1, w2 = config.widths
+
+        def block(cin, cout, stride):
+            return nn.Sequential(nn.Conv3d(cin, cout, 3, stride=stride, padding=1), nn.LeakyReLU(0.2),
+                                 *[_ResidualBlock(cout) for _ in range(config.residual_blocks)])
+
+        self.encoder = nn.ModuleList([block(1, w0, 1), block(w0, w1, 2), block(w1, w2, 2)])
+        self.decoder = nn.ModuleList([nn.Conv3d(w2 + w1, w1, 3, padding=1), nn.Conv3d(w1 + w0, w0, 3, padding=1),
+                                      nn.Conv3d(w0, 3, 3, padding=1)])
+        # Kernel sites: bottleneck (w2), before decoder convs 1, 2, 3 (inputs w2 + w1 after the skip
+        # are stylized on the upsampled part only, w2; then w1; then w0).
+        site_channels = [w2, w2, w1, w0]
+        active_sites = {1: [0], 2: [0, 3], 4: [0, 1, 2, 3]}[config.kernels]
+        style_for_site = [3, 2, 1, 0]  # deepest style level at the bottleneck, then shallower
+        with_kernel = config.stylize == "kernel"
+        self.sites = active_sites
+        self.predictors = nn.ModuleDict({
+            str(site): StylizingKernelPredictor(config.style_channels[style_for_site[site]], site_channels[site],
+                                                config.style_hidden, config.kernel_size, with_kernel)
+            for site in active_sites
+        })
+        self.style_for_site = style_for_site
+
+    def forward(self, density: torch.Tensor, style_levels: list[torch.Tensor]) -> torch.Tensor:
+        if density.dim() != 5 or density.shape[1] != 1:
+            raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
+        size = density.shape[2:]
+        padded = F.pad(density, [p for n in reversed(size) for p in (0, (-n) % 4)])
+        kernels = {site: self.predictors[str(site)](style_levels[self.style_for_site[site]]) for site in self.sites}
+        use_mask = self.config.norm == "dain"
+
+        def stylize(x, site):
+            if site not in kernels:
+                return x
+            kernel = kernels[site]
+            mask = density_mask(padded, x.shape[2:]) if use_mask else None
+            return dain(_apply_kernel(x, kernel), mask, kernel["gamma"], kernel["beta"])
+
+        e0 = self.encoder[0](padded)
+        e1 = self.encoder[1](e0)
+        e2 = self.encoder[2](e1)
+        x = stylize(e2, 0)
+        x = stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 1)
+        x = F.relu(self.decoder[0](torch.cat([x, e1], dim=1)))
+        x = stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 2)
+        x = F.relu(self.decoder[1](torch.cat([x, e0], dim=1)))
+        x = stylize(x, 3)
+        albedo = 0.5 * (torch.tanh(self.decoder[2](x)) + 1.0)
+        return albedo[..., : size[0], : size[1], : size[2]]
+
+
+def parameter_count(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())

@@ -37,7 +37,7 @@ def solver_seconds(resolution: int, frames: int, warmup: int):
         solver._add_forces()
         solver._project()
         divergence = max(divergence, float(solver.divergence().abs().max()))
-        solver.state.density.clone(), solver.cell_velocity()
+        solver.cell_velocity()  # what step() records, so the timing matches a real frame
         solver._advect()
     return (time.perf_counter() - start) / frames, divergence
 

@@ -1,0 +1,203 @@
+"""Training configuration: nested dataclasses, read from TOML and ``--set section.key=value``.
+
+Every key has a type; a key the dataclasses do not name, or a value of the wrong type, is a
+``ConfigError`` that says which key and what was expected, before any work starts. The resolved
+config is written next to a run's outputs and stored in each checkpoint.
+
+    [data]   where the smoke frames and styles come from, and the held-out split
+    [model]  SKPN widths and ablation switches (``SKPNConfig``)
+    [render] the fast layer's image size, views, steps, light
+    [loss]   loss weights (paper: histogram 1, TV 10, temporal 300)
+    [optim]  Adam, batch, schedule (paper: lr 2e-4, betas 0.9/0.999, x0.8 every 50 epochs)
+    [run]    seed, device, extractor, logging, evaluation and checkpoint intervals
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .skpn import SKPNConfig
+
+
+class ConfigError(ValueError):
+    """A config file or ``--set`` override that cannot be used as given."""
+
+
+@dataclass
+class DataConfig:
+    smoke: str = "data/smoke32"  # a directory with manifest.json from ``python -m mistyle.data smoke``
+    make: str = ""  # "tiny" or "cpu": generate that bundled dataset spec into ``smoke`` when it is missing
+    styles: str = "offline"  # "offline" (the built-in style set) or a folder of images
+    style_size: int = 128  # styles are centre-cropped/resized to this square size
+    val_plumes: int = 1  # the last plumes of the manifest are held out for validation
+
+
+@dataclass
+class RenderConfig:
+    image_size: int = 160
+    views: int = 4
+    steps: int = 64  # N, ray-marching segments
+    scheme: str = "exact"
+    radiance: float = 8.0  # the training light's constant environment radiance Le
+
+
+@dataclass
+class LossConfig:
+    style: str = "histogram"  # "histogram" | "gram" | "meanstd" (ablations)
+    style_weight: float = 1.0
+    rgb_weight: float = 1.0  # the histogram loss in RGB, beside the feature levels
+    tv_weight: float = 10.0
+    temporal_weight: float = 300.0
+
+
+@dataclass
+class OptimConfig:
+    steps: int = 1000
+    batch: int = 8
+    lr: float = 2e-4
+    betas: tuple[float, float] = (0.9, 0.999)
+    lr_decay: float = 0.8
+    decay_every_epochs: float = 50.0  # an epoch is one pass over the training frame pairs
+
+
+@dataclass
+class RunConfig:
+    seed: int = 0
+    device: str = "cpu"  # "cpu" or "cuda"; picks the Mitsuba variant too
+    extractor: str = "auto"  # "auto" | "vgg16" | "vgg16-random" | "filterbank"
+    vgg_weights: str = ""
+    log_every: int = 10
+    eval_every: int = 200
+    checkpoint_every: int = 200
+    eval_styles: int = 6
+    eval_densities: int = 2
+    eval_views: int = 2
+    threads: int = 0  # torch CPU threads; 0 keeps torch's default
+
+
+@dataclass
+class TrainConfig:
+    data: DataConfig = field(default_factory=DataConfig)
+    model: SKPNConfig = field(default_factory=SKPNConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
+    loss: LossConfig = field(default_factory=LossConfig)
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    run: RunConfig = field(default_factory=RunConfig)
+
+    def validate(self) -> None:
+        checks = [
+            (self.data.make in ("", "tiny", "cpu"), "data.make must be '', 'tiny' or 'cpu'"),
+            (self.data.style_size >= 16, "data.style_size must be >= 16"),
+            (self.data.val_plumes >= 1, "data.val_plumes must be >= 1 (validation needs unseen densities)"),
+            (self.render.image_size >= 16, "render.image_size must be >= 16 (the extractor pools three times)"),
+            (self.render.views >= 1 and self.render.steps >= 1, "render.views and render.steps must be >= 1"),
+            (self.render.scheme in ("exact", "midpoint", "riemann"), "render.scheme must be exact, midpoint or riemann"),
+            (self.render.radiance > 0, "render.radiance must be > 0"),
+            (self.loss.style in ("histogram", "gram", "meanstd"), "loss.style must be histogram, gram or meanstd"),
+            (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
+            (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),
+            (self.run.device in ("cpu", "cuda"), "run.device must be cpu or cuda"),
+            (self.run.extractor in ("auto", "vgg16", "vgg16-random", "filterbank"),
+             "run.extractor must be auto, vgg16, vgg16-random or filterbank"),
+            (min(self.run.log_every, self.run.eval_every, self.run.checkpoint_every) >= 1,
+             "run.log_every, run.eval_every and run.checkpoint_every must be >= 1"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise ConfigError(message + ".")
+        try:
+            SKPNConfig.__post_init__(self.model)
+        except ValueError as error:
+            raise ConfigError(f"[model]: {error}") from None
+
+
+def load_config(path: str | Path | None = None, overrides: list[str] = ()) -> TrainConfig:
+    """The defaults, updated by the TOML file at ``path`` and then by ``section.key=value`` strings."""
+    config = TrainConfig()
+    if path is not None:
+        path = Path(path)
+        try:
+            table = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise ConfigError(f"Config file {path} does not exist; see configs/ for tiny.toml, cpu.toml, paper.toml.") from None
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
+            raise ConfigError(f"Config file {path} is not valid TOML: {error}") from None
+        _update(config, table, where=str(path))
+    for override in overrides:
+        key, sep, text = override.partition("=")
+        if not sep or "." not in key:
+            raise ConfigError(f"--set takes section.key=value, e.g. optim.lr=1e-3; got {override!r}.")
+        try:
+            value = tomllib.loads(f"value = {text}")["value"]
+        except tomllib.TOMLDecodeError:
+            value = text  # a bare word: a string
+        section, _, name = key.strip().partition(".")
+        _update(config, {section: {name: value}}, where="--set")
+    config.validate()
+    return config
+
+
+def config_to_dict(config) -> dict:
+    return dataclasses.asdict(config)
+
+
+def config_from_dict(table: dict) -> TrainConfig:
+    config = TrainConfig()
+    _update(config, table, where="checkpoint")
+    return config
+
+
+def to_toml(table: dict) -> str:
+    """The resolved config as TOML (two levels of tables, scalars and lists)."""
+    def literal(value):
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        if isinstance(value, (int, float)):
+            return repr(value)
+        if isinstance(value, (list, tuple)):
+            return "[" + ", ".join(literal(v) for v in value) + "]"
+        return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+    lines = []
+    for section, values in table.items():
+        lines.append(f"[{section}]")
+        lines += [f"{key} = {literal(value)}" for key, value in values.items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _update(target, table: dict, where: str) -> None:
+    fields = {f.name: f for f in dataclasses.fields(target)}
+    hints = typing.get_type_hints(type(target))
+    for key, value in table.items():
+        if key not in fields:
+            raise ConfigError(f"{where}: unknown key {key!r} in [{type(target).__name__}]; known keys: {', '.join(fields)}.")
+        current = getattr(target, key)
+        if dataclasses.is_dataclass(current):
+            if not isinstance(value, dict):
+                raise ConfigError(f"{where}: [{key}] must be a table, got {value!r}.")
+            _update(current, value, where=f"{where} [{key}]")
+        else:
+            setattr(target, key, _coerce(value, hints[key], f"{where}: {key}"))
+
+
+def _coerce(value, hint, name: str):
+    origin = typing.get_origin(hint)
+    if origin is tuple:
+        items = typing.get_args(hint)
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{name} must be a list, got {value!r}.")
+        if items[-1] is Ellipsis:
+            items = (items[0],) * len(value)
+        if len(items) != len(value):
+            raise ConfigError(f"{name} must have {len(items)} entries, got {len(value)}.")
+        return tuple(_coerce(v, t, name) for v, t in zip(value, items))
+    if hint is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if hint in (int, float, str, bool) and (type(value) is hint):
+        return value
+    raise ConfigError(f"{name} must be {getattr(hint, '__name__', hint)}, got {value!r} ({type(value).__name__}).")

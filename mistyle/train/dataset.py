@@ -1,0 +1,125 @@
+"""Training data: smoke frame pairs (t, t+1, velocity, cached Ls) and style images, split for validation.
+
+* ``SmokePairs`` reads a manifest written by ``python -m mistyle.data smoke``; the last
+  ``val_plumes`` plumes are held out, so validation densities come from simulations never trained on.
+* ``StyleSet`` holds styles as ``(N, 3, S, S)`` float32 in [0, 1]. For the built-in offline set the
+  last variant of every source (crop, palette or material seed) is held out; for a folder of images
+  the split is the folder's stable hash split (``ImageFolder.split``).
+
+Both check their inputs when built, so an empty or foreign dataset fails before training starts.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from ..data.generate import SmokeDatasetSpec, generate_smoke, load_frame
+
+# The bundled dataset specs ``data.make`` can generate when the dataset directory is missing.
+DATASET_SPECS = {
+    "tiny": SmokeDatasetSpec(resolution=16, plumes=3, frames=14, keep_first=11, keep_last=14, seed=7, directions=32),
+    "cpu": SmokeDatasetSpec(resolution=32, plumes=24, frames=60, keep_first=41, keep_last=60, seed=0, directions=64),
+}
+
+
+@dataclass
+class FramePair:
+    first: Path
+    second: Path
+    plume: int
+
+
+class SmokePairs:
+    """Consecutive-frame pairs of a smoke dataset, split by plume into train and validation."""
+
+    def __init__(self, root: str | Path, val_plumes: int = 1, make: str = "", log=print):
+        self.root = Path(root)
+        manifest_path = self.root / "manifest.json"
+        if not manifest_path.is_file() and make:
+            log(f"data: {manifest_path} is missing; generating the {make!r} smoke dataset there")
+            generate_smoke(DATASET_SPECS[make], self.root, log=log)
+        if not manifest_path.is_file():
+            raise ValueError(
+                f"No smoke dataset at {self.root} (missing manifest.json). Generate one with "
+                f"`python -m mistyle.data smoke --res 32 --plumes 24 --frames 60 --keep 41-60 --out {self.root}`, "
+                "or set data.make = \"cpu\" to have training generate it."
+            )
+        try:
+            manifest = json.loads(manifest_path.read_text())
+            self.density_scale = float(manifest["spec"]["density_scale"])
+            pairs = manifest["pairs"]
+            plume_of = {record["path"]: int(record["plume"]) for record in manifest["files"]}
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise ValueError(f"{manifest_path} is not a mistyle smoke manifest ({error}).") from None
+        all_pairs = [FramePair(self.root / a, self.root / b, plume_of[a]) for a, b in pairs]
+        if not all_pairs:
+            raise ValueError(f"The smoke dataset at {self.root} has no frame pairs; generate at least two kept frames per plume.")
+        missing = [p.first for p in all_pairs if not p.first.is_file()] + [p.second for p in all_pairs if not p.second.is_file()]
+        if missing:
+            raise ValueError(f"{len(missing)} frame files listed in {manifest_path} are missing, e.g. {missing[0]}; re-run generation.")
+        plumes = sorted({p.plume for p in all_pairs})
+        if len(plumes) <= val_plumes:
+            raise ValueError(f"The dataset at {self.root} has {len(plumes)} plumes; data.val_plumes={val_plumes} leaves none to train on.")
+        held_out = set(plumes[-val_plumes:])
+        self.train = [p for p in all_pairs if p.plume not in held_out]
+        self.val = [p for p in all_pairs if p.plume in held_out]
+        first = load_frame(self.train[0].first)
+        self.shape = tuple(first["density"].shape)
+
+    def load(self, pair: FramePair) -> dict:
+        """``density0/1 (Z,Y,X)``, ``ls0/1 (Z,Y,X)`` and ``velocity0 (3,Z,Y,X)`` (x,y,z components) as float32."""
+        a, b = load_frame(pair.first), load_frame(pair.second)
+        return {"density0": a["density"], "density1": b["density"], "ls0": a["ls"], "ls1": b["ls"],
+                "velocity0": np.ascontiguousarray(np.moveaxis(a["velocity"], -1, 0))}
+
+
+class StyleSet:
+    """Training and held-out style images, resized to ``size`` squares, as ``(N, 3, S, S)`` tensors."""
+
+    def __init__(self, source: str = "offline", size: int = 128):
+        self.source = source
+        if source == "offline":
+            from ..data.styles import offline_style_set
+
+            named = offline_style_set(size=size)
+            last = {}
+            for name, _ in named:
+                stem, _, index = name.rpartition("_")
+                last[stem] = max(last.get(stem, -1), int(index))
+            is_held = [int(name.rpartition("_")[2]) == last[name.rpartition("_")[0]] for name, _ in named]
+            train = [(n, im) for (n, im), held in zip(named, is_held) if not held]
+            val = [(n, im) for (n, im), held in zip(named, is_held) if held]
+        else:
+            from ..data.styles import ImageFolder
+
+            folder = ImageFolder(Path(source))
+            train_paths, val_paths = folder.split()
+            if not train_paths or not val_paths:
+                raise ValueError(f"The style folder {source} needs at least two images (one is held out for validation); "
+                                 f"it has {len(folder.paths)}.")
+            train = [(str(p.relative_to(folder.root)), im) for p, im in zip(train_paths, folder.load_all(train_paths))]
+            val = [(str(p.relative_to(folder.root)), im) for p, im in zip(val_paths, folder.load_all(val_paths))]
+        self.train_names, self.train = [n for n, _ in train], _as_batch([im for _, im in train], size)
+        self.val_names, self.val = [n for n, _ in val], _as_batch([im for _, im in val], size)
+
+
+def _as_batch(images: list[np.ndarray], size: int) -> torch.Tensor:
+    return torch.stack([square_style(image, size) for image in images])
+
+
+def square_style(image: np.ndarray, size: int) -> torch.Tensor:
+    """Centre-crop an ``(H, W, 3)`` image to a square and resize it to ``(3, size, size)`` (antialiased)."""
+    tensor = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)
+    height, width = tensor.shape[1:]
+    side = min(height, width)
+    top, left = (height - side) // 2, (width - side) // 2
+    tensor = tensor[:, top : top + side, left : left + side]
+    if side != size:
+        tensor = F.interpolate(tensor[None], size=(size, size), mode="bilinear", antialias=True, align_corners=False)[0]
+    return tensor.clamp(0, 1).contiguous()

@@ -1,0 +1,382 @@
+"""The SKPN training loop (paper Sec. 4.4-4.6), one process or many under ``torchrun``.
+
+Each update pairs frame t and t+1 of smoke examples (with frame t's velocity and both cached Ls
+grids) with training styles, predicts both albedos, renders frame t from ``render.views`` random
+views on the training orbit through the fast layer, and minimises
+
+    style_weight * (histogram loss on features + rgb_weight * histogram loss in RGB)
+    + tv_weight * TV(V_t) + temporal_weight * |V_{t+1} - W(V_t, U_t)|^2.
+
+Outputs in ``<out>/``: ``config.toml`` (resolved), ``metrics.jsonl`` (one object per logged step),
+``last.pt`` (every ``run.checkpoint_every`` steps, on Ctrl-C and at the end), ``final.pt``,
+``previews/step_XXXXXX.png`` and TensorBoard events in ``tb/``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import resource
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.distributed as dist
+
+from .. import __version__
+from ..io import atomic_output, atomic_write_bytes, write_png
+from ..scenes import CameraPath, prepare_density
+from .config import TrainConfig, config_from_dict, config_to_dict, to_toml
+from .dataset import SmokePairs, StyleSet
+from .features import make_extractor
+from .losses import tone_map, tv_loss, temporal_loss
+from .metrics import multiview_spread, style_distance
+from .objective import StyleObjective
+from .skpn import SKPN, parameter_count
+
+CHECKPOINT_FORMAT = 1
+
+
+class Interrupted(Exception):
+    """Raised out of the loop after Ctrl-C (or SIGTERM) once the checkpoint is safely written."""
+
+
+def device_for(config: TrainConfig) -> torch.device:
+    """The torch device, with the matching Mitsuba variant selected (``backend.use_variant``)."""
+    from ..backend import use_variant
+
+    if config.run.device == "cuda" and not torch.cuda.is_available():
+        raise ValueError("run.device = \"cuda\" but torch sees no CUDA device; use --device cpu.")
+    device = torch.device(config.run.device)
+    if device.type == "cuda" and dist.is_initialized():
+        device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", 0)))
+        torch.cuda.set_device(device)
+    use_variant(device.type)
+    return device
+
+
+def build_model(config: TrainConfig, extractor) -> SKPN:
+    """SKPN for ``config.model`` with the style widths of ``extractor``."""
+    config.model.style_channels = tuple(int(c) for c in extractor.channels)
+    return SKPN(config.model)
+
+
+class Trainer:
+    def __init__(self, config: TrainConfig, out: Path, resume: bool = False, log=print):
+        self.config, self.out = config, Path(out)
+        self.rank, self.world = (dist.get_rank(), dist.get_world_size()) if dist.is_initialized() else (0, 1)
+        self.log = log if self.rank == 0 else (lambda *a, **k: None)
+        if config.optim.batch % self.world:
+            raise ValueError(f"optim.batch={config.optim.batch} must be divisible by the {self.world} processes.")
+        if self.rank == 0:
+            _check_writable(self.out)
+        checkpoint = None
+        if resume:
+            checkpoint = load_checkpoint(self.out / "last.pt")
+            saved = config_from_dict(checkpoint["config"])
+            if saved.optim.steps != config.optim.steps:
+                self.log(f"resume: optim.steps {saved.optim.steps} -> {config.optim.steps}")
+                saved.optim.steps = config.optim.steps
+            if config_to_dict(saved) != config_to_dict(config):
+                self.log("resume: continuing with the checkpoint's config (only optim.steps may change on --resume)")
+            self.config = config = saved
+        if config.run.threads:
+            torch.set_num_threads(config.run.threads)
+        self.device = device_for(config)
+        self.data = SmokePairs(config.data.smoke, config.data.val_plumes, config.data.make, log=self.log)
+        self.styles = StyleSet(config.data.styles, config.data.style_size)
+        self.extractor = make_extractor(config.run.extractor, config.run.vgg_weights or None).to(self.device)
+        self.log(f"feature extractor: {self.extractor.name}"
+                 + ("" if self.extractor.name.startswith("vgg16-imagenet") else " (offline: no VGG16 ImageNet weights given)"))
+        torch.manual_seed(config.run.seed)
+        self.model = build_model(config, self.extractor).to(self.device)
+        self.network = self.model
+        if self.world > 1:
+            self.network = torch.nn.parallel.DistributedDataParallel(self.model)
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.optim.lr, betas=config.optim.betas)
+        steps_per_epoch = max(1, len(self.data.train) // config.optim.batch)
+        self.scheduler = torch.optim.lr_scheduler.StepLR(
+            self.optimizer, step_size=max(1, round(config.optim.decay_every_epochs * steps_per_epoch)), gamma=config.optim.lr_decay)
+        self.objective = StyleObjective(self.extractor, config.loss.style, config.loss.rgb_weight)
+        self.path = CameraPath()
+        self.rng = np.random.default_rng([config.run.seed, self.rank])
+        self.step, self.seconds = 0, 0.0
+        if checkpoint is not None:
+            self._restore(checkpoint)
+        self.interrupted = False
+        self._tensorboard = None
+        self.log(f"SKPN: {parameter_count(self.model) / 1e6:.2f} M parameters; {len(self.data.train)} training pairs "
+                 f"({self.data.shape} voxels), {len(self.styles.train)} training styles; "
+                 f"{len(self.data.val)} validation pairs, {len(self.styles.val)} validation styles")
+
+    # ------------------------------------------------------------------ one update
+    def sample_batch(self) -> dict:
+        per_rank = self.config.optim.batch // self.world
+        pairs = [self.data.train[i] for i in self.rng.integers(len(self.data.train), size=per_rank)]
+        style_ids = self.rng.integers(len(self.styles.train), size=per_rank)
+        views = self.path.sample(self.config.render.views, self.rng)
+        frames = [self.data.load(pair) for pair in pairs]
+        return {"frames": frames, "styles": self.styles.train[style_ids].to(self.device), "views": views}
+
+    def losses(self, batch: dict) -> tuple[dict, torch.Tensor]:
+        config, device = self.config, self.device
+        frames = batch["frames"]
+        stack = lambda key: torch.from_numpy(np.stack([f[key] for f in frames])).to(device)  # noqa: E731
+        density = torch.cat([stack("density0"), stack("density1")])[:, None]
+        levels = [torch.cat([level, level]) for level in self._style_levels(batch["styles"])]
+        albedo = self.network(density, levels)
+        current, following = albedo[: len(frames)], albedo[len(frames):]
+        prepared = [prepare_density(f["density0"], self.data.density_scale, ls=f["ls0"]) for f in frames]
+        images = self._render(current, prepared, batch["views"])
+        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"]))
+        loss_tv = tv_loss(current)
+        loss_temp = temporal_loss(following, current, stack("velocity0"))
+        loss = config.loss.style_weight * loss_hist + config.loss.tv_weight * loss_tv + config.loss.temporal_weight * loss_temp
+        terms = {"loss": loss, "loss_hist": loss_hist, "loss_tv": loss_tv, "loss_temp": loss_temp}
+        return terms, images
+
+    def _style_levels(self, styles: torch.Tensor) -> list[torch.Tensor]:
+        with torch.no_grad():
+            return list(self.extractor(styles))
+
+    def _render(self, albedo, prepared, views):
+        from ..bridge_torch import render_views
+
+        size = self.config.render.image_size
+        return render_views(albedo, prepared, views, size, steps=self.config.render.steps,
+                            scheme=self.config.render.scheme, radiance=self.config.render.radiance)
+
+    def train_step(self) -> tuple[dict, dict]:
+        started = time.perf_counter()
+        batch = self.sample_batch()
+        terms, images = self.losses(batch)
+        self.optimizer.zero_grad(set_to_none=True)
+        terms["loss"].backward()
+        self.optimizer.step()
+        self.scheduler.step()
+        self.step += 1
+        values = {key: float(value.detach()) for key, value in terms.items()}
+        if self.world > 1:
+            packed = torch.tensor([values[k] for k in sorted(values)], dtype=torch.float64)
+            dist.all_reduce(packed)
+            values = dict(zip(sorted(values), (packed / self.world).tolist()))
+        self.seconds += time.perf_counter() - started
+        return values, {"styles": batch["styles"], "images": images.detach()}
+
+    # ------------------------------------------------------------------ the run
+    def run(self) -> Path:
+        config = self.config
+        if self.rank == 0:
+            self.out.mkdir(parents=True, exist_ok=True)
+            atomic_write_bytes(self.out / "config.toml", to_toml(config_to_dict(config)).encode())
+            self._trim_metrics()
+        previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            if self.step == 0:
+                self._log_record({"step": 0, **self.evaluate()})
+            window_start, window_steps = time.perf_counter(), 0
+            while self.step < config.optim.steps:
+                values, visuals = self.train_step()
+                window_steps += 1
+                if not all(math.isfinite(v) for v in values.values()):
+                    raise FloatingPointError(f"step {self.step}: the loss is not finite ({values}); lower optim.lr.")
+                evaluate = self.step % config.run.eval_every == 0 or self.step == config.optim.steps
+                if self.step % config.run.log_every == 0 or evaluate or self.interrupted:
+                    rate = window_steps / max(time.perf_counter() - window_start, 1e-9)
+                    window_start, window_steps = time.perf_counter(), 0
+                    record = {"step": self.step, **values, "lr": self.scheduler.get_last_lr()[0],
+                              "seconds": self.seconds, "steps_per_second": rate,
+                              "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+                    if evaluate:
+                        record.update(self.evaluate())
+                        self._tensorboard_images(visuals)
+                    self._log_record(record)
+                    self._progress(record)
+                if self.step % config.run.checkpoint_every == 0 or self.interrupted:
+                    self.save(self.out / "last.pt")
+                if self.interrupted:
+                    raise Interrupted()
+            self.save(self.out / "last.pt")
+            final = self.save(self.out / "final.pt")
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+            if self._tensorboard is not None:
+                self._tensorboard.close()
+        if self.rank == 0:
+            sys.stderr.write("\n")
+        return final
+
+    def _on_signal(self, signum, frame):
+        if self.interrupted:  # a second Ctrl-C: stop at once
+            raise KeyboardInterrupt
+        self.interrupted = True
+        self.log(f"\n{signal.Signals(signum).name}: finishing step {self.step + 1}, saving {self.out / 'last.pt'} and stopping "
+                 "(press Ctrl-C again to abort without saving)")
+
+    # ------------------------------------------------------------------ evaluation
+    @torch.no_grad()
+    def evaluate(self) -> dict:
+        """Style metrics of held-out styles on held-out densities from fixed views (rank 0 only)."""
+        if self.rank != 0:
+            return {}
+        config = self.config
+        pick = np.linspace(0, len(self.data.val) - 1, min(config.run.eval_densities, len(self.data.val))).round().astype(int)
+        pairs = [self.data.val[i] for i in pick]
+        style_ids = np.linspace(0, len(self.styles.val) - 1, min(config.run.eval_styles, len(self.styles.val))).round().astype(int)
+        views = self.path.turntable(config.run.eval_views, offset=0.0625)
+        self.model.eval()
+        swd, hist, spreads, rows = [], [], [], []
+        for pair in pairs:
+            frame = self.data.load(pair)
+            density = torch.from_numpy(frame["density0"])[None, None].to(self.device)
+            prepared = prepare_density(frame["density0"], self.data.density_scale, ls=frame["ls0"])
+            for index in style_ids:
+                style = self.styles.val[index : index + 1].to(self.device)
+                albedo = self.model(density, self._style_levels(style))
+                images = self._render(albedo, [prepared], views)[0]
+                per_view = [style_distance(image.permute(1, 2, 0).cpu().numpy(), style[0].permute(1, 2, 0).cpu().numpy())
+                            for image in images]
+                swd += [d["swd"] for d in per_view]
+                hist += [d["hist"] for d in per_view]
+                spreads.append(multiview_spread([d["swd"] for d in per_view])["relative_std"])
+                rows.append(torch.cat([_fit(style[0], images.shape[-2:]), *tone_map(images)], dim=-1))
+        self.model.train()
+        if rows:
+            preview = torch.cat(rows, dim=-2).permute(1, 2, 0).clamp(0, 1).cpu().numpy()
+            write_png(self.out / "previews" / f"step_{self.step:06d}.png", preview, srgb=False)
+            self._tb().add_image("val/preview", preview, self.step, dataformats="HWC")
+        return {"val_swd": float(np.mean(swd)), "val_hist": float(np.mean(hist)), "val_view_spread": float(np.mean(spreads))}
+
+    # ------------------------------------------------------------------ logging
+    def _log_record(self, record: dict) -> None:
+        if self.rank != 0:
+            return
+        with open(self.out / "metrics.jsonl", "a") as handle:
+            handle.write(json.dumps(record) + "\n")
+        tb = self._tb()
+        for key, value in record.items():
+            if key != "step":
+                tb.add_scalar(("val/" if key.startswith("val_") else "train/") + key, value, record["step"])
+
+    def _trim_metrics(self) -> None:
+        """Drop records past the restored step (written after the checkpoint a killed run resumed from)."""
+        path = self.out / "metrics.jsonl"
+        if not path.is_file():
+            return
+        kept = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= self.step]
+        atomic_write_bytes(path, ("".join(line + "\n" for line in kept)).encode())
+
+    def _tb(self):
+        if self._tensorboard is None:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self._tensorboard = SummaryWriter(str(self.out / "tb"))
+        return self._tensorboard
+
+    def _tensorboard_images(self, visuals: dict) -> None:
+        if self.rank != 0:
+            return
+        tb, images = self._tb(), visuals["images"][0]  # the first batch item's views
+        tb.add_image("train/style", visuals["styles"][0].clamp(0, 1), self.step)
+        tb.add_images("train/views", tone_map(images).clamp(0, 1), self.step)
+        tb.add_images("train/masks", (images.amax(dim=1, keepdim=True) > 1e-3).float(), self.step)
+
+    def _progress(self, record: dict) -> None:
+        if self.rank != 0:
+            return
+        total = self.config.optim.steps
+        done = int(30 * record["step"] / total)
+        text = (f"[{'#' * done}{'.' * (30 - done)}] {record['step']}/{total}  loss {record['loss']:.4g} "
+                f"(hist {record['loss_hist']:.4g}, tv {record['loss_tv']:.3g}, temp {record['loss_temp']:.3g})  "
+                f"{record['steps_per_second']:.2f} steps/s")
+        if "val_swd" in record:
+            text += f"  val_swd {record['val_swd']:.4f}"
+        end = "\r" if sys.stderr.isatty() else "\n"
+        sys.stderr.write(text + end)
+        sys.stderr.flush()
+
+    # ------------------------------------------------------------------ checkpoints
+    def _rng_states(self) -> list:
+        state = {"numpy": self.rng.bit_generator.state, "torch": torch.get_rng_state()}
+        if self.world == 1:
+            return [state]
+        states = [None] * self.world
+        dist.all_gather_object(states, state)
+        return states
+
+    def save(self, path: Path) -> Path:
+        states = self._rng_states()  # every rank joins the gather
+        if self.rank != 0:
+            return path
+        payload = {
+            "format": CHECKPOINT_FORMAT, "mistyle_version": __version__, "step": self.step, "seconds": self.seconds,
+            "config": config_to_dict(self.config), "extractor": self.extractor.name,
+            "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
+            "scheduler": self.scheduler.state_dict(), "rng": states, "world_size": self.world,
+        }
+        with atomic_output(path) as tmp:
+            torch.save(payload, tmp)
+        return path
+
+    def _restore(self, checkpoint: dict) -> None:
+        if checkpoint["extractor"] != self.extractor.name:
+            raise ValueError(f"The checkpoint was trained with the {checkpoint['extractor']} extractor, "
+                             f"this run has {self.extractor.name}; give the same --vgg-weights / run.extractor.")
+        if checkpoint["world_size"] != self.world:
+            raise ValueError(f"The checkpoint was written by {checkpoint['world_size']} processes; resume with the same number.")
+        self.model.load_state_dict(checkpoint["model"])
+        self.optimizer.load_state_dict(checkpoint["optimizer"])
+        self.scheduler.load_state_dict(checkpoint["scheduler"])
+        state = checkpoint["rng"][self.rank]
+        self.rng.bit_generator.state = state["numpy"]
+        torch.set_rng_state(state["torch"])
+        self.step, self.seconds = int(checkpoint["step"]), float(checkpoint["seconds"])
+        self.log(f"resumed from {self.out / 'last.pt'} at step {self.step}")
+
+
+def load_checkpoint(path) -> dict:
+    """Read a training checkpoint; ``ValueError`` naming the problem for a missing, damaged or foreign file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"No checkpoint at {path}; start without --resume, or give the --out of the run to resume.")
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # torch raises many kinds for a damaged file
+        raise ValueError(f"{path} is not a readable mistyle checkpoint ({type(error).__name__}: {error}).") from None
+    if not isinstance(checkpoint, dict) or checkpoint.get("format") != CHECKPOINT_FORMAT or "model" not in checkpoint:
+        raise ValueError(f"{path} is not a mistyle SKPN checkpoint (format {CHECKPOINT_FORMAT}).")
+    return checkpoint
+
+
+def _check_writable(out: Path) -> None:
+    import tempfile
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as error:
+        raise ValueError(f"Cannot write to the output directory {out} ({error}); choose another --out.") from None
+
+
+def _fit(image: torch.Tensor, size) -> torch.Tensor:
+    return torch.nn.functional.interpolate(image[None], size=tuple(size), mode="bilinear", antialias=True, align_corners=False)[0]
+
+
+def load_model(path) -> tuple[SKPN, TrainConfig]:
+    """The trained network of a checkpoint (eval mode, CPU) and its resolved config."""
+    checkpoint = load_checkpoint(path)
+    try:
+        config = config_from_dict(checkpoint["config"])
+        model = SKPN(config.model)
+        model.load_state_dict(checkpoint["model"])
+    except (KeyError, RuntimeError, ValueError) as error:
+        raise ValueError(f"{path} does not match this version's SKPN ({type(error).__name__}: {error}); "
+                         "retrain, or use the mistyle version that wrote it "
+                         f"({checkpoint.get('mistyle_version', 'unknown')}).") from None
+    return model.eval(), config

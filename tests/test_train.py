@@ -1,0 +1,140 @@
+"""End-to-end training on the tiny config: the real CLI, the real layer, in subprocesses."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+REPO = Path(__file__).resolve().parents[1]
+TINY = str(REPO / "configs" / "tiny.toml")
+
+
+@pytest.fixture(scope="module")
+def tiny_smoke(tmp_path_factory):
+    from mistyle.data.generate import generate_smoke
+    from mistyle.train.dataset import DATASET_SPECS
+
+    out = tmp_path_factory.mktemp("data") / "smoke"
+    generate_smoke(DATASET_SPECS["tiny"], out, log=lambda *a: None)
+    return out
+
+
+def command(out, smoke, *extra, launcher=(sys.executable, "-m")):
+    return [*launcher, "mistyle.train", "--config", TINY, "--out", str(out), "--set", f'data.smoke="{smoke}"', *extra]
+
+
+def run(out, smoke, *extra, check=True):
+    result = subprocess.run(command(out, smoke, *extra), capture_output=True, text=True, cwd=REPO, timeout=600)
+    if check and result.returncode != 0:
+        raise AssertionError(f"exit {result.returncode}\n{result.stderr[-3000:]}")
+    return result
+
+
+def records(out):
+    return [json.loads(line) for line in (Path(out) / "metrics.jsonl").read_text().splitlines()]
+
+
+def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
+    out = tmp_path / "run"
+    result = run(out, tiny_smoke, "--set", "optim.steps=60", "--set", "run.eval_every=30")
+    assert "feature extractor: filterbank" in result.stdout + result.stderr
+    rows = records(out)
+    steps = [r for r in rows if "loss" in r]
+    assert [r["step"] for r in steps] == list(range(1, 61))
+    for key in ("step", "loss", "loss_hist", "loss_tv", "loss_temp", "seconds"):
+        assert all(key in r for r in steps), key
+    losses = np.array([r["loss"] for r in steps])
+    assert losses[-20:].mean() < 0.7 * losses[:5].mean()
+    evals = [r for r in rows if "val_swd" in r]
+    assert [r["step"] for r in evals] == [0, 30, 60]
+    assert evals[-1]["val_swd"] < evals[0]["val_swd"]
+    assert sorted(p.name for p in (out / "previews").iterdir()) == ["step_000000.png", "step_000030.png", "step_000060.png"]
+    assert list((out / "tb").glob("events.out.tfevents.*"))
+    checkpoint = torch.load(out / "final.pt", weights_only=True)
+    assert checkpoint["step"] == 60 and checkpoint["mistyle_version"]
+    assert {"model", "optimizer", "scheduler", "rng", "config", "extractor"} <= checkpoint.keys()
+    assert checkpoint["config"]["optim"]["steps"] == 60
+    assert not [p for p in out.rglob("*.tmp*")]
+
+
+def _kill_after(out, smoke, step, sig, *extra):
+    """Start a run, wait for its progress line of ``step``, send ``sig``; returns the process result."""
+    process = subprocess.Popen(command(out, smoke, *extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
+    for line in process.stderr:
+        if line.startswith("[") and f"] {step}/" in line:
+            process.send_signal(sig)
+            break
+    stderr = process.stderr.read()
+    process.wait(timeout=120)
+    return process.returncode, stderr
+
+
+def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, tiny_smoke):
+    settings = ("--set", "optim.steps=12", "--set", "run.checkpoint_every=4", "--set", "run.eval_every=100")
+    run(tmp_path / "straight", tiny_smoke, *settings)
+    killed = tmp_path / "killed"
+    code, _ = _kill_after(killed, tiny_smoke, 6, signal.SIGKILL, *settings)
+    assert code == -signal.SIGKILL
+    assert torch.load(killed / "last.pt", weights_only=True)["step"] in (4, 8)
+    run(killed, tiny_smoke, "--resume", *settings)
+    straight = [r["loss"] for r in records(tmp_path / "straight") if "loss" in r]
+    resumed = [r["loss"] for r in records(killed) if "loss" in r]
+    assert [r["step"] for r in records(killed) if "loss" in r] == list(range(1, 13))
+    np.testing.assert_allclose(resumed, straight, rtol=1e-4)
+
+
+def test_ctrl_c_saves_a_checkpoint_and_exits_cleanly(tmp_path, tiny_smoke):
+    out = tmp_path / "run"
+    code, stderr = _kill_after(out, tiny_smoke, 3, signal.SIGINT, "--set", "optim.steps=200")
+    assert code == 130, stderr
+    assert "continue with --resume" in stderr and "Traceback" not in stderr
+    saved = torch.load(out / "last.pt", weights_only=True)["step"]
+    assert 3 <= saved < 200
+    assert records(out)[-1]["step"] == saved
+
+
+@pytest.mark.parametrize("extra, message", [
+    (("--set", "optim.nonsense=1"), "unknown key 'nonsense'"),
+    (("--set", "optim.batch=\"two\""), "batch must be int"),
+    (("--set", 'data.styles="/nonexistent/styles"'), "does not exist"),
+])
+def test_bad_configs_fail_before_any_work(tmp_path, tiny_smoke, extra, message):
+    result = run(tmp_path / "run", tiny_smoke, *extra, check=False)
+    assert result.returncode == 2 and message in result.stderr and "Traceback" not in result.stderr
+    assert not (tmp_path / "run" / "metrics.jsonl").exists()
+
+
+def test_missing_or_empty_dataset_is_a_clear_error(tmp_path, tiny_smoke):
+    missing = subprocess.run(command(tmp_path / "run", tmp_path / "nowhere", "--set", 'data.make=""'),
+                             capture_output=True, text=True, cwd=REPO)
+    assert missing.returncode == 2 and "No smoke dataset" in missing.stderr and "python -m mistyle.data smoke" in missing.stderr
+    empty = tmp_path / "empty"
+    shutil.copytree(tiny_smoke, empty)
+    manifest = json.loads((empty / "manifest.json").read_text())
+    manifest["pairs"] = []
+    (empty / "manifest.json").write_text(json.dumps(manifest))
+    result = run(tmp_path / "run2", empty, check=False)
+    assert result.returncode == 2 and "no frame pairs" in result.stderr
+    gone = tmp_path / "gone"
+    shutil.copytree(tiny_smoke, gone)
+    next(gone.rglob("frame*.npz")).unlink()
+    result = run(tmp_path / "run3", gone, check=False)
+    assert result.returncode == 2 and "missing" in result.stderr
+
+
+def test_two_process_ddp_on_cpu(tmp_path, tiny_smoke):
+    out = tmp_path / "ddp"
+    launcher = (sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", "29533", "-m")
+    result = subprocess.run(command(out, tiny_smoke, "--set", "optim.steps=6", "--set", "run.eval_every=100", launcher=launcher),
+                            capture_output=True, text=True, cwd=REPO, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert result.returncode == 0, result.stderr[-3000:]
+    checkpoint = torch.load(out / "final.pt", weights_only=True)
+    assert checkpoint["world_size"] == 2 and len(checkpoint["rng"]) == 2 and checkpoint["step"] == 6
+    assert [r["step"] for r in records(out) if "loss" in r] == list(range(1, 7))

@@ -15,6 +15,7 @@ import torch
 import torch.nn.functional as F
 
 from .integrators import DEFAULT_SCHEME, SCHEMES
+from .scenes.builder import DEFAULT_ENV_RADIANCE
 from .scenes.box import MediumBox
 from .scenes.cameras import View
 
@@ -72,7 +73,7 @@ def render_views_torch(
     image_size: tuple[int, int],
     steps: int = 64,
     scheme: str = DEFAULT_SCHEME,
-    radiance: float = 1.0,
+    radiance: float = DEFAULT_ENV_RADIANCE,
 ) -> torch.Tensor:
     """Render ``(B, 3, D, H, W)`` albedo volumes; returns ``(B, V, 3, height, width)``.
 

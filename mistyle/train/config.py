@@ -20,6 +20,7 @@ import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..scenes.builder import DEFAULT_ENV_RADIANCE
 from .skpn import SKPNConfig
 
 
@@ -42,7 +43,8 @@ class RenderConfig:
     views: int = 4
     steps: int = 64  # N, ray-marching segments
     scheme: str = "exact"
-    radiance: float = 8.0  # the training light's constant environment radiance Le
+    radiance: float = DEFAULT_ENV_RADIANCE  # the training light's constant environment radiance Le
+    camera_distance: float = 2.5  # radius of the training orbit (the box's longest side is 1)
 
 
 @dataclass
@@ -97,6 +99,7 @@ class TrainConfig:
             (self.render.views >= 1 and self.render.steps >= 1, "render.views and render.steps must be >= 1"),
             (self.render.scheme in ("exact", "midpoint", "riemann"), "render.scheme must be exact, midpoint or riemann"),
             (self.render.radiance > 0, "render.radiance must be > 0"),
+            (self.render.camera_distance > 0.9, "render.camera_distance must be > 0.9 (cameras stay outside the box)"),
             (self.loss.style in ("histogram", "gram", "meanstd"), "loss.style must be histogram, gram or meanstd"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),

@@ -14,6 +14,7 @@ import numpy as np
 import torch
 
 from ..scenes import CameraPath, PreparedDensity
+from ..scenes.builder import DEFAULT_ENV_RADIANCE
 from .losses import tv_loss
 from .objective import StyleObjective
 
@@ -34,9 +35,10 @@ def optimize_albedo(
     image_size: int = 96,
     views: int = 4,
     render_steps: int = 64,
-    radiance: float = 8.0,
+    radiance: float = DEFAULT_ENV_RADIANCE,
     tv_weight: float = 10.0,
     seed: int = 0,
+    camera_distance: float = 2.5,
     initial: torch.Tensor | None = None,
 ) -> DirectFit:
     """Fit ``albedo (3, Z, Y, X)`` to ``style (3, S, S)`` with ``steps`` Adam updates on random orbit views.
@@ -52,7 +54,7 @@ def optimize_albedo(
     logits.requires_grad_(True)
     optimizer = torch.optim.Adam([logits], lr=lr)
     targets = objective.targets(style[None])
-    path, rng = CameraPath(), np.random.default_rng(seed)
+    path, rng = CameraPath(distance=camera_distance), np.random.default_rng(seed)
     losses = []
     started = time.perf_counter()
     for _ in range(steps):

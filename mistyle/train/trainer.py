@@ -81,6 +81,7 @@ class Trainer:
             if saved.optim.steps != config.optim.steps:
                 self.log(f"resume: optim.steps {saved.optim.steps} -> {config.optim.steps}")
                 saved.optim.steps = config.optim.steps
+            config.model.style_channels = saved.model.style_channels  # set from the extractor, not by users
             if config_to_dict(saved) != config_to_dict(config):
                 self.log("resume: continuing with the checkpoint's config (only optim.steps may change on --resume)")
             self.config = config = saved
@@ -102,7 +103,7 @@ class Trainer:
         self.scheduler = torch.optim.lr_scheduler.StepLR(
             self.optimizer, step_size=max(1, round(config.optim.decay_every_epochs * steps_per_epoch)), gamma=config.optim.lr_decay)
         self.objective = StyleObjective(self.extractor, config.loss.style, config.loss.rgb_weight)
-        self.path = CameraPath()
+        self.path = CameraPath(distance=config.render.camera_distance)
         self.rng = np.random.default_rng([config.run.seed, self.rank])
         self.step, self.seconds = 0, 0.0
         if checkpoint is not None:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 
 import numpy as np
 import torch
@@ -41,11 +40,11 @@ def main() -> None:
     from mistyle.bridge_torch import render_views
     from mistyle.data.styles import material_texture, offline_style_set
     from mistyle.scenes import CameraPath, prepare_density
+    from mistyle.scenes.builder import DEFAULT_ENV_RADIANCE
     from mistyle.train.features import make_extractor
     from mistyle.train.metrics import style_distance
     from mistyle.train.objective import StyleObjective
     from mistyle.train.optimize import optimize_albedo
-    from mistyle.scenes.builder import DEFAULT_ENV_RADIANCE
     from mistyle.volume import load_density
 
     if args.radiance is None:

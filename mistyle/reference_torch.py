@@ -15,8 +15,8 @@ import torch
 import torch.nn.functional as F
 
 from .integrators import DEFAULT_SCHEME, SCHEMES
-from .scenes.builder import DEFAULT_ENV_RADIANCE
 from .scenes.box import MediumBox
+from .scenes.builder import DEFAULT_ENV_RADIANCE
 from .scenes.cameras import View
 
 

@@ -1,6 +1,12 @@
 import pytest
 
-from mistyle.train.config import ConfigError, config_from_dict, config_to_dict, load_config, to_toml
+from mistyle.train.config import (
+    ConfigError,
+    config_from_dict,
+    config_to_dict,
+    load_config,
+    to_toml,
+)
 
 CONFIGS = ("configs/tiny.toml", "configs/cpu.toml", "configs/paper.toml")
 

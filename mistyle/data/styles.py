@@ -31,12 +31,12 @@ TEXTURES = {"brick": "brick.png", "grass": "grass.png", "gravel": "gravel.png"}
 MATERIALS = ("marble", "jade", "fire", "wood", "cells", "clouds", "lava")
 
 
-def load_image(path) -> np.ndarray:
+def load_image(path, notes: list | None = None) -> np.ndarray:
     """Read a style image as float32 ``(H, W, 3)`` in [0, 1].
 
     Grayscale is replicated to RGB, an alpha channel is composited over black, 16-bit images are
-    scaled by 1/65535. Raises ``ValueError`` for a missing, unreadable or non-image file and for
-    images smaller than 8 x 8 pixels.
+    scaled by 1/65535 (each conversion is described in ``notes`` when given). Raises ``ValueError``
+    for a missing, unreadable or non-image file and for images smaller than 8 x 8 pixels.
     """
     from PIL import Image, UnidentifiedImageError
 
@@ -49,22 +49,27 @@ def load_image(path) -> np.ndarray:
             mode, array = image.mode, np.asarray(image)
     except (UnidentifiedImageError, OSError, SyntaxError) as error:
         raise ValueError(f"{path} is not a readable image ({error}); use a PNG or JPEG file.") from error
-    return _to_rgb(array, mode, str(path))
+    return _to_rgb(array, mode, str(path), notes)
 
 
-def _to_rgb(array: np.ndarray, mode: str, name: str) -> np.ndarray:
+def _to_rgb(array: np.ndarray, mode: str, name: str, notes: list | None = None) -> np.ndarray:
+    notes = [] if notes is None else notes
     if array.dtype == np.uint16 or mode.startswith("I;16") or mode == "I":
         values = array.astype(np.float32) / 65535.0
+        notes.append(f"{name}: 16-bit image scaled to [0, 1]")
     elif array.dtype == np.bool_:
         values = array.astype(np.float32)
     else:
         values = array.astype(np.float32) / 255.0
     if values.ndim == 2:
         values = np.repeat(values[..., None], 3, axis=-1)
+        notes.append(f"{name}: greyscale image replicated to RGB")
     elif values.shape[-1] == 2:  # gray + alpha
         values = np.repeat(values[..., :1] * values[..., 1:], 3, axis=-1)
+        notes.append(f"{name}: greyscale + alpha image composited over black and replicated to RGB")
     elif values.shape[-1] == 4:  # RGBA: composite over black, as the renders' background
         values = values[..., :3] * values[..., 3:]
+        notes.append(f"{name}: alpha channel composited over black (the renders' background)")
     values = np.clip(values[..., :3], 0.0, 1.0)
     if min(values.shape[:2]) < MIN_SIZE:
         raise ValueError(f"{name} is {values.shape[1]}x{values.shape[0]} pixels; a style image needs at least {MIN_SIZE}x{MIN_SIZE}.")

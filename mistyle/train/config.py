@@ -15,10 +15,11 @@ config is written next to a run's outputs and stored in each checkpoint.
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import tomllib
 
 from ..scenes.builder import DEFAULT_ENV_RADIANCE
 from .skpn import SKPNConfig

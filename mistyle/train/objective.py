@@ -11,7 +11,14 @@ from __future__ import annotations
 import torch
 import torch.nn as nn
 
-from .losses import gram_loss, histogram_loss, mean_std_loss, pool_mask, render_mask, tone_map
+from .losses import (
+    gram_loss,
+    histogram_loss,
+    mean_std_loss,
+    pool_mask,
+    render_mask,
+    tone_map,
+)
 
 STYLE_LOSSES = {"histogram": histogram_loss, "gram": gram_loss, "meanstd": mean_std_loss}
 

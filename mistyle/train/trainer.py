@@ -33,7 +33,7 @@ from ..scenes import CameraPath, prepare_density
 from .config import TrainConfig, config_from_dict, config_to_dict, to_toml
 from .dataset import SmokePairs, StyleSet
 from .features import make_extractor
-from .losses import tone_map, tv_loss, temporal_loss
+from .losses import temporal_loss, tone_map, tv_loss
 from .metrics import multiview_spread, style_distance
 from .objective import StyleObjective
 from .skpn import SKPN, parameter_count
@@ -317,6 +317,7 @@ class Trainer:
         payload = {
             "format": CHECKPOINT_FORMAT, "mistyle_version": __version__, "step": self.step, "seconds": self.seconds,
             "config": config_to_dict(self.config), "extractor": self.extractor.name,
+            "density_scale": self.data.density_scale,
             "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
             "scheduler": self.scheduler.state_dict(), "rng": states, "world_size": self.world,
         }

@@ -1,0 +1,65 @@
+"""Bringing path-traced renders back to the style: the network is trained under single scattering.
+
+The path tracer adds multiple scattering, which brightens and desaturates a medium relative to
+the fast layer the network was trained through. ``calibrate_albedo`` undoes this to first order,
+per density: render the density with uniform albedo ``a`` at a few levels with ``volpath``
+(multiple scattering) to measure the mean foreground radiance ``g(a)``; the fast layer's is
+``a * h`` (linear in albedo). Each albedo value ``a`` is then replaced, per channel, by
+``g^{-1}(a * h)``: the albedo whose multiply-scattered brightness equals the single-scattered
+brightness the network aimed for. ``g`` is monotone, so the inverse is a table lookup.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+LEVELS = (0.1, 0.25, 0.4, 0.55, 0.7, 0.85, 1.0)
+
+
+@dataclass
+class ScatteringCalibration:
+    levels: np.ndarray  # albedo levels a, increasing, starting with 0
+    multiple: np.ndarray  # g(a): mean path-traced foreground radiance at uniform albedo a
+    single: float  # h: mean fast-layer foreground radiance at uniform albedo 1
+    seconds: float
+
+    def apply(self, albedo: np.ndarray) -> np.ndarray:
+        """``(..., 3)`` albedo -> calibrated albedo (same shape), ``g^{-1}(a h)`` per value."""
+        target = np.asarray(albedo, dtype=np.float64) * self.single
+        return np.clip(np.interp(target, self.multiple, self.levels), 0.0, 1.0).astype(np.float32)
+
+    def as_dict(self) -> dict:
+        return {"levels": self.levels.tolist(), "multiple": self.multiple.tolist(), "single": self.single,
+                "seconds": self.seconds}
+
+
+def measure_calibration(density: np.ndarray, density_scale: float, radiance: float, views, res: int = 64,
+                        spp: int = 32, levels=LEVELS, device: str = "cpu") -> ScatteringCalibration:
+    """Measure ``g(a)`` and ``h`` for ``density`` under the constant environment ``radiance`` from ``views``."""
+    import time
+
+    import torch
+
+    from .api import path_trace
+    from .bridge_torch import render_views
+    from .scenes import prepare_density
+
+    started = time.perf_counter()
+    shape = density.shape
+    prepared = prepare_density(density, density_scale)
+    with torch.no_grad():
+        layer = render_views(torch.ones((3,) + shape), prepared, views, res, radiance=radiance).numpy()
+    mask = layer.max(axis=1) > 1e-3  # (V, H, W)
+    if not mask.any():
+        raise ValueError("The medium is not visible from the calibration views.")
+    single = float(layer.transpose(0, 2, 3, 1)[mask].mean())
+    multiple = [0.0]
+    for level in levels:
+        albedo = np.full(shape + (3,), level, np.float32)
+        images, _ = path_trace(density, albedo, views, res, spp=spp, max_depth=-1, density_scale=density_scale,
+                               light=f"constant:{radiance}", device=device, seed=17)
+        multiple.append(float(np.stack(images)[mask].mean()))
+    multiple = np.maximum.accumulate(np.array(multiple))  # monotone despite noise
+    return ScatteringCalibration(np.array((0.0,) + tuple(levels)), multiple, single, time.perf_counter() - started)

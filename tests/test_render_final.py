@@ -1,0 +1,145 @@
+"""The stylize API and ``python -m mistyle.render_final``: outputs, reports and bad input."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+import mistyle
+from mistyle import __version__
+from mistyle.render_final import main
+from mistyle.train.config import config_to_dict, load_config
+from mistyle.train.features import make_extractor
+from mistyle.train.skpn import SKPN
+from mistyle.volume import write_vol
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    """An untrained tiny-config SKPN in the training checkpoint format."""
+    config = load_config("configs/tiny.toml")
+    config.model.style_channels = make_extractor("filterbank").channels
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
+    torch.save({"format": 1, "mistyle_version": __version__, "step": 0, "config": config_to_dict(config),
+                "extractor": "filterbank", "density_scale": 20.0, "model": SKPN(config.model).state_dict()}, path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory, blob_density):
+    folder = tmp_path_factory.mktemp("inputs")
+    write_vol(folder / "blob.vol", blob_density)
+    rng = np.random.default_rng(0)
+    Image.fromarray((rng.random((32, 32, 3)) * 255).astype(np.uint8)).save(folder / "style.png")
+    Image.fromarray((rng.random((32, 32, 4)) * 255).astype(np.uint8), "RGBA").save(folder / "rgba.png")
+    Image.fromarray((rng.random((32, 32)) * 255).astype(np.uint8), "L").save(folder / "grey.png")
+    Image.fromarray((rng.random((32, 32)) * 65535).astype(np.uint16)).save(folder / "deep.png")
+    Image.fromarray(np.zeros((1, 1, 3), np.uint8)).save(folder / "dot.png")
+    (folder / "notes.txt").write_text("not an image")
+    np.save(folder / "nan.npy", np.full((8, 8, 8), np.nan, np.float32))
+    np.save(folder / "negative.npy", -np.ones((8, 8, 8), np.float32))
+    np.save(folder / "zeros.npy", np.zeros((8, 8, 8), np.float32))
+    np.save(folder / "empty.npy", np.zeros((0, 8, 8), np.float32))
+    (folder / "garbage.pt").write_bytes(b"\x00not a checkpoint")
+    return folder
+
+
+def test_stylize_api_any_shape_frames_and_sequences(mi, checkpoint, blob_density):
+    style = np.random.default_rng(1).random((40, 30, 3)).astype(np.float32)
+    albedo = mistyle.stylize(blob_density, style, checkpoint=checkpoint)
+    assert albedo.shape == blob_density.shape + (3,) and albedo.dtype == np.float32
+    assert 0 <= albedo.min() and albedo.max() <= 1
+    odd = np.pad(blob_density, ((0, 1), (2, 0), (0, 3)))
+    assert mistyle.stylize(odd, style, checkpoint=checkpoint).shape == odd.shape + (3,)
+    frames = np.stack([blob_density, blob_density[::-1]])
+    sequence = mistyle.stylize(frames, style, checkpoint=checkpoint)
+    assert sequence.shape == frames.shape + (3,)
+    np.testing.assert_allclose(sequence[0], albedo, atol=1e-6)  # frames are independent
+    scaled = mistyle.stylize(blob_density, style, checkpoint=checkpoint, scale_structures=2.0)
+    assert scaled.shape == albedo.shape and not np.allclose(scaled, albedo)
+
+
+def test_render_api_path_traces_the_medium(mi, blob_density):
+    albedo = np.full(blob_density.shape + (3,), 0.8, np.float32)
+    image = mistyle.render(blob_density, albedo, res=24, spp=8)
+    assert image.shape == (24, 24, 3) and image.max() > 0.1 and image[0, 0].max() == 0
+
+
+def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_path):
+    out = tmp_path / "out"
+    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "24", "--spp", "4", "--turntable", "3"])
+    assert code == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"albedo.vol", "albedo.npy", "report.json", "turntable.mp4", "turntable.gif", "turntable_0000.exr",
+            "turntable_0002.png", "turntable_0001_layer.png"} <= names
+    report = json.loads((out / "report.json").read_text())
+    for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "swd_plain", "calibration"):
+        assert key in report, key
+    assert (out / "turntable.mp4").stat().st_size > 1000 and (out / "turntable.mp4").read_bytes()[4:8] == b"ftyp"
+    assert np.load(out / "albedo.npy").shape == (16, 18, 20, 3)
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inputs, tmp_path, blob_density):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for index in range(2):
+        np.savez(frames / f"frame{index:04d}.npz", density=np.roll(blob_density, index, axis=2),
+                 velocity=np.tile(np.float32([1, 0, 0]), blob_density.shape + (1,)))
+    out = tmp_path / "out"
+    code = main(["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "16", "--spp", "2", "--correct", "none", "--coat", "dielectric:1.4"])
+    assert code == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["inputs"]["frames"] == 2 and report["temporal_flicker"] >= 0
+    assert (out / "albedo_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
+
+
+@pytest.mark.parametrize("style, note", [("rgba.png", "alpha channel"), ("grey.png", "greyscale"), ("deep.png", "16-bit")])
+def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, tmp_path, capsys, style, note):
+    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / style),
+                 "--out", str(tmp_path / "out"), "--res", "16", "--spp", "1", "--correct", "none"])
+    assert code == 0 and note in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"--style": "dot.png"}, "needs at least"),
+    ({"--style": "notes.txt"}, "not a readable image"),
+    ({"--style": "missing.png"}, "does not exist"),
+    ({"--density": "nan.npy"}, "NaN"),
+    ({"--density": "negative.npy"}, "negative"),
+    ({"--density": "zeros.npy"}, "all zero"),
+    ({"--density": "empty.npy"}, "empty"),
+    ({"--checkpoint": "garbage.pt"}, "not a readable mistyle checkpoint"),
+    ({"--light": "laser"}, "not a known light"),
+])
+def test_bad_input_is_a_clear_error_and_leaves_nothing(mi, checkpoint, inputs, tmp_path, capsys, change, message):
+    arguments = {"--checkpoint": str(checkpoint), "--density": str(inputs / "blob.vol"), "--style": str(inputs / "style.png")}
+    arguments.update({key: str(inputs / value) if key != "--light" else value for key, value in change.items()})
+    out = tmp_path / "out"
+    code = main([item for pair in arguments.items() for item in pair] + ["--out", str(out), "--res", "16", "--spp", "1"])
+    error = capsys.readouterr().err
+    assert code == 2 and message in error and "Traceback" not in error
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_checkpoint_from_another_config_is_refused(mi, checkpoint, inputs, tmp_path, capsys):
+    payload = torch.load(checkpoint, weights_only=True)
+    payload["config"]["model"]["widths"] = [4, 8, 8]
+    other = tmp_path / "other.pt"
+    torch.save(payload, other)
+    code = main(["--checkpoint", str(other), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(tmp_path / "out")])
+    assert code == 2 and "does not match" in capsys.readouterr().err
+
+
+def test_unwritable_output_directory(mi, checkpoint, inputs, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(blocker / "out")])
+    assert code == 2 and "Cannot write to the output directory" in capsys.readouterr().err

@@ -5,7 +5,7 @@ STAMP := .venv/.mistyle-installed
 .PHONY: demo test test-all setup
 
 demo: $(STAMP)
-	$(PY) -m mistyle.demo --out out/demo
+	$(PY) -m mistyle.demo
 
 test: $(STAMP)
 	$(PY) -m pytest -q

@@ -200,7 +200,7 @@ def path_trace(density, albedo, views=None, res: int = 256, spp: int = 64, max_d
     views = views or CameraPath().turntable(1, offset=0.0625)
     scale = DEFAULT_DENSITY_SCALE if density_scale is None else density_scale
     scene = mi.load_dict(final_scene(grid, scale, colours, views, res, res, spp=spp, max_depth=max_depth,
-                                     light=LightSpec.parse(light), coat_ior=coat_ior, coat_mesh=coat_mesh, seed=seed))
+                                     light=light if isinstance(light, LightSpec) else LightSpec.parse(light), coat_ior=coat_ior, coat_mesh=coat_mesh, seed=seed))
     images, seconds = [], []
     for index in range(len(views)):
         started = time.perf_counter()

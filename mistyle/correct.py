@@ -63,3 +63,60 @@ def measure_calibration(density: np.ndarray, density_scale: float, radiance: flo
         multiple.append(float(np.stack(images)[mask].mean()))
     multiple = np.maximum.accumulate(np.array(multiple))  # monotone despite noise
     return ScatteringCalibration(np.array((0.0,) + tuple(levels)), multiple, single, time.perf_counter() - started)
+
+
+def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray, style: np.ndarray, objective,
+                  steps: int = 16, views_per_step: int = 2, res: int = 64, spp: int = 8, radiance: float = 8.0,
+                  camera_distance: float = 2.5, lr: float = 0.05, tv_weight: float = 10.0, seed: int = 0,
+                  progress=None) -> tuple[np.ndarray, float]:
+    """A few Adam steps on the albedo against the style with the path tracer in the loop.
+
+    Mitsuba's ``prbvolpath`` (multiple scattering, constant training light) renders random views on
+    the orbit; ``dr.wrap`` carries its albedo gradient to torch, where ``objective`` (the training
+    style loss on tone-mapped images) and 3D TV are evaluated. Starts from ``albedo (Z, Y, X, 3)``;
+    returns ``(refined albedo, seconds)``.
+    """
+    import time
+
+    import drjit as dr
+    import torch
+
+    from .backend import active_variant
+    from .scenes import CameraPath
+    from .scenes.final import LightSpec, final_scene
+    from .train.losses import tv_loss
+
+    mi = active_variant()
+    started = time.perf_counter()
+    orbit, rng = CameraPath(distance=camera_distance), np.random.default_rng(seed)
+    scene_dict = final_scene(density, density_scale, albedo, [orbit.view(0.0)], res, res, spp=spp,
+                             light=LightSpec("constant", radiance))
+    scene_dict["integrator"] = {"type": "prbvolpath", "max_depth": -1, "hide_emitters": True}
+    scene = mi.load_dict(scene_dict)
+    params = mi.traverse(scene)
+    albedo_key = next(key for key in params.keys() if key.endswith("interior_medium.albedo.data"))
+    camera_key = "sensor000.to_world"
+
+    @dr.wrap(source="torch", target="drjit")
+    def path_traced(grid, render_seed):
+        params[albedo_key] = grid
+        params.update()
+        return mi.render(scene, params, sensor=0, spp=spp, seed=render_seed)
+
+    logits = torch.logit(torch.from_numpy(np.asarray(albedo, np.float32)).clamp(1e-3, 1 - 1e-3)).requires_grad_(True)
+    optimizer = torch.optim.Adam([logits], lr=lr)
+    targets = objective.targets(torch.from_numpy(np.ascontiguousarray(style)).permute(2, 0, 1)[None])
+    for step in range(steps):
+        grid = torch.sigmoid(logits)
+        images = []
+        for index in range(views_per_step):
+            view = orbit.view(float(rng.random()))
+            params[camera_key] = mi.ScalarTransform4f().look_at(origin=view.origin, target=view.target, up=view.up)
+            images.append(path_traced(grid, step * views_per_step + index).permute(2, 0, 1))
+        loss = objective.loss(torch.stack(images)[None], targets) + tv_weight * tv_loss(grid.permute(3, 0, 1, 2)[None])
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        if progress is not None:
+            progress(step + 1, steps, float(loss.detach()))
+    return torch.sigmoid(logits).detach().numpy(), time.perf_counter() - started

@@ -60,6 +60,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--mesh-res", type=int, default=64, help="voxels along the mesh's longest side")
     p.add_argument("--correct", choices=("calibrate", "none"), default="calibrate",
                    help="multiple-scattering albedo calibration (default) or none")
+    p.add_argument("--refine", type=int, default=0, metavar="STEPS",
+                   help="then refine the albedo for STEPS steps against the style with the path tracer in the loop")
     p.add_argument("--fps", type=int, default=12)
     p.add_argument("--device", choices=("cpu", "cuda"), default="cpu")
     return p
@@ -136,8 +138,8 @@ def run(args) -> int:
     from .volume import write_vol
 
     # ---- every input checked before any heavy work
-    if args.spp < 1 or not 8 <= args.res <= 8192 or args.turntable < 0 or args.fps < 1:
-        raise ValueError("Need --spp >= 1, 8 <= --res <= 8192, --turntable >= 0 and --fps >= 1.")
+    if args.spp < 1 or not 8 <= args.res <= 8192 or args.turntable < 0 or args.fps < 1 or args.refine < 0:
+        raise ValueError("Need --spp >= 1, 8 <= --res <= 8192, --turntable >= 0, --fps >= 1 and --refine >= 0.")
     notes: list[str] = []
     style = load_style(args.style, notes)
     for note in notes:
@@ -170,7 +172,7 @@ def run(args) -> int:
     report = {"inputs": {"density": str(args.density or args.mesh), "style": str(args.style), "frames": len(densities),
                          "shape_zyx": list(densities[0].shape), "checkpoint": str(stylizer.path), "light": args.light,
                          "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": density_scale,
-                         "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct,
+                         "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct, "refine_steps": args.refine,
                          "views": len(views)}, "notes": notes}
 
     # ---- stylize
@@ -197,6 +199,26 @@ def run(args) -> int:
         rendered_albedos = [calibration.apply(a) for a in albedos]
         report["calibration"] = calibration.as_dict()
         print(f"multiple-scattering calibration in {calibration.seconds:.1f} s", file=sys.stderr)
+    if args.refine:
+        from .correct import refine_albedo
+        from .train.dataset import square_style
+        from .train.objective import StyleObjective
+
+        objective = StyleObjective(stylizer.extractor, config.loss.style, config.loss.rgb_weight)
+        target = square_style(style, config.data.style_size).permute(1, 2, 0).numpy()
+        refined, seconds = [], 0.0
+        for index, (grid, albedo) in enumerate(zip(densities, rendered_albedos)):
+            result, took = refine_albedo(grid, density_scale, albedo, target, objective, steps=args.refine,
+                                         radiance=radiance, camera_distance=distance, tv_weight=config.loss.tv_weight,
+                                         progress=lambda done, count, loss: print(
+                                             f"refining frame {index}: step {done}/{count}, loss {loss:.4g}", file=sys.stderr))
+            refined.append(result)
+            seconds += took
+        rendered_albedos = refined
+        report["refine_seconds"] = seconds
+        for index, albedo in enumerate(refined):
+            stem = f"albedo_refined_frame{index:04d}" if sequence else "albedo_refined"
+            write_vol(args.out / f"{stem}.vol", albedo)
 
     # ---- path trace: a turntable of one frame, or every frame of a sequence from the views in turn
     render_seconds, images, layer_images = [], [], []
@@ -212,7 +234,7 @@ def run(args) -> int:
     started = time.perf_counter()
     for frame, frame_views in jobs:
         frame_images, seconds = path_trace(densities[frame], rendered_albedos[frame], frame_views, args.res, args.spp,
-                                           args.max_depth, density_scale, args.light, args.coat, coat_mesh, args.device,
+                                           args.max_depth, density_scale, light, args.coat, coat_mesh, args.device,
                                            progress=progress)
         images += frame_images
         render_seconds += seconds
@@ -234,10 +256,12 @@ def run(args) -> int:
     report["swd_final"] = float(np.mean([style_distance(image, style)["swd"] for image in images]))
     report["hist_final"] = float(np.mean([style_distance(image, style)["hist"] for image in images]))
     report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in layer_images]))
-    if args.correct != "none" and light.kind == "constant":
-        plain = [path_trace(densities[f], albedos[f], v, min(args.res, 96), min(args.spp, 32), args.max_depth, density_scale,
-                            args.light, args.coat, coat_mesh, args.device)[0] for f, v in jobs[:2]]
-        report["swd_plain"] = float(np.mean([style_distance(image, style)["swd"] for group in plain for image in group]))
+    if args.correct != "none" or args.refine:
+        # The same views and settings without the correction: how much the correction moved the metric.
+        plain = [image for frame, frame_views in jobs
+                 for image in path_trace(densities[frame], albedos[frame], frame_views, args.res, args.spp, args.max_depth,
+                                         density_scale, light, args.coat, coat_mesh, args.device)[0]]
+        report["swd_plain"] = float(np.mean([style_distance(image, style)["swd"] for image in plain]))
     atomic_write_bytes(args.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
     print(json.dumps({k: report[k] for k in ("stylize_seconds", "render_seconds", "swd_layer", "swd_final") if k in report}))
     print(f"wrote {args.out}/: albedo grid(s), {len(images)} image(s) (EXR + PNG)"

@@ -8,6 +8,7 @@ import torch
 from PIL import Image
 
 import mistyle
+import mistyle.volume
 from mistyle import __version__
 from mistyle.render_final import main
 from mistyle.train.config import config_to_dict, load_config
@@ -97,6 +98,29 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
     report = json.loads((out / "report.json").read_text())
     assert report["inputs"]["frames"] == 2 and report["temporal_flicker"] >= 0
     assert (out / "albedo_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
+
+
+def test_mesh_is_voxelized_and_coated(mi, checkpoint, inputs, tmp_path):
+    from mistyle.data.mesh import icosphere, write_ply
+
+    mesh = write_ply(tmp_path / "ball.ply", *icosphere(2))
+    out = tmp_path / "out"
+    code = main(["--checkpoint", str(checkpoint), "--mesh", str(mesh), "--mesh-res", "12", "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "16", "--spp", "2", "--coat", "dielectric:1.5", "--correct", "none"])
+    assert code == 0
+    assert (out / "coat_mesh.ply").is_file() and np.load(out / "albedo.npy").shape == (12, 12, 12, 3)
+    assert json.loads((out / "report.json").read_text())["inputs"]["coat_ior"] == 1.5
+
+
+def test_refine_with_the_path_tracer_in_the_loop(mi, checkpoint, inputs, tmp_path):
+    out = tmp_path / "out"
+    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "16", "--spp", "2", "--refine", "2"])
+    assert code == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["refine_seconds"] > 0 and "swd_plain" in report
+    refined = mistyle.volume.read_vol(out / "albedo_refined.vol")
+    assert refined.shape == (16, 18, 20, 3) and not np.allclose(refined, np.load(out / "albedo.npy"))
 
 
 @pytest.mark.parametrize("style, note", [("rgba.png", "alpha channel"), ("grey.png", "greyscale"), ("deep.png", "16-bit")])

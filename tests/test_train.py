@@ -63,6 +63,19 @@ def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
     assert checkpoint["config"]["optim"]["steps"] == 60
     assert not [p for p in out.rglob("*.tmp*")]
 
+    # The direct-optimisation baseline against this network, and the inference export.
+    baseline = run(tmp_path / "baseline", tiny_smoke, "--optimize", "--checkpoint", str(out / "final.pt"),
+                   "--optimize-steps", "3", "--optimize-styles", "1")
+    row = json.loads(baseline.stdout.splitlines()[0])
+    assert {"swd_network", "network_seconds", "swd_optimized", "optimize_seconds", "swd_grey"} <= row.keys()
+    assert (tmp_path / "baseline" / "baseline.json").is_file()
+    from mistyle.train.trainer import export_checkpoint, load_model
+
+    exported = export_checkpoint(out / "final.pt", tmp_path / "inference.pt")
+    assert "optimizer" not in torch.load(exported, weights_only=True)
+    assert exported.stat().st_size < (out / "final.pt").stat().st_size
+    load_model(exported)
+
 
 def _kill_after(out, smoke, step, sig, *extra):
     """Start a run, wait for its progress line of ``step``, send ``sig``; returns the process result."""

@@ -116,7 +116,7 @@ def _baseline(config, args) -> int:
         return float(np.mean([style_distance(im.permute(1, 2, 0).numpy(), style_np)["swd"] for im in images]))
 
     rows = []
-    picks = np.linspace(0, len(styles.val) - 1, min(args.optimize_styles, len(styles.val))).round().astype(int)
+    picks = styles.comparison_styles(min(args.optimize_styles, len(styles.val)))
     for index in picks:
         style = styles.val[index]
         style_np = style.permute(1, 2, 0).numpy()

@@ -28,6 +28,11 @@ DATASET_SPECS = {
 }
 
 
+# Three held-out offline styles of different kinds (photo, tinted texture, procedural material) used
+# by the comparisons that report "3 unseen styles"; other style sources use evenly spaced picks.
+COMPARISON_STYLES = ("photo/coffee_5", "texture/brick_3", "material/lava_5")
+
+
 @dataclass
 class FramePair:
     first: Path
@@ -107,6 +112,14 @@ class StyleSet:
             val = [(str(p.relative_to(folder.root)), im) for p, im in zip(val_paths, folder.load_all(val_paths))]
         self.train_names, self.train = [n for n, _ in train], _as_batch([im for _, im in train], size)
         self.val_names, self.val = [n for n, _ in val], _as_batch([im for _, im in val], size)
+
+    def comparison_styles(self, count: int = 3) -> list[int]:
+        """Indices into ``val`` of ``count`` held-out styles for comparisons (see ``COMPARISON_STYLES``)."""
+        chosen = [self.val_names.index(name) for name in COMPARISON_STYLES if name in self.val_names][:count]
+        if len(chosen) < count:
+            spaced = np.linspace(0, len(self.val_names) - 1, count).round().astype(int).tolist()
+            chosen += [i for i in spaced if i not in chosen][: count - len(chosen)]
+        return chosen
 
 
 def _as_batch(images: list[np.ndarray], size: int) -> torch.Tensor:

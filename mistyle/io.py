@@ -38,6 +38,19 @@ def atomic_output(path):
             os.unlink(tmp)
 
 
+def check_writable_dir(directory) -> Path:
+    """Create ``directory`` if needed and prove a file can be made in it; ``ValueError`` naming the fix."""
+    directory = Path(directory)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=directory):
+            pass
+    except OSError as error:
+        raise ValueError(f"Cannot write to the output directory {directory} ({error.strerror or error}); "
+                         "choose another --out.") from None
+    return directory
+
+
 def atomic_write_bytes(path, data: bytes) -> Path:
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as handle:

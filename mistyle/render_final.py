@@ -117,21 +117,10 @@ def load_frames(path: Path) -> tuple[list[np.ndarray], list[np.ndarray] | None, 
     return densities, (velocities if all(v is not None for v in velocities) else None), [f.stem for f in files]
 
 
-def _check_output_dir(out: Path) -> None:
-    import tempfile
-
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as error:
-        raise ValueError(f"Cannot write to the output directory {out} ({error.strerror or error}); choose another --out.") from None
-
-
 def run(args) -> int:
     from .api import Stylizer, display, load_style, path_trace
     from .backend import use_variant
-    from .io import atomic_write_bytes, write_exr, write_png
+    from .io import atomic_write_bytes, check_writable_dir, write_exr, write_png
     from .scenes import CameraPath
     from .scenes.final import LightSpec
     from .train.metrics import style_distance, temporal_flicker
@@ -144,7 +133,7 @@ def run(args) -> int:
     style = load_style(args.style, notes)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
-    _check_output_dir(args.out)
+    check_writable_dir(args.out)
     use_variant(args.device)
     stylizer = Stylizer(args.checkpoint, args.device, args.vgg_weights)
     config = stylizer.config
@@ -238,7 +227,8 @@ def run(args) -> int:
                                            progress=progress)
         images += frame_images
         render_seconds += seconds
-        layer_images += _layer_images(densities[frame], albedos[frame], density_scale, frame_views, args.res, config)
+        layer_images += _layer_images(densities[frame], albedos[frame], density_scale, frame_views, args.res, config,
+                                      args.device)
     report["render_seconds"] = time.perf_counter() - started
     report["render_seconds_per_image"] = float(np.mean(render_seconds))
 
@@ -269,7 +259,7 @@ def run(args) -> int:
     return 0
 
 
-def _layer_images(density, albedo, density_scale, views, res, config) -> list[np.ndarray]:
+def _layer_images(density, albedo, density_scale, views, res, config, device="cpu") -> list[np.ndarray]:
     import torch
 
     from .bridge_torch import render_views
@@ -277,9 +267,9 @@ def _layer_images(density, albedo, density_scale, views, res, config) -> list[np
 
     prepared = prepare_density(density, density_scale)
     with torch.no_grad():
-        images = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2), prepared, views, res,
+        images = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2).to(device), prepared, views, res,
                               steps=config.render.steps, radiance=config.render.radiance)
-    return [image.permute(1, 2, 0).numpy() for image in images]
+    return [image.permute(1, 2, 0).cpu().numpy() for image in images]
 
 
 def _write_npy(path: Path, array: np.ndarray) -> Path:

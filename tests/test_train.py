@@ -153,3 +153,17 @@ def test_two_process_ddp_on_cpu(tmp_path, tiny_smoke):
     checkpoint = torch.load(out / "final.pt", weights_only=True)
     assert checkpoint["world_size"] == 2 and len(checkpoint["rng"]) == 2 and checkpoint["step"] == 6
     assert [r["step"] for r in records(out) if "loss" in r] == list(range(1, 7))
+
+
+def test_training_reads_ls_from_the_dataset_cache(mi, tmp_path, tiny_smoke, monkeypatch):
+    import mistyle.integrators.inscatter as inscatter
+    from mistyle.train.config import load_config
+    from mistyle.train.trainer import Trainer
+
+    def recompute(*args, **kwargs):
+        raise AssertionError("Ls was recomputed during training")
+
+    monkeypatch.setattr(inscatter, "inscattered_radiance", recompute)
+    config = load_config(TINY, [f'data.smoke="{tiny_smoke}"', "optim.steps=2", "run.eval_every=1"])
+    Trainer(config, tmp_path / "run", log=lambda *a: None).run()
+    assert [r["step"] for r in records(tmp_path / "run") if "val_swd" in r] == [0, 1, 2]

@@ -28,7 +28,7 @@ import torch
 import torch.distributed as dist
 
 from .. import __version__
-from ..io import atomic_output, atomic_write_bytes, write_png
+from ..io import atomic_output, atomic_write_bytes, check_writable_dir, write_png
 from ..scenes import CameraPath, prepare_density
 from .config import TrainConfig, config_from_dict, config_to_dict, to_toml
 from .dataset import SmokePairs, StyleSet
@@ -73,7 +73,7 @@ class Trainer:
         if config.optim.batch % self.world:
             raise ValueError(f"optim.batch={config.optim.batch} must be divisible by the {self.world} processes.")
         if self.rank == 0:
-            _check_writable(self.out)
+            check_writable_dir(self.out)
         checkpoint = None
         if resume:
             checkpoint = load_checkpoint(self.out / "last.pt")
@@ -162,7 +162,7 @@ class Trainer:
         self.step += 1
         values = {key: float(value.detach()) for key, value in terms.items()}
         if self.world > 1:
-            packed = torch.tensor([values[k] for k in sorted(values)], dtype=torch.float64)
+            packed = torch.tensor([values[k] for k in sorted(values)], dtype=torch.float64, device=self.device)
             dist.all_reduce(packed)
             values = dict(zip(sorted(values), (packed / self.world).tolist()))
         self.seconds += time.perf_counter() - started
@@ -183,6 +183,10 @@ class Trainer:
             while self.step < config.optim.steps:
                 values, visuals = self.train_step()
                 window_steps += 1
+                if self.world > 1:  # every rank stops at the same step, or the checkpoint gather would hang
+                    flag = torch.tensor([float(self.interrupted)], device=self.device)
+                    dist.all_reduce(flag, op=dist.ReduceOp.MAX)
+                    self.interrupted = bool(flag.item())
                 if not all(math.isfinite(v) for v in values.values()):
                     raise FloatingPointError(f"step {self.step}: the loss is not finite ({values}); lower optim.lr.")
                 evaluate = self.step % config.run.eval_every == 0 or self.step == config.optim.steps
@@ -353,17 +357,6 @@ def load_checkpoint(path) -> dict:
     if not isinstance(checkpoint, dict) or checkpoint.get("format") != CHECKPOINT_FORMAT or "model" not in checkpoint:
         raise ValueError(f"{path} is not a mistyle SKPN checkpoint (format {CHECKPOINT_FORMAT}).")
     return checkpoint
-
-
-def _check_writable(out: Path) -> None:
-    import tempfile
-
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as error:
-        raise ValueError(f"Cannot write to the output directory {out} ({error}); choose another --out.") from None
 
 
 def _fit(image: torch.Tensor, size) -> torch.Tensor:

@@ -161,8 +161,8 @@ def run(args) -> int:
     report = {"inputs": {"density": str(args.density or args.mesh), "style": str(args.style), "frames": len(densities),
                          "shape_zyx": list(densities[0].shape), "checkpoint": str(stylizer.path), "light": args.light,
                          "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": density_scale,
-                         "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct, "refine_steps": args.refine,
-                         "views": len(views)}, "notes": notes}
+                         "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct,
+                         "refine_steps": args.refine, "views": len(views)}, "notes": notes}
 
     # ---- stylize
     started = time.perf_counter()

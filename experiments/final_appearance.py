@@ -7,7 +7,8 @@ resolution and samples:
 * ``layer``: the fast layer (single scattering, the training renderer);
 * ``plain``: ``volpath`` with multiple scattering, albedo as predicted;
 * ``calibrated``: ``volpath`` with the multiple-scattering albedo calibration (``mistyle.correct``);
-* ``refined``: the calibrated albedo refined for ``--refine`` steps with the path tracer in the loop.
+* ``refined``: the calibrated albedo refined for ``--refine`` steps with the path tracer in the loop;
+* ``refined_plain``: the predicted albedo (no calibration) refined the same way.
 
 Each prints its sliced Wasserstein distance to the style (lower is closer) and the seconds it took.
 
@@ -89,6 +90,10 @@ def main() -> None:
                                                        tv_weight=config.loss.tv_weight)
         images, _ = traced(refined)
         row["swd_refined"] = swd(images, style)
+        refined, _ = refine_albedo(density, scale, albedo, target, objective, steps=args.refine, radiance=radiance,
+                                   camera_distance=config.render.camera_distance, tv_weight=config.loss.tv_weight)
+        images, _ = traced(refined)
+        row["swd_refined_plain"] = swd(images, style)
         rows.append(row)
         print(json.dumps(row), flush=True)
     mean = {key: float(np.mean([r[key] for r in rows])) for key in rows[0] if key != "style"}

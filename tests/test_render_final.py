@@ -72,13 +72,14 @@ def test_render_api_path_traces_the_medium(mi, blob_density):
 def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "24", "--spp", "4", "--turntable", "3"])
+                 "--out", str(out), "--res", "24", "--spp", "4", "--turntable", "3", "--correct", "calibrate",
+                 "--refine", "1"])
     assert code == 0
     names = {p.name for p in out.iterdir()}
     assert {"albedo.vol", "albedo.npy", "report.json", "turntable.mp4", "turntable.gif", "turntable_0000.exr",
             "turntable_0002.png", "turntable_0001_layer.png"} <= names
     report = json.loads((out / "report.json").read_text())
-    for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "swd_plain", "calibration"):
+    for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "swd_plain", "calibration", "refine_seconds"):
         assert key in report, key
     assert (out / "turntable.mp4").stat().st_size > 1000 and (out / "turntable.mp4").read_bytes()[4:8] == b"ftyp"
     assert np.load(out / "albedo.npy").shape == (16, 18, 20, 3)
@@ -93,10 +94,11 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
                  velocity=np.tile(np.float32([1, 0, 0]), blob_density.shape + (1,)))
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--correct", "none", "--coat", "dielectric:1.4"])
+                 "--out", str(out), "--res", "16", "--spp", "2", "--coat", "dielectric:1.4"])
     assert code == 0
     report = json.loads((out / "report.json").read_text())
     assert report["inputs"]["frames"] == 2 and report["temporal_flicker"] >= 0
+    assert report["inputs"]["refine_steps"] == 0  # sequences are not refined by default (flicker)
     assert (out / "albedo_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
 
 
@@ -106,7 +108,7 @@ def test_mesh_is_voxelized_and_coated(mi, checkpoint, inputs, tmp_path):
     mesh = write_ply(tmp_path / "ball.ply", *icosphere(2))
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--mesh", str(mesh), "--mesh-res", "12", "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--coat", "dielectric:1.5", "--correct", "none"])
+                 "--out", str(out), "--res", "16", "--spp", "2", "--coat", "dielectric:1.5", "--refine", "0"])
     assert code == 0
     assert (out / "coat_mesh.ply").is_file() and np.load(out / "albedo.npy").shape == (12, 12, 12, 3)
     assert json.loads((out / "report.json").read_text())["inputs"]["coat_ior"] == 1.5
@@ -126,7 +128,7 @@ def test_refine_with_the_path_tracer_in_the_loop(mi, checkpoint, inputs, tmp_pat
 @pytest.mark.parametrize("style, note", [("rgba.png", "alpha channel"), ("grey.png", "greyscale"), ("deep.png", "16-bit")])
 def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, tmp_path, capsys, style, note):
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / style),
-                 "--out", str(tmp_path / "out"), "--res", "16", "--spp", "1", "--correct", "none"])
+                 "--out", str(tmp_path / "out"), "--res", "16", "--spp", "1", "--refine", "0"])
     assert code == 0 and note in capsys.readouterr().err
 
 

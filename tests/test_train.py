@@ -96,6 +96,8 @@ def test_resume_after_a_kill_matches_an_uninterrupted_run(tmp_path, tiny_smoke):
     code, _ = _kill_after(killed, tiny_smoke, 6, signal.SIGKILL, *settings)
     assert code == -signal.SIGKILL
     assert torch.load(killed / "last.pt", weights_only=True)["step"] in (4, 8)
+    fresh = run(killed, tiny_smoke, *settings, check=False)  # without --resume an existing run is not overwritten
+    assert fresh.returncode == 2 and "pass --resume" in fresh.stderr
     run(killed, tiny_smoke, "--resume", *settings)
     straight = [r["loss"] for r in records(tmp_path / "straight") if "loss" in r]
     resumed = [r["loss"] for r in records(killed) if "loss" in r]

@@ -78,9 +78,9 @@ class SmokePairs:
         self.shape = tuple(first["density"].shape)
 
     def load(self, pair: FramePair) -> dict:
-        """``density0/1 (Z,Y,X)``, ``ls0/1 (Z,Y,X)`` and ``velocity0 (3,Z,Y,X)`` (x,y,z components) as float32."""
+        """``density0/1 (Z,Y,X)``, frame t's ``ls0 (Z,Y,X)`` and ``velocity0 (3,Z,Y,X)`` (x,y,z) as float32."""
         a, b = load_frame(pair.first), load_frame(pair.second)
-        return {"density0": a["density"], "density1": b["density"], "ls0": a["ls"], "ls1": b["ls"],
+        return {"density0": a["density"], "density1": b["density"], "ls0": a["ls"],
                 "velocity0": np.ascontiguousarray(np.moveaxis(a["velocity"], -1, 0))}
 
 

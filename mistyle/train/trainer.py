@@ -1,8 +1,8 @@
 """The SKPN training loop (paper Sec. 4.4-4.6), one process or many under ``torchrun``.
 
-Each update pairs frame t and t+1 of smoke examples (with frame t's velocity and both cached Ls
-grids) with training styles, predicts both albedos, renders frame t from ``render.views`` random
-views on the training orbit through the fast layer, and minimises
+Each update pairs frame t and t+1 of smoke examples (with frame t's velocity and cached Ls grid)
+with training styles, predicts both albedos, renders frame t from ``render.views`` random views on
+the training orbit through the fast layer, and minimises
 
     style_weight * (histogram loss on features + rgb_weight * histogram loss in RGB)
     + tv_weight * TV(V_t) + temporal_weight * |V_{t+1} - W(V_t, U_t)|^2.
@@ -75,6 +75,8 @@ class Trainer:
         if self.rank == 0:
             check_writable_dir(self.out)
         checkpoint = None
+        if not resume and (self.out / "last.pt").exists():
+            raise ValueError(f"{self.out} already holds a run (last.pt); pass --resume to continue it, or choose another --out.")
         if resume:
             checkpoint = load_checkpoint(self.out / "last.pt")
             saved = config_from_dict(checkpoint["config"])
@@ -126,7 +128,10 @@ class Trainer:
     def losses(self, batch: dict) -> tuple[dict, torch.Tensor]:
         config, device = self.config, self.device
         frames = batch["frames"]
-        stack = lambda key: torch.from_numpy(np.stack([f[key] for f in frames])).to(device)  # noqa: E731
+
+        def stack(key):
+            return torch.from_numpy(np.stack([frame[key] for frame in frames])).to(device)
+
         density = torch.cat([stack("density0"), stack("density1")])[:, None]
         levels = [torch.cat([level, level]) for level in self._style_levels(batch["styles"])]
         albedo = self.network(density, levels)

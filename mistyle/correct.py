@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .scenes.builder import DEFAULT_ENV_RADIANCE
+
 LEVELS = (0.1, 0.25, 0.4, 0.55, 0.7, 0.85, 1.0)
 
 
@@ -36,16 +38,18 @@ class ScatteringCalibration:
 
 
 def measure_calibration(density: np.ndarray, density_scale: float, radiance: float, views, res: int = 64,
-                        spp: int = 32, levels=LEVELS, device: str = "cpu") -> ScatteringCalibration:
+                        spp: int = 32, levels=LEVELS) -> ScatteringCalibration:
     """Measure ``g(a)`` and ``h`` for ``density`` under the constant environment ``radiance`` from ``views``."""
     import time
 
     import torch
 
-    from .api import path_trace
+    from .backend import active_variant
     from .bridge_torch import render_views
     from .scenes import prepare_density
+    from .scenes.final import LightSpec, final_scene
 
+    mi = active_variant()
     started = time.perf_counter()
     shape = density.shape
     prepared = prepare_density(density, density_scale)
@@ -55,18 +59,24 @@ def measure_calibration(density: np.ndarray, density_scale: float, radiance: flo
     if not mask.any():
         raise ValueError("The medium is not visible from the calibration views.")
     single = float(layer.transpose(0, 2, 3, 1)[mask].mean())
+    # One scene; only the uniform albedo changes between levels.
+    scene = mi.load_dict(final_scene(density, density_scale, np.zeros(shape + (3,), np.float32), views, res, res, spp=spp,
+                                     light=LightSpec("constant", radiance), seed=17))
+    params = mi.traverse(scene)
+    albedo_key = next(key for key in params.keys() if key.endswith("interior_medium.albedo.data"))
     multiple = [0.0]
     for level in levels:
-        albedo = np.full(shape + (3,), level, np.float32)
-        images, _ = path_trace(density, albedo, views, res, spp=spp, max_depth=-1, density_scale=density_scale,
-                               light=f"constant:{radiance}", device=device, seed=17)
-        multiple.append(float(np.stack(images)[mask].mean()))
+        params[albedo_key] = mi.TensorXf(np.full(shape + (3,), level, np.float32))
+        params.update()
+        images = np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32) for index in range(len(views))])
+        multiple.append(float(images[mask].mean()))
     multiple = np.maximum.accumulate(np.array(multiple))  # monotone despite noise
     return ScatteringCalibration(np.array((0.0,) + tuple(levels)), multiple, single, time.perf_counter() - started)
 
 
 def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray, style: np.ndarray, objective,
-                  steps: int = 16, views_per_step: int = 2, res: int = 64, spp: int = 8, radiance: float = 8.0,
+                  steps: int = 16, views_per_step: int = 2, res: int = 64, spp: int = 8,
+                  radiance: float = DEFAULT_ENV_RADIANCE,
                   camera_distance: float = 2.5, lr: float = 0.05, tv_weight: float = 10.0, seed: int = 0,
                   progress=None) -> tuple[np.ndarray, float]:
     """A few Adam steps on the albedo against the style with the path tracer in the loop.

@@ -194,7 +194,7 @@ def run(args) -> int:
     if args.correct == "calibrate":
         from .correct import measure_calibration
 
-        calibration = measure_calibration(densities[0], density_scale, radiance, views[:2], res=64, spp=16, device=args.device)
+        calibration = measure_calibration(densities[0], density_scale, radiance, views[:2], res=64, spp=16)
         rendered_albedos = [calibration.apply(a) for a in albedos]
         report["calibration"] = calibration.as_dict()
         print(f"multiple-scattering calibration in {calibration.seconds:.1f} s", file=sys.stderr)

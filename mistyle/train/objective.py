@@ -38,9 +38,12 @@ class StyleObjective:
         self.extractor, self.feature_loss, self.rgb_weight = extractor, STYLE_LOSSES[style_loss], rgb_weight
 
     @torch.no_grad()
-    def targets(self, styles: torch.Tensor) -> list[list[torch.Tensor]]:
-        """Per style ``(3, S, S)`` of ``styles (B, 3, S, S)``: ``[rgb, level1, ..., level4]``, each ``(C, h, w)``."""
-        levels = self.extractor(styles)
+    def targets(self, styles: torch.Tensor, levels: list[torch.Tensor] | None = None) -> list[list[torch.Tensor]]:
+        """Per style ``(3, S, S)`` of ``styles (B, 3, S, S)``: ``[rgb, level1, ..., level4]``, each ``(C, h, w)``.
+
+        ``levels``: the extractor's output for ``styles`` when the caller has it already.
+        """
+        levels = self.extractor(styles) if levels is None else levels
         return [[styles[item]] + [level[item] for level in levels] for item in range(styles.shape[0])]
 
     def loss(self, images: torch.Tensor, targets: list[list[torch.Tensor]]) -> torch.Tensor:

@@ -133,12 +133,12 @@ class Trainer:
             return torch.from_numpy(np.stack([frame[key] for frame in frames])).to(device)
 
         density = torch.cat([stack("density0"), stack("density1")])[:, None]
-        levels = [torch.cat([level, level]) for level in self._style_levels(batch["styles"])]
-        albedo = self.network(density, levels)
+        style_levels = self._style_levels(batch["styles"])
+        albedo = self.network(density, [torch.cat([level, level]) for level in style_levels])
         current, following = albedo[: len(frames)], albedo[len(frames):]
         prepared = [prepare_density(f["density0"], self.data.density_scale, ls=f["ls0"]) for f in frames]
         images = self._render(current, prepared, batch["views"])
-        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"]))
+        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"], style_levels))
         loss_tv = tv_loss(current)
         loss_temp = temporal_loss(following, current, stack("velocity0"))
         loss = config.loss.style_weight * loss_hist + config.loss.tv_weight * loss_tv + config.loss.temporal_weight * loss_temp

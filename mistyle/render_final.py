@@ -131,6 +131,7 @@ def run(args) -> int:
     from .io import atomic_write_bytes, check_writable_dir, write_exr, write_png
     from .scenes import CameraPath
     from .scenes.final import LightSpec
+    from .scenes.medium import validate_density_scale
     from .train.metrics import style_distance, temporal_flicker
     from .volume import write_vol
 
@@ -147,7 +148,7 @@ def run(args) -> int:
     config = stylizer.config
     radiance = config.render.radiance
     light = LightSpec.parse(args.light, default_radiance=radiance)
-    density_scale = args.density_scale if args.density_scale is not None else stylizer.density_scale
+    density_scale = validate_density_scale(args.density_scale if args.density_scale is not None else stylizer.density_scale)
     coat_mesh = None
     if args.mesh is not None:
         from .data.mesh import fit_to_box, load_mesh, voxelize, write_ply

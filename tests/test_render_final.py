@@ -69,6 +69,19 @@ def test_render_api_path_traces_the_medium(mi, blob_density):
     assert image.shape == (24, 24, 3) and image.max() > 0.1 and image[0, 0].max() == 0
 
 
+@pytest.mark.parametrize("light", ["constant:2", "envmap", "point:0,1.5,1.5:20", "area:4"])
+def test_render_api_lights(mi, blob_density, tmp_path, light):
+    from mistyle.io import write_exr
+
+    if light == "envmap":
+        sky = np.ones((8, 16, 3), np.float32)
+        sky[:4] *= 3.0  # a brighter upper half
+        light = f"envmap:{write_exr(tmp_path / 'sky.exr', sky)}:2"
+    albedo = np.full(blob_density.shape + (3,), 0.8, np.float32)
+    image = mistyle.render(blob_density, albedo, res=16, spp=4, light=light)
+    assert np.isfinite(image).all() and image.max() > 0
+
+
 def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
@@ -142,10 +155,12 @@ def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, 
     ({"--density": "empty.npy"}, "empty"),
     ({"--checkpoint": "garbage.pt"}, "not a readable mistyle checkpoint"),
     ({"--light": "laser"}, "not a known light"),
+    ({"--light": "envmap:missing.exr"}, "does not exist"),
+    ({"--density-scale": "-1"}, "density_scale must be a positive"),
 ])
 def test_bad_input_is_a_clear_error_and_leaves_nothing(mi, checkpoint, inputs, tmp_path, capsys, change, message):
     arguments = {"--checkpoint": str(checkpoint), "--density": str(inputs / "blob.vol"), "--style": str(inputs / "style.png")}
-    arguments.update({key: str(inputs / value) if key != "--light" else value for key, value in change.items()})
+    arguments.update({key: value if key in ("--light", "--density-scale") else str(inputs / value) for key, value in change.items()})
     out = tmp_path / "out"
     code = main([item for pair in arguments.items() for item in pair] + ["--out", str(out), "--res", "16", "--spp", "1"])
     error = capsys.readouterr().err

@@ -4,6 +4,7 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -148,7 +149,10 @@ def test_missing_or_empty_dataset_is_a_clear_error(tmp_path, tiny_smoke):
 
 def test_two_process_ddp_on_cpu(tmp_path, tiny_smoke):
     out = tmp_path / "ddp"
-    launcher = (sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", "29533", "-m")
+    with socket.socket() as probe:  # a free port, so parallel CI jobs do not collide
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    launcher = (sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", str(port), "-m")
     result = subprocess.run(command(out, tiny_smoke, "--set", "optim.steps=6", "--set", "run.eval_every=100", launcher=launcher),
                             capture_output=True, text=True, cwd=REPO, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert result.returncode == 0, result.stderr[-3000:]

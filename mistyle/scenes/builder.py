@@ -107,18 +107,22 @@ def pathtraced_scene(
     ``max_depth=2`` is single scattering (the layer's model); ``-1`` is full multiple scattering.
     Emitters are hidden, so pixels that see no medium are black as in the layer.
     """
-    box = MediumBox(density.shape)
     return {
         "type": "scene",
         "integrator": {"type": "volpath", "max_depth": int(max_depth), "hide_emitters": True},
         "sensor": _with_sampler(batch_sensor_dict(views, width, height), spp=spp, seed=seed),
         "environment": constant_environment(radiance),
-        "medium_box": {
-            "type": "cube",
-            "to_world": _transform(box.cube_to_world_matrix()),
-            "bsdf": {"type": "null"},
-            "interior": heterogeneous_medium(density, density_scale, albedo),
-        },
+        "medium_box": medium_cube(density, density_scale, albedo),
+    }
+
+
+def medium_cube(density: np.ndarray, density_scale: float, albedo: np.ndarray, bsdf: dict | None = None) -> dict:
+    """The cube spanning the medium box with the heterogeneous medium inside; ``bsdf`` default ``null``."""
+    return {
+        "type": "cube",
+        "to_world": _transform(MediumBox(density.shape).cube_to_world_matrix()),
+        "bsdf": bsdf or {"type": "null"},
+        "interior": heterogeneous_medium(density, density_scale, albedo),
     }
 
 

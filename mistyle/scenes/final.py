@@ -21,12 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from ..backend import active_variant
-from .box import MediumBox
 from .builder import (
     DEFAULT_ENV_RADIANCE,
-    _transform,
     constant_environment,
     heterogeneous_medium,
+    medium_cube,
 )
 from .cameras import View, sensor_dict
 
@@ -105,13 +104,12 @@ def final_scene(
 
     if coat_ior is not None and not 1.0 < coat_ior < 4.0:
         raise ValueError(f"The coat's index of refraction must lie in (1, 4), e.g. 1.5; got {coat_ior}.")
-    box = MediumBox(density.shape)
-    medium = heterogeneous_medium(density, density_scale, albedo)
     bsdf = {"type": "null"} if coat_ior is None else {"type": "dielectric", "int_ior": float(coat_ior), "ext_ior": 1.0}
     if coat_mesh is not None and coat_ior is not None:
-        boundary = {"type": "ply", "filename": str(coat_mesh), "bsdf": bsdf, "interior": medium}
+        boundary = {"type": "ply", "filename": str(coat_mesh), "bsdf": bsdf,
+                    "interior": heterogeneous_medium(density, density_scale, albedo)}
     else:
-        boundary = {"type": "cube", "to_world": _transform(box.cube_to_world_matrix()), "bsdf": bsdf, "interior": medium}
+        boundary = medium_cube(density, density_scale, albedo, bsdf)
     scene = {
         "type": "scene",
         "integrator": {"type": "volpath", "max_depth": int(max_depth), "hide_emitters": True},

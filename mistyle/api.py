@@ -69,15 +69,15 @@ class Stylizer:
 
         from .scenes import DEFAULT_DENSITY_SCALE
         from .train.features import make_extractor
-        from .train.trainer import load_checkpoint, load_model
+        from .train.trainer import load_checkpoint, model_from_checkpoint
 
         path = Path(checkpoint) if checkpoint is not None else DEFAULT_CHECKPOINT
         if checkpoint is None and not path.is_file():
             raise ValueError(f"The bundled checkpoint {path} is missing; train one with "
                              "`python -m mistyle.train --config configs/cpu.toml --out runs/cpu` and pass --checkpoint.")
         self.path = path
-        self.model, self.config = load_model(path)
         checkpoint = load_checkpoint(path)
+        self.model, self.config = model_from_checkpoint(checkpoint, path)
         extractor_name = checkpoint["extractor"]
         self.density_scale = float(checkpoint.get("density_scale", DEFAULT_DENSITY_SCALE))
         kind = _EXTRACTOR_KIND.get(extractor_name)

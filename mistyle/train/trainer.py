@@ -370,7 +370,11 @@ def _fit(image: torch.Tensor, size) -> torch.Tensor:
 
 def load_model(path) -> tuple[SKPN, TrainConfig]:
     """The trained network of a checkpoint (eval mode, CPU) and its resolved config."""
-    checkpoint = load_checkpoint(path)
+    return model_from_checkpoint(load_checkpoint(path), path)
+
+
+def model_from_checkpoint(checkpoint: dict, path) -> tuple[SKPN, TrainConfig]:
+    """``load_model`` for a checkpoint already read by ``load_checkpoint``."""
     try:
         config = config_from_dict(checkpoint["config"])
         model = SKPN(config.model)

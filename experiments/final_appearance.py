@@ -69,7 +69,7 @@ def main() -> None:
         return images, sum(seconds)
 
     started = time.perf_counter()
-    calibration = measure_calibration(density, scale, radiance, views[:2], res=64, spp=16)
+    calibration = measure_calibration(density, scale, radiance, views[:2], res=64, spp=16, prepared=prepared)
     rows = []
     for index in picks:
         style = styles.val[index].permute(1, 2, 0).numpy()

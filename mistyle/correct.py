@@ -38,8 +38,11 @@ class ScatteringCalibration:
 
 
 def measure_calibration(density: np.ndarray, density_scale: float, radiance: float, views, res: int = 64,
-                        spp: int = 32, levels=LEVELS) -> ScatteringCalibration:
-    """Measure ``g(a)`` and ``h`` for ``density`` under the constant environment ``radiance`` from ``views``."""
+                        spp: int = 32, levels=LEVELS, prepared=None) -> ScatteringCalibration:
+    """Measure ``g(a)`` and ``h`` for ``density`` under the constant environment ``radiance`` from ``views``.
+
+    ``prepared``: the density's ``PreparedDensity`` when the caller has computed its Ls already.
+    """
     import time
 
     import torch
@@ -52,7 +55,8 @@ def measure_calibration(density: np.ndarray, density_scale: float, radiance: flo
     mi = active_variant()
     started = time.perf_counter()
     shape = density.shape
-    prepared = prepare_density(density, density_scale)
+    if prepared is None:
+        prepared = prepare_density(density, density_scale)
     with torch.no_grad():
         layer = render_views(torch.ones((3,) + shape), prepared, views, res, radiance=radiance).numpy()
     mask = layer.max(axis=1) > 1e-3  # (V, H, W)

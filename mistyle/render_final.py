@@ -129,7 +129,7 @@ def run(args) -> int:
     from .api import Stylizer, display, load_style, path_trace
     from .backend import use_variant
     from .io import atomic_write_bytes, check_writable_dir, write_exr, write_png
-    from .scenes import CameraPath
+    from .scenes import CameraPath, prepare_density
     from .scenes.final import LightSpec
     from .scenes.medium import validate_density_scale
     from .train.metrics import style_distance, temporal_flicker
@@ -191,11 +191,19 @@ def run(args) -> int:
         report["notes"].append("the frames carry no velocity; temporal_flicker_unwarped compares frames without warping")
 
     # ---- correction for multiple scattering
+    prepared = {}  # frame -> PreparedDensity (its Ls grid), computed once per frame
+
+    def prepared_frame(frame):
+        if frame not in prepared:
+            prepared[frame] = prepare_density(densities[frame], density_scale)
+        return prepared[frame]
+
     rendered_albedos = albedos
     if args.correct == "calibrate":
         from .correct import measure_calibration
 
-        calibration = measure_calibration(densities[0], density_scale, radiance, views[:2], res=64, spp=16)
+        calibration = measure_calibration(densities[0], density_scale, radiance, views[:2], res=64, spp=16,
+                                          prepared=prepared_frame(0))
         rendered_albedos = [calibration.apply(a) for a in albedos]
         report["calibration"] = calibration.as_dict()
         print(f"multiple-scattering calibration in {calibration.seconds:.1f} s", file=sys.stderr)
@@ -238,8 +246,7 @@ def run(args) -> int:
                                            progress=progress)
         images += frame_images
         render_seconds += seconds
-        layer_images += _layer_images(densities[frame], albedos[frame], density_scale, frame_views, args.res, config,
-                                      args.device)
+        layer_images += _layer_images(prepared_frame(frame), albedos[frame], frame_views, args.res, config, args.device)
     report["render_seconds"] = time.perf_counter() - started
     report["render_seconds_per_image"] = float(np.mean(render_seconds))
 
@@ -254,8 +261,9 @@ def run(args) -> int:
         report["video"] = [str(write_mp4(args.out / f"{kind}.mp4", frames, args.fps)), str(write_gif(args.out / f"{kind}.gif", frames, args.fps))]
 
     # ---- style metrics
-    report["swd_final"] = float(np.mean([style_distance(image, style)["swd"] for image in images]))
-    report["hist_final"] = float(np.mean([style_distance(image, style)["hist"] for image in images]))
+    final = [style_distance(image, style) for image in images]
+    report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
+    report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
     report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in layer_images]))
     if args.correct != "none" or args.refine:
         # The same views and settings without the correction: how much the correction moved the metric.
@@ -270,13 +278,11 @@ def run(args) -> int:
     return 0
 
 
-def _layer_images(density, albedo, density_scale, views, res, config, device="cpu") -> list[np.ndarray]:
+def _layer_images(prepared, albedo, views, res, config, device="cpu") -> list[np.ndarray]:
     import torch
 
     from .bridge_torch import render_views
-    from .scenes import prepare_density
 
-    prepared = prepare_density(density, density_scale)
     with torch.no_grad():
         images = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2).to(device), prepared, views, res,
                               steps=config.render.steps, radiance=config.render.radiance)

@@ -20,10 +20,11 @@ import torch
 import torch.nn.functional as F
 
 from ..data.generate import SmokeDatasetSpec, generate_smoke, load_frame
+from ..data.tiny import TINY_SMOKE
 
 # The bundled dataset specs ``data.make`` can generate when the dataset directory is missing.
 DATASET_SPECS = {
-    "tiny": SmokeDatasetSpec(resolution=16, plumes=3, frames=14, keep_first=11, keep_last=14, seed=7, directions=32),
+    "tiny": TINY_SMOKE,
     "cpu": SmokeDatasetSpec(resolution=32, plumes=24, frames=60, keep_first=41, keep_last=60, seed=0, directions=64),
 }
 

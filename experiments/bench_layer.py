@@ -49,15 +49,17 @@ def main() -> None:
 
     from mistyle.backend import use_variant
     from mistyle.bridge_torch import render_views
+    from mistyle.conventions import DEFAULT_DENSITY_SCALE
     from mistyle.data.procedural import pyroclastic_sphere
+    from mistyle.integrators import prepare_density
     from mistyle.integrators.inscatter import inscattered_radiance
     from mistyle.reference_torch import render_views_torch
-    from mistyle.scenes import CameraPath, prepare_density
+    from mistyle.scenes import CameraPath
 
     use_variant("cpu")
     torch.manual_seed(0)
     density = pyroclastic_sphere((args.res,) * 3, seed=1)
-    scale = 20.0
+    scale = DEFAULT_DENSITY_SCALE
     views = CameraPath().turntable(args.views, offset=0.1)
     size = (args.image, args.image)
 

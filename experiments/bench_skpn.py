@@ -32,9 +32,9 @@ def main() -> None:
     sizes = [(32, 32, 32), (64, 64, 64)] if args.quick else [(64, 64, 64), (128, 128, 128), (128, 256, 128)]
 
     from mistyle.data.procedural import pyroclastic_sphere
-    from mistyle.train.config import load_config
-    from mistyle.train.features import make_extractor
-    from mistyle.train.skpn import SKPN, parameter_count
+    from mistyle.model.config import load_config
+    from mistyle.model.features import make_extractor
+    from mistyle.model.skpn import SKPN, parameter_count
 
     extractor = make_extractor("filterbank")
     style_levels = list(extractor(torch.rand(1, 3, 128, 128)))

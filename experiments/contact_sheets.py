@@ -34,8 +34,9 @@ def main() -> None:
     )
     from mistyle.data.smoke import FireConfig, PlumeConfig, simulate
     from mistyle.data.styles import offline_style_set
+    from mistyle.integrators import layer_scene, prepare_density
     from mistyle.io import write_png
-    from mistyle.scenes import View, layer_scene, prepare_density, split_views
+    from mistyle.scenes import View, split_views
 
     mi = use_variant("cpu")
     shape = (args.res,) * 3
@@ -60,7 +61,7 @@ def main() -> None:
     for density in densities:
         prepared = prepare_density(density, 30.0)
         albedo = np.full(density.shape + (3,), 0.9, np.float32)
-        scene = mi.load_dict(layer_scene(prepared, albedo, [view], args.image, args.image))
+        scene = mi.load_dict(layer_scene(prepared, albedo, [view], res=args.image))
         tiles.append(split_views(mi.render(scene), 1)[0])
     columns = 4
     while len(tiles) % columns:

@@ -43,12 +43,15 @@ def main() -> None:
 
     from mistyle.api import Stylizer, path_trace
     from mistyle.bridge_torch import render_views
-    from mistyle.correct import measure_calibration, refine_albedo
-    from mistyle.scenes import CameraPath, prepare_density
-    from mistyle.train.dataset import StyleSet, square_style
-    from mistyle.train.metrics import style_distance
-    from mistyle.train.objective import StyleObjective
-    from mistyle.volume import load_density
+    from mistyle.correct import measure_calibration
+    from mistyle.fit import FitSettings, refine_albedo
+    from mistyle.integrators import prepare_density
+    from mistyle.io import load_density
+    from mistyle.objective.metrics import style_distance
+    from mistyle.objective.style import StyleObjective
+    from mistyle.render_final import REFINE_LR, REFINE_RES, REFINE_SPP, REFINE_VIEWS
+    from mistyle.scenes import CameraPath
+    from mistyle.train.dataset import StyleSet
 
     stylizer = Stylizer(args.checkpoint)
     config = stylizer.config
@@ -56,16 +59,19 @@ def main() -> None:
     density = load_density(args.density)
     prepared = prepare_density(density, scale)
     orbit = CameraPath(distance=config.render.camera_distance)
-    views = orbit.turntable(args.views, offset=0.0625)
+    views = orbit.held_out(args.views)
     styles = StyleSet(config.data.styles, 128)
     picks = styles.comparison_styles(min(args.styles, len(styles.val)))
     objective = StyleObjective(stylizer.extractor, config.loss.style, config.loss.rgb_weight)
+    settings = FitSettings(steps=args.refine, lr=REFINE_LR, views_per_step=REFINE_VIEWS, tv_weight=config.loss.tv_weight,
+                           camera_distance=config.render.camera_distance)
 
     def swd(images, style):
         return float(np.mean([style_distance(image, style)["swd"] for image in images]))
 
     def traced(albedo):
-        images, seconds = path_trace(density, albedo, views, args.res, args.spp, -1, scale, f"constant:{radiance}")
+        images, seconds = path_trace(density, albedo, views, res=args.res, spp=args.spp, density_scale=scale,
+                                     light=f"constant:{radiance}")
         return images, sum(seconds)
 
     started = time.perf_counter()
@@ -84,14 +90,13 @@ def main() -> None:
         calibrated = calibration.apply(albedo)
         images, _ = traced(calibrated)
         row["swd_calibrated"] = swd(images, style)
-        target = square_style(style, config.data.style_size).permute(1, 2, 0).numpy()
-        refined, row["refine_seconds"] = refine_albedo(density, scale, calibrated, target, objective, steps=args.refine,
-                                                       radiance=radiance, camera_distance=config.render.camera_distance,
-                                                       tv_weight=config.loss.tv_weight)
+        target = stylizer.style_tensor(style)
+        refined, row["refine_seconds"] = refine_albedo(density, scale, calibrated, target, objective, settings,
+                                                       res=REFINE_RES, spp=REFINE_SPP, radiance=radiance)
         images, _ = traced(refined)
         row["swd_refined"] = swd(images, style)
-        refined, _ = refine_albedo(density, scale, albedo, target, objective, steps=args.refine, radiance=radiance,
-                                   camera_distance=config.render.camera_distance, tv_weight=config.loss.tv_weight)
+        refined, _ = refine_albedo(density, scale, albedo, target, objective, settings, res=REFINE_RES, spp=REFINE_SPP,
+                                   radiance=radiance)
         images, _ = traced(refined)
         row["swd_refined_plain"] = swd(images, style)
         rows.append(row)

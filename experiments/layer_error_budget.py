@@ -28,7 +28,9 @@ def main() -> None:
     res, image, spp = (24, 32, 1024) if args.quick else (64, 128, 8192)
 
     from mistyle.backend import use_variant
+    from mistyle.conventions import DEFAULT_DENSITY_SCALE
     from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
+    from mistyle.integrators import PreparedDensity, layer_scene
     from mistyle.integrators.inscatter import (
         _used_voxels,
         inscattered_radiance,
@@ -39,25 +41,20 @@ def main() -> None:
         pixel_centre_estimate,
         two_seed_reference,
     )
-    from mistyle.scenes import (
-        CameraPath,
-        PreparedDensity,
-        layer_scene,
-        pathtraced_scene,
-        split_views,
-    )
+    from mistyle.scenes import CameraPath, pathtraced_scene, split_views
 
     mi = use_variant("cpu")
-    scale = 20.0
+    scale = DEFAULT_DENSITY_SCALE
     density = pyroclastic_sphere((res,) * 3, seed=7)
     albedo = colour_noise_albedo(density.shape, seed=11)
     views = CameraPath().turntable(2, offset=0.125)
     sigma_t = density * np.float32(scale)
-    reference_scene = mi.load_dict(pathtraced_scene(density, scale, albedo, views, image, image, max_depth=2))
+    reference_scene = mi.load_dict(pathtraced_scene(density, albedo, views, res=image, density_scale=scale, max_depth=2,
+                                                         batch=True))
     reference, noise = two_seed_reference(lambda count, seed: pixel_centre_estimate(reference_scene, count, seed, 2), spp)
 
     def layer(ls: np.ndarray, steps: int) -> np.ndarray:
-        scene = layer_scene(PreparedDensity(density, scale, np.ones_like(density)), albedo, views, image, image, steps=steps)
+        scene = layer_scene(PreparedDensity(density, scale, np.ones_like(density)), albedo, views, res=image, steps=steps)
         scene["integrator"]["ls"] = mi.TensorXf(np.ascontiguousarray(ls, dtype=np.float32)[..., None])
         return split_views(mi.render(mi.load_dict(scene)), 2)
 

@@ -29,6 +29,8 @@ import time
 
 import numpy as np
 
+from mistyle.conventions import DEFAULT_DENSITY_SCALE
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -38,7 +40,7 @@ def main() -> None:
     parser.add_argument("--views", type=int, default=2)
     parser.add_argument("--steps", type=int, default=64)
     parser.add_argument("--directions", type=int, default=128)
-    parser.add_argument("--density-scale", type=float, default=20.0)
+    parser.add_argument("--density-scale", type=float, default=DEFAULT_DENSITY_SCALE)
     parser.add_argument("--ref-spp", type=int, default=4096, help="spp of each single-scattering reference")
     parser.add_argument("--multi-spp", type=int, default=1024, help="spp of each multiple-scattering reference")
     args = parser.parse_args()
@@ -46,20 +48,16 @@ def main() -> None:
         args.res, args.image, args.ref_spp, args.multi_spp, args.directions = 24, 32, 1024, 256, 64
 
     from mistyle.backend import use_variant
+    from mistyle.conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
+    from mistyle.conventions import LAYER_SCHEMES as SCHEMES
     from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
-    from mistyle.integrators import DEFAULT_SCHEME, SCHEMES
+    from mistyle.integrators import layer_scene, prepare_density
     from mistyle.pathtrace import (
         net_rel_rmse,
         pixel_centre_estimate,
         two_seed_reference,
     )
-    from mistyle.scenes import (
-        CameraPath,
-        layer_scene,
-        pathtraced_scene,
-        prepare_density,
-        split_views,
-    )
+    from mistyle.scenes import CameraPath, pathtraced_scene, split_views
 
     mi = use_variant("cpu")
 
@@ -68,7 +66,8 @@ def main() -> None:
     views = CameraPath().turntable(args.views, offset=0.125)
     size = (args.image, args.image)
     scenes = {
-        depth: mi.load_dict(pathtraced_scene(density, args.density_scale, albedo, views, *size, max_depth=depth))
+        depth: mi.load_dict(pathtraced_scene(density, albedo, views, res=size, density_scale=args.density_scale,
+                                             max_depth=depth, batch=True))
         for depth in (2, -1)
     }
 
@@ -91,7 +90,7 @@ def main() -> None:
 
     layer_images, layer_seconds = {}, {}
     for scheme in SCHEMES:
-        scene = mi.load_dict(layer_scene(prepared, albedo, views, *size, steps=args.steps, scheme=scheme))
+        scene = mi.load_dict(layer_scene(prepared, albedo, views, res=size, steps=args.steps, scheme=scheme))
         split_views(mi.render(scene), len(views))  # compile
         start = time.perf_counter()
         layer_images[scheme] = split_views(mi.render(scene), len(views))

@@ -40,15 +40,16 @@ def main() -> None:
     torch.manual_seed(0)
 
     from mistyle.bridge_torch import render_views
+    from mistyle.conventions import DEFAULT_ENV_RADIANCE
     from mistyle.data.styles import material_texture, offline_style_set
-    from mistyle.scenes import CameraPath, PreparedDensity, prepare_density
-    from mistyle.scenes.builder import DEFAULT_ENV_RADIANCE
-    from mistyle.train.features import make_extractor
-    from mistyle.train.losses import tone_map
-    from mistyle.train.metrics import sliced_wasserstein, style_distance
-    from mistyle.train.objective import StyleObjective
-    from mistyle.train.optimize import optimize_albedo
-    from mistyle.volume import load_density
+    from mistyle.display import tone_map
+    from mistyle.fit import FitSettings, fit_albedo
+    from mistyle.integrators import PreparedDensity, prepare_density
+    from mistyle.io import load_density
+    from mistyle.model.features import make_extractor
+    from mistyle.objective.metrics import sliced_wasserstein, style_distance
+    from mistyle.objective.style import StyleObjective
+    from mistyle.scenes import CameraPath
 
     if args.radiance is None:
         args.radiance = DEFAULT_ENV_RADIANCE
@@ -58,7 +59,7 @@ def main() -> None:
         t = torch.from_numpy(density)[None, None]
         density = torch.nn.functional.interpolate(t, size=(args.res,) * 3, mode="trilinear", align_corners=False)[0, 0].numpy()
     prepared = prepare_density(density, 30.0)
-    held_out = CameraPath().turntable(4, offset=0.0625)
+    held_out = CameraPath().held_out(4)
     styles = [("material/marble", material_texture("marble", 128, seed=3)), ("material/fire", material_texture("fire", 128, seed=3))]
     styles += [s for s in offline_style_set(size=128, crops_per_photo=1, palettes_per_texture=1, materials_each=0) if s[0].startswith("photo/coffee") or s[0].startswith("photo/hubble")]
     styles = styles[: args.styles]
@@ -84,8 +85,11 @@ def main() -> None:
         for name, style in styles:
             style_tensor = torch.from_numpy(style).permute(2, 0, 1)
             before, opaque_before = held_out_swd(torch.full((3,) + prepared.shape, 0.5), style)
-            fit = optimize_albedo(prepared, style_tensor, objective, steps=args.steps, lr=args.lr, image_size=args.image,
-                                  radiance=args.radiance)
+            def layer(albedo, views, seed=0):
+                return render_views(albedo, prepared, views, args.image, radiance=args.radiance)
+
+            fit = fit_albedo(layer, style_tensor, objective, torch.full((3,) + prepared.shape, 0.5),
+                             FitSettings(steps=args.steps, lr=args.lr))
             after, opaque_after = held_out_swd(fit.albedo, style)
             row = {"extractor": extractor.name, "style": name, "radiance": args.radiance, "swd_before": before, "swd_after": after,
                    "swd_opaque_before": opaque_before, "swd_opaque_after": opaque_after, "steps": args.steps,

@@ -27,16 +27,17 @@ def main() -> None:
 
     from mistyle.api import Stylizer, display, path_trace
     from mistyle.bridge_torch import render_views
-    from mistyle.io import write_png
-    from mistyle.scenes import CameraPath, prepare_density
-    from mistyle.train.dataset import StyleSet, square_style
-    from mistyle.volume import load_density
+    from mistyle.integrators import prepare_density
+    from mistyle.io import load_density, write_png
+    from mistyle.model.features import square_style
+    from mistyle.scenes import CameraPath
+    from mistyle.train.dataset import StyleSet
 
     stylizer = Stylizer()
     config = stylizer.config
     density = load_density("examples/smoke_64.vol")
     prepared = prepare_density(density, stylizer.density_scale)
-    view = [CameraPath(distance=config.render.camera_distance).view(0.0625)]
+    view = CameraPath(distance=config.render.camera_distance).held_out(1)
     styles = StyleSet(config.data.styles, 128)
     picks = np.linspace(0, len(styles.val) - 1, min(args.styles, len(styles.val))).round().astype(int)
     rows = []
@@ -46,8 +47,8 @@ def main() -> None:
         with torch.no_grad():
             layer = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2), prepared, view, args.res,
                                  radiance=config.render.radiance)[0].permute(1, 2, 0).numpy()
-        traced = path_trace(density, albedo, view, args.res, args.spp, -1, stylizer.density_scale,
-                            f"constant:{config.render.radiance}")[0][0]
+        traced = path_trace(density, albedo, view, res=args.res, spp=args.spp, density_scale=stylizer.density_scale,
+                            light=f"constant:{config.render.radiance}")[0][0]
         swatch = square_style(style, args.res).permute(1, 2, 0).numpy()
         rows.append(np.concatenate([swatch, display(layer), display(traced)], axis=1))
         print(styles.val_names[index], flush=True)

@@ -1,15 +1,22 @@
 """mistyle: volumetric appearance stylization with a differentiable Mitsuba 3 rendering layer.
 
-``mistyle.stylize(density, style_image) -> albedo`` and ``mistyle.render(density, albedo) -> image``
-(see ``mistyle.api``); they load torch and Mitsuba on first use.
+``mistyle.stylize(density, style_image) -> albedo``, ``mistyle.render(density, albedo, view=u) ->
+image``, ``mistyle.display(image)`` (the PNGs' tone curve) and ``mistyle.load_density(path)`` (see
+``mistyle.api``); they load torch and Mitsuba on first use, so ``import mistyle`` stays light.
 """
 
 __version__ = "0.1.0"
 
+_PUBLIC = ("stylize", "render", "display", "load_density")
+
 
 def __getattr__(name):
-    if name in ("stylize", "render"):
+    if name in _PUBLIC:
         from . import api as module
 
         return getattr(module, name)
     raise AttributeError(f"module 'mistyle' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + list(_PUBLIC))

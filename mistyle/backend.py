@@ -18,6 +18,7 @@ import subprocess
 import sys
 
 MIN_LLVM_MAJOR = 17
+VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
 
 _FIX = (
     "Fix: install a recent libLLVM (Debian/Ubuntu: `apt-get install libllvm19`, which "
@@ -41,10 +42,7 @@ def variant_for(device: str = "cpu") -> str:
 
 
 def use_variant(device: str = "cpu"):
-    """Activate (once) and return the Mitsuba module in the variant matching ``device``.
-
-    Also registers mistyle's integrators for that variant.
-    """
+    """Activate (once) and return the Mitsuba module in the variant matching ``device``."""
     name = variant_for(device)
     if name.startswith("llvm"):
         check_llvm_backend()
@@ -56,22 +54,33 @@ def use_variant(device: str = "cpu"):
         if name not in mi.variants():
             raise BackendError(f"Mitsuba was built without the {name!r} variant.")
         mi.set_variant(name)
-    from .integrators import register
-
-    register()
     return mi
 
 
 def active_variant():
-    """The Mitsuba module in the variant already chosen by ``use_variant``, else in the CPU one."""
+    """The Mitsuba module in the variant already chosen by ``use_variant``, else in the CPU one.
+
+    For code that computes with Mitsuba; scene-dictionary builders use ``require_variant``.
+    """
     import mitsuba as mi
 
-    if mi.variant() in ("llvm_ad_rgb", "cuda_ad_rgb"):
-        from .integrators import register
-
-        register()
+    if mi.variant() in VARIANTS:
         return mi
     return use_variant("cpu")
+
+
+def require_variant():
+    """The Mitsuba module in the variant ``use_variant`` chose; never chooses one itself.
+
+    Scene dictionaries hold variant-specific objects (transforms, grids), so their builders need a
+    variant, but they must not switch it behind the caller's back.
+    """
+    import mitsuba as mi
+
+    if mi.variant() not in VARIANTS:
+        raise BackendError("No mistyle Mitsuba variant is active; call mistyle.backend.use_variant('cpu') "
+                           "(or 'cuda') before building scenes.")
+    return mi
 
 
 def _loaded_llvm_path() -> str | None:

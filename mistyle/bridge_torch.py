@@ -8,6 +8,9 @@ constants of the render (no gradient flows to them).
 One Mitsuba scene is kept per (grid shape, image size, view count, steps, scheme, radiance) and
 its parameters are updated in place, so repeated calls neither reload scenes nor recompile
 kernels.
+
+``PathTracedViews`` does the same for the path tracer (``prbvolpath``, multiple scattering), for
+refining an albedo against what the final render will show.
 """
 
 from __future__ import annotations
@@ -19,10 +22,11 @@ import numpy as np
 import torch
 
 from .backend import use_variant
-from .integrators import DEFAULT_SCHEME
-from .scenes.builder import DEFAULT_ENV_RADIANCE, layer_scene
+from .conventions import DEFAULT_ENV_RADIANCE, ORBIT_DISTANCE
+from .conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
+from .integrators import PreparedDensity, layer_scene
+from .scenes import LightSpec, albedo_parameter, pathtraced_scene
 from .scenes.cameras import View
-from .scenes.medium import PreparedDensity
 
 _MAX_CACHED_SCENES = 8
 
@@ -98,12 +102,11 @@ class _LayerRenderer:
     def __init__(self, mi, prepared, height, width, view_count, steps, scheme, radiance):
         import drjit as dr
 
-        placeholder_views = [View(origin=(0.0, 0.0, 2.5 + v)) for v in range(view_count)]
+        placeholder_views = [View(origin=(0.0, 0.0, ORBIT_DISTANCE + v)) for v in range(view_count)]
         albedo = np.zeros(prepared.shape + (3,), dtype=np.float32)
         self.mi = mi
-        self.scene = mi.load_dict(
-            layer_scene(prepared, albedo, placeholder_views, width, height, steps, scheme, radiance)
-        )
+        self.scene = mi.load_dict(layer_scene(prepared, albedo, placeholder_views, res=(height, width), steps=steps,
+                                              scheme=scheme, radiance=radiance))
         self.params = mi.traverse(self.scene)
         self.current_density: PreparedDensity | None = None
         self.current_views: list[View] | None = None
@@ -204,7 +207,7 @@ def _validate_densities(density, batch: int, grid_shape: tuple) -> list[Prepared
     if len(densities) != batch or not all(isinstance(d, PreparedDensity) for d in densities):
         raise ValueError(
             f"density must be one PreparedDensity or a list of {batch} (one per batch item); "
-            "make them with mistyle.scenes.prepare_density."
+            "make them with mistyle.integrators.prepare_density."
         )
     for index, prepared in enumerate(densities):
         if prepared.shape != grid_shape:
@@ -219,3 +222,54 @@ def _validate_image_size(image_size) -> tuple[int, int]:
     if len(size) != 2 or any(int(s) != s or s < 1 for s in size):
         raise ValueError(f"image_size must be a positive int or (height, width), got {image_size!r}.")
     return int(size[0]), int(size[1])
+
+
+class PathTracedViews:
+    """Differentiable path-traced views of one density: ``views(albedo, views, seed) -> images``.
+
+    Mitsuba's ``prbvolpath`` (multiple scattering) under a constant environment of ``radiance``
+    renders one view at a time from a loaded scene whose camera and albedo are updated in place;
+    ``dr.wrap`` carries the albedo gradient back to torch.
+
+    Args:
+        density: ``(Z, Y, X)`` numpy, the medium; density_scale: its extinction per unit density.
+        res: image side in pixels; spp: paths per pixel of each view.
+    """
+
+    def __init__(self, density: np.ndarray, density_scale: float, *, res: int, spp: int = 8,
+                 radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu"):
+        import drjit as dr
+
+        mi = use_variant(device)
+        start = View(origin=(0.0, 0.0, ORBIT_DISTANCE))
+        placeholder = np.zeros(density.shape + (3,), np.float32)
+        self.mi, self.spp, self.device = mi, int(spp), device
+        self.scene = mi.load_dict(pathtraced_scene(density, placeholder, [start], res=res, density_scale=density_scale,
+                                                   spp=spp, light=LightSpec("constant", radiance), integrator="prbvolpath"))
+        self.params = mi.traverse(self.scene)
+        albedo_key = albedo_parameter(self.params)
+        params, scene = self.params, self.scene
+
+        @dr.wrap(source="torch", target="drjit")
+        def render(grid, seed):
+            params[albedo_key] = grid
+            params.update()
+            return mi.render(scene, params, sensor=0, spp=spp, seed=seed)
+
+        self._render = render
+
+    def __call__(self, albedo: torch.Tensor, views: Sequence[View], seed: int = 0) -> torch.Tensor:
+        """``albedo (3, D, H, W)`` in [0, 1] -> ``(V, 3, res, res)`` linear radiance, differentiable.
+
+        View ``v`` is rendered with the seed ``seed + v``.
+        """
+        batch, _ = _validate_albedo(albedo)
+        if batch.shape[0] != 1:
+            raise ValueError(f"PathTracedViews renders one albedo (3, D, H, W), got shape {tuple(albedo.shape)}.")
+        grid = batch[0].permute(1, 2, 3, 0).to(torch.float32).contiguous()  # the (Z, Y, X, 3) of mi.VolumeGrid
+        images = []
+        for index, view in enumerate(views):
+            self.params["sensor000.to_world"] = self.mi.ScalarTransform4f().look_at(
+                origin=view.origin, target=view.target, up=view.up)
+            images.append(self._render(grid, seed + index).permute(2, 0, 1))
+        return torch.stack(images)

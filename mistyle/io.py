@@ -1,20 +1,26 @@
-"""Files: atomic writes, linear EXR and sRGB PNG images.
+"""Files: every read and write of mistyle's images, volumes, videos and style pictures.
 
 Every file mistyle writes goes through ``atomic_output``: data lands in a temporary file in the
 target directory and is renamed into place only once complete, so a crash or a full disk never
 leaves a half-written file that a later run would take for a finished one.
+
+Formats: linear OpenEXR and 8-bit PNG images (Pillow), Mitsuba ``.vol`` grids, numpy ``.npy``,
+H.264 MP4 (the ffmpeg that ``imageio-ffmpeg`` ships) and GIF (Pillow). Style pictures are decoded
+in one place, ``load_style``.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import struct
 import tempfile
-import zlib
 from pathlib import Path
 
 import numpy as np
+
+from .volume import validate_density
 
 
 @contextlib.contextmanager
@@ -98,20 +104,275 @@ def linear_to_srgb(image: np.ndarray) -> np.ndarray:
 
 def write_png(path, image, srgb: bool = True) -> Path:
     """Write an ``(H, W, 3)`` image with values in [0, 1] as an 8-bit PNG (sRGB-encoded if ``srgb``)."""
+    from PIL import Image
+
     rgb = _as_rgb_image(image)
     encoded = linear_to_srgb(rgb) if srgb else np.clip(rgb, 0.0, 1.0)
     pixels = np.round(encoded * 255.0).astype(np.uint8)
-    height, width, _ = pixels.shape
-    rows = b"".join(b"\x00" + pixels[row].tobytes() for row in range(height))
+    with atomic_output(path) as tmp:
+        Image.fromarray(pixels, mode="RGB").save(tmp, format="PNG")
+    return Path(path)
 
-    def chunk(kind: bytes, payload: bytes) -> bytes:
-        return struct.pack(">I", len(payload)) + kind + payload + struct.pack(">I", zlib.crc32(kind + payload))
 
-    png = (
-        b"\x89PNG\r\n\x1a\n"
-        + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
-        + (chunk(b"sRGB", b"\x00") if srgb else b"")
-        + chunk(b"IDAT", zlib.compress(rows, 6))
-        + chunk(b"IEND", b"")
-    )
-    return atomic_write_bytes(path, png)
+def write_npy(path, array: np.ndarray) -> Path:
+    """Write a numpy ``.npy`` file atomically."""
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as handle:
+            np.save(handle, np.asarray(array), allow_pickle=False)
+    return Path(path)
+
+
+def write_mp4(path, frames: list[np.ndarray], fps: int) -> Path:
+    """H.264 MP4 of ``(H, W, 3)`` uint8 frames with the ffmpeg that ``imageio-ffmpeg`` ships."""
+    import imageio_ffmpeg
+
+    height, width = frames[0].shape[:2]
+    with atomic_output(path) as tmp:
+        writer = imageio_ffmpeg.write_frames(str(tmp), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
+                                             macro_block_size=2, quality=8, output_params=["-f", "mp4"])
+        writer.send(None)
+        for frame in frames:
+            writer.send(np.ascontiguousarray(frame))
+        writer.close()
+    return Path(path)
+
+
+def write_gif(path, frames: list[np.ndarray], fps: int) -> Path:
+    """An endlessly looping GIF of ``(H, W, 3)`` uint8 frames."""
+    from PIL import Image
+
+    with atomic_output(path) as tmp:
+        images = [Image.fromarray(frame) for frame in frames]
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
+    return Path(path)
+
+
+# --- Mitsuba's binary grid format: b"VOL", version 3, encoding 1 (float32), then X, Y, Z, channels
+# --- (int32), the bounding box (6 x float32) and the data in [z, y, x, c] order. mi.VolumeGrid
+# --- reads and writes the same layout, but cannot be given a bounding box (it always writes the unit
+# --- cube), and the medium box is rarely one; tests/test_io.py checks both directions against it.
+_VOL_HEADER = struct.Struct("<3sBiiiii6f")
+
+
+def write_vol(path, grid: np.ndarray, bbox_min=(0.0, 0.0, 0.0), bbox_max=(1.0, 1.0, 1.0)) -> Path:
+    """Write a ``(Z, Y, X)`` or ``(Z, Y, X, C)`` grid as a Mitsuba ``.vol`` file, atomically."""
+    data = np.asarray(grid, dtype=np.float32)
+    if data.ndim == 3:
+        data = data[..., None]
+    if data.ndim != 4:
+        raise ValueError(f".vol grids must be (Z, Y, X) or (Z, Y, X, C), got shape {data.shape}.")
+    z, y, x, c = data.shape
+    header = _VOL_HEADER.pack(b"VOL", 3, 1, x, y, z, c, *bbox_min, *bbox_max)
+    return atomic_write_bytes(path, header + np.ascontiguousarray(data).tobytes())
+
+
+def read_vol(path) -> np.ndarray:
+    """Read a float32 Mitsuba ``.vol`` file; returns ``(Z, Y, X)`` for one channel, else ``(Z, Y, X, C)``."""
+    raw = Path(path).read_bytes()
+    if len(raw) < _VOL_HEADER.size or raw[:3] != b"VOL":
+        raise ValueError(f"{path} is not a Mitsuba .vol file (missing the 'VOL' header).")
+    magic, version, encoding, x, y, z, c, *_bbox = _VOL_HEADER.unpack_from(raw)
+    if version != 3 or encoding != 1:
+        raise ValueError(f"{path}: only .vol version 3 with float32 data is supported (got version {version}, encoding {encoding}).")
+    if min(x, y, z, c) < 1:
+        raise ValueError(f"{path}: the header gives the grid size {x}x{y}x{z} with {c} channels; every size must be >= 1.")
+    count = x * y * z * c
+    if len(raw) - _VOL_HEADER.size != 4 * count:
+        raise ValueError(f"{path}: header says {x}x{y}x{z}x{c} floats but the file holds {(len(raw) - _VOL_HEADER.size) // 4}.")
+    data = np.frombuffer(raw, dtype="<f4", offset=_VOL_HEADER.size, count=count).reshape(z, y, x, c)
+    data = np.array(data, dtype=np.float32)
+    return data[..., 0] if c == 1 else data
+
+
+DENSITY_SUFFIXES = (".vol", ".npy", ".npz")
+
+
+def load_density(path) -> np.ndarray:
+    """Load and validate a density grid ``(Z, Y, X)`` from a ``.vol``, ``.npy`` or ``.npz`` (key ``density``) file."""
+    return _read_density_file(Path(path))["density"]
+
+
+def load_density_frames(path) -> tuple[list[np.ndarray], list[np.ndarray] | None, list[str]]:
+    """Density frames from a file or a folder of frame files: ``(densities, velocities or None, names)``.
+
+    ``.npz`` frames of ``python -m mistyle.data`` carry each frame's velocity ``(Z, Y, X, 3)``; the
+    velocities are returned only when every frame has one. All frames must share one grid size.
+    """
+    path = Path(path)
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES and p.is_file())
+        if not files:
+            raise ValueError(f"The folder {path} holds no .vol, .npy or .npz density frames.")
+    else:
+        files = [path]
+    frames = [_read_density_file(file) for file in files]
+    shapes = {frame["density"].shape for frame in frames}
+    if len(shapes) > 1:
+        raise ValueError(f"The frames in {path} have different shapes {sorted(shapes)}; a sequence needs one grid size.")
+    velocities = [frame.get("velocity") for frame in frames]
+    return ([frame["density"] for frame in frames], velocities if all(v is not None for v in velocities) else None,
+            [file.stem for file in files])
+
+
+def _read_density_file(path: Path) -> dict:
+    if not path.exists():
+        raise ValueError(f"Density {path} does not exist.")
+    if not path.is_file():
+        raise ValueError(f"Density {path} is not a file.")
+    suffix = path.suffix.lower()
+    velocity = None
+    try:
+        if suffix == ".vol":
+            array = read_vol(path)
+        elif suffix == ".npy":
+            array = np.load(path, allow_pickle=False)
+        elif suffix == ".npz":
+            with np.load(path, allow_pickle=False) as data:
+                if "density" not in data.files:
+                    raise ValueError(f"{path} has no 'density' array (it holds {', '.join(data.files) or 'nothing'}).")
+                array = data["density"]
+                if "velocity" in data.files:
+                    velocity = np.asarray(data["velocity"], np.float32)
+        else:
+            raise ValueError(f"Unsupported density file {path}: use a Mitsuba .vol, a numpy .npy (Z, Y, X) grid "
+                             "or an .npz with a 'density' array.")
+    except (OSError, EOFError, ValueError) as error:
+        if isinstance(error, ValueError) and str(path) in str(error):
+            raise
+        raise ValueError(f"{path} cannot be read as a density ({error}).") from None
+    density = validate_density(array, name=os.fspath(path))
+    if velocity is not None and velocity.shape != density.shape + (3,):
+        raise ValueError(f"{path}: velocity {velocity.shape} does not match the density grid {density.shape} (+ 3).")
+    return {"density": density, "velocity": velocity}
+
+
+def write_npz(path, **arrays) -> Path:
+    """A compressed numpy ``.npz`` of named arrays, written atomically."""
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as handle:
+            np.savez_compressed(handle, **arrays)
+    return Path(path)
+
+
+# ----------------------------------------------------------------------------- style pictures
+MIN_STYLE_SIZE = 8
+STYLE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".gif", ".exr")
+
+
+def load_style(style, notes: list | None = None) -> np.ndarray:
+    """A style picture as float32 ``(H, W, 3)`` display-encoded RGB in [0, 1], from a path or an array.
+
+    Files: anything Pillow reads, converted to sRGB (through the embedded ICC profile when there is
+    one; palette, CMYK, greyscale, 16-bit and alpha images included), and OpenEXR (linear radiance,
+    shown with the display curve of the renders, ``mistyle.display``). Arrays: ``(H, W)`` or
+    ``(H, W, 1|3|4)``, ``uint8``, ``uint16`` or float in [0, 1]. Alpha is composited over black, the
+    renders' background. Each conversion is described in ``notes``.
+
+    Raises:
+        ValueError: a missing file, a folder, an unreadable or oversized image, an image smaller
+            than 8x8, or an array of the wrong shape, type or range.
+    """
+    notes = [] if notes is None else notes
+    if isinstance(style, (str, os.PathLike)):
+        return _style_file(Path(style), notes)
+    return _style_array(np.asarray(style), "The style array", notes)
+
+
+def _style_file(path: Path, notes: list) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+
+    if path.is_dir():
+        raise ValueError(f"Style {path} is a folder; give one image file.")
+    if not path.is_file():
+        raise ValueError(f"Style image {path} does not exist.")
+    if path.suffix.lower() == ".exr":
+        from .display import display
+
+        notes.append(f"{path}: linear EXR shown with the renders' display curve")
+        try:
+            return _style_array(display(read_exr(path)), str(path), notes)
+        except Exception as error:  # OpenEXR raises several kinds for damaged files
+            raise ValueError(f"{path} is not a readable RGB OpenEXR image ({error}).") from None
+    try:
+        with Image.open(path) as image:
+            image.load()
+            rgb = _pil_to_array(image, str(path), notes)
+    except Image.DecompressionBombError:
+        raise ValueError(f"{path} has more than {2 * Image.MAX_IMAGE_PIXELS} pixels, Pillow's safety limit; "
+                         "downscale it (a style needs no more than a few megapixels).") from None
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as error:
+        raise ValueError(f"{path} is not a readable image ({error}); use a PNG, JPEG or EXR file.") from None
+    return _style_array(rgb, str(path), notes)
+
+
+def _pil_to_array(image, name: str, notes: list) -> np.ndarray:
+    """A Pillow image as an ``(H, W, C)`` array (C in 1-4) that ``_style_array`` understands."""
+    from PIL import ImageCms
+
+    icc = image.info.get("icc_profile")
+    if image.mode == "P" or image.mode == "PA":
+        has_alpha = image.mode == "PA" or "transparency" in image.info
+        image = image.convert("RGBA" if has_alpha else "RGB")
+        notes.append(f"{name}: palette image expanded to RGB")
+    elif image.mode == "1":
+        image = image.convert("L")
+    elif image.mode in ("RGBa", "La"):  # premultiplied alpha
+        image = image.convert("RGBA" if image.mode == "RGBa" else "LA")
+    if icc and image.mode in ("RGB", "RGBA", "CMYK", "L", "LA"):
+        try:
+            source = ImageCms.ImageCmsProfile(io.BytesIO(icc))
+            description = ImageCms.getProfileDescription(source).strip()
+            alpha = image.getchannel("A") if "A" in image.getbands() else None
+            colour = image.convert({"RGBA": "RGB", "LA": "L"}.get(image.mode, image.mode))
+            converted = ImageCms.profileToProfile(colour, source, ImageCms.createProfile("sRGB"), outputMode="RGB")
+            if alpha is not None:
+                converted.putalpha(alpha)
+            if "srgb" not in description.lower():
+                notes.append(f"{name}: converted from its colour profile ({description}) to sRGB")
+            image = converted
+        except (ImageCms.PyCMSError, OSError, ValueError):
+            notes.append(f"{name}: its embedded colour profile is unreadable; colours read as sRGB")
+    if image.mode in ("CMYK", "YCbCr", "LAB", "HSV"):
+        notes.append(f"{name}: {image.mode} image converted to RGB")
+        image = image.convert("RGB")
+    if image.mode.startswith("I;16") or image.mode == "I":
+        array = np.asarray(image).astype(np.float32) / 65535.0
+        notes.append(f"{name}: 16-bit image scaled to [0, 1]")
+        return array
+    if image.mode == "F":
+        return np.asarray(image, dtype=np.float32)
+    if image.mode not in ("L", "LA", "RGB", "RGBA"):
+        image = image.convert("RGBA" if "A" in image.getbands() else "RGB")
+    return np.asarray(image)
+
+
+def _style_array(array: np.ndarray, name: str, notes: list) -> np.ndarray:
+    if array.ndim == 2:
+        array = array[..., None]
+    if array.ndim != 3 or array.shape[-1] not in (1, 2, 3, 4):
+        raise ValueError(f"{name} must be (H, W, 3) (or 1, 2 or 4 channels), got shape {array.shape}.")
+    if array.dtype == np.uint8:
+        values = array.astype(np.float32) / 255.0
+    elif array.dtype == np.uint16:
+        values = array.astype(np.float32) / 65535.0
+        notes.append(f"{name}: 16-bit image scaled to [0, 1]")
+    elif array.dtype == np.bool_:
+        values = array.astype(np.float32)
+    elif np.issubdtype(array.dtype, np.floating):
+        values = array.astype(np.float32)
+        if not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
+            raise ValueError(f"{name} must hold finite values in [0, 1] (display-encoded sRGB), "
+                             f"got [{np.nanmin(values):.4g}, {np.nanmax(values):.4g}].")
+    else:
+        raise ValueError(f"{name} has the pixel type {array.dtype}; use uint8, uint16 or float in [0, 1].")
+    channels = values.shape[-1]
+    if channels in (2, 4):  # alpha: composite over black, the renders' background
+        values = values[..., :-1] * values[..., -1:]
+        notes.append(f"{name}: alpha composited over black (the renders' background)")
+    if values.shape[-1] == 1:
+        values = np.repeat(values, 3, axis=-1)
+        notes.append(f"{name}: greyscale replicated to RGB")
+    if min(values.shape[:2]) < MIN_STYLE_SIZE:
+        raise ValueError(f"{name} is {values.shape[1]}x{values.shape[0]} pixels; a style image needs at least "
+                         f"{MIN_STYLE_SIZE}x{MIN_STYLE_SIZE}.")
+    return np.ascontiguousarray(np.clip(values, 0.0, 1.0), dtype=np.float32)

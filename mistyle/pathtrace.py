@@ -11,15 +11,18 @@ from __future__ import annotations
 import numpy as np
 
 from .backend import active_variant
-from .scenes.builder import split_views
+from .scenes.cameras import split_views
 
 
 def pixel_centre_estimate(scene, spp: int, seed: int, view_count: int, chunk: int = 256) -> np.ndarray:
     """Mean radiance of ``spp`` paths along each pixel-centre ray: ``(V, H, W, 3)`` float32.
 
-    ``scene`` holds a batch sensor of ``view_count`` views (``mistyle.scenes.pathtraced_scene``).
+    ``scene`` holds a batch sensor of ``view_count`` views (``mistyle.scenes.pathtraced_scene(..., batch=True)``).
     """
+    from .integrators import register
+
     mi = active_variant()
+    register()
     from .integrators.single_scatter import pixel_centre_rays
 
     sensor = scene.sensors()[0]
@@ -45,6 +48,10 @@ def two_seed_reference(render, spp: int):
 
 
 def net_rel_rmse(image: np.ndarray, reference: np.ndarray, reference_noise_var: float) -> float:
-    """Relative RMSE of ``image`` against a noisy reference, with the reference's noise taken out."""
+    """Relative RMSE of ``image`` against a noisy reference, with the reference's noise taken out.
+
+    ``sqrt(max(0, MSE(image, reference) - noise_var)) / RMS(reference)``, where ``noise_var`` is the
+    per-value noise variance of the reference (``two_seed_reference`` estimates it).
+    """
     mse = float(np.mean((image - reference) ** 2)) - reference_noise_var
     return float(np.sqrt(max(mse, 0.0)) / np.sqrt(np.mean(reference**2)))

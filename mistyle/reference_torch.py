@@ -14,9 +14,10 @@ from collections.abc import Sequence
 import torch
 import torch.nn.functional as F
 
-from .integrators import DEFAULT_SCHEME, SCHEMES
+from .conventions import DEFAULT_ENV_RADIANCE
+from .conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
+from .conventions import LAYER_SCHEMES as SCHEMES
 from .scenes.box import MediumBox
-from .scenes.builder import DEFAULT_ENV_RADIANCE
 from .scenes.cameras import View
 
 

@@ -5,12 +5,15 @@
     python -m mistyle.render_final --mesh bunny.ply --style marble.png --coat dielectric --out out/bunny
     python -m mistyle.render_final --density data/fire/ --style lava.png --out out/fire     # a folder of frames
 
-Writes into ``--out``: ``albedo.vol`` / ``albedo.npy`` (``albedo_frameNNNN.*`` for sequences), per
-image ``*.exr`` (linear) and ``*.png`` (the training tone curve), ``turntable.mp4``/``.gif`` or
+Writes into ``--out``: ``albedo.vol`` / ``albedo.npy`` (``albedo_frameNNNN.*`` for sequences: the
+network's albedo), ``albedo_refined.vol`` when refined or calibrated (the albedo that is path
+traced), per image ``*.exr`` (linear) and ``*.png`` (the training tone curve) and
+``*_network_layer.png`` (the fast layer's image of the network's albedo from the same view, under
+the training light: what the network was trained to produce), ``turntable.mp4``/``.gif`` or
 ``sequence.mp4``/``.gif``, and ``report.json`` with timings and style metrics: ``swd_final`` (the
-path-traced images against the style), ``swd_layer`` (the fast layer's image of the same views
-under the training light), ``swd_plain`` (path traced without the correction) when a correction
-or refinement is applied, and ``temporal_flicker`` for sequences. By default single frames are
+path-traced images against the style), ``swd_layer`` (the ``*_network_layer`` images), ``swd_plain``
+(path traced without the correction) when a correction or refinement is applied, and
+``temporal_flicker`` for sequences. By default single frames are
 refined for a few steps with the path tracer in the loop (``--refine``), which brought the final
 renders closest to unseen styles; ``--refine 0`` renders the network's albedo as predicted.
 Every file is written to a temporary name and renamed, so an interrupted run leaves no half-written output.
@@ -22,16 +25,21 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-DENSITY_SUFFIXES = (".vol", ".npy", ".npz")
+from .conventions import CORRECTIONS, DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
+
 # Measured on 3 unseen styles (experiments/final_appearance.py): SWD to the style 0.126 fast layer,
 # 0.098 plain volpath, 0.105 calibrated, 0.080 after 16 refinement steps from the plain albedo
 # (about 7 s per 64^3 frame on 2 cores). Sequences are not refined by default: refining frames
 # independently against random views would bring back the flicker the network avoids.
 DEFAULT_REFINE_STEPS = 16
+# Each refinement step path-traces REFINE_VIEWS random orbit views at REFINE_RES^2 (or --res if
+# smaller) with REFINE_SPP paths per pixel, and takes one Adam step of REFINE_LR on the logits.
+REFINE_VIEWS, REFINE_RES, REFINE_SPP, REFINE_LR = 2, 64, 8, 0.05
 
 
 def _coat(text: str) -> float:
@@ -54,10 +62,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
     p.add_argument("--vgg-weights", default=None, help="VGG16 weights, for checkpoints trained with VGG16")
-    p.add_argument("--view", type=float, default=0.0625, help="camera position on the training orbit, in [0, 1)")
+    p.add_argument("--view", type=float, default=HELD_OUT_VIEW, help="camera position on the training orbit, in [0, 1)")
     p.add_argument("--turntable", type=int, default=0, help="render N frames around the orbit (a video)")
     p.add_argument("--camera-distance", type=float, default=None, help="orbit radius (default: the checkpoint's)")
-    p.add_argument("--light", default="constant", help="constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]")
+    p.add_argument("--light", default=LIGHT_KINDS[0], help="constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]")
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--max-depth", type=int, default=-1, help="-1: full multiple scattering; 2: single scattering")
     p.add_argument("--res", type=int, default=256)
@@ -65,13 +73,13 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--coat", type=_coat, default=None, metavar="dielectric[:ior]", help="smooth dielectric boundary")
     p.add_argument("--scale-structures", type=float, default=1.0, help="resample the density by f before stylizing")
     p.add_argument("--mesh-res", type=int, default=64, help="voxels along the mesh's longest side")
-    p.add_argument("--correct", choices=("calibrate", "none"), default="none",
+    p.add_argument("--correct", choices=CORRECTIONS, default="none",
                    help="calibrate: map the albedo so its multiply-scattered brightness matches single scattering")
     p.add_argument("--refine", type=int, default=None, metavar="STEPS",
                    help=f"refine the albedo for STEPS steps against the style with the path tracer in the loop "
                         f"(default: {DEFAULT_REFINE_STEPS} for a single frame, 0 for sequences)")
     p.add_argument("--fps", type=int, default=12)
-    p.add_argument("--device", choices=("cpu", "cuda"), default="cpu")
+    p.add_argument("--device", choices=DEVICES, default="cpu")
     return p
 
 
@@ -91,63 +99,79 @@ def main(argv=None) -> int:
         raise
 
 
-def load_frames(path: Path) -> tuple[list[np.ndarray], list[np.ndarray] | None, list[str]]:
-    """Density frames from a file or a folder of frames: ``(densities, velocities or None, names)``."""
-    from .data.generate import load_frame
-    from .volume import load_density, validate_density
+def log(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
 
-    if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES and p.is_file())
-        if not files:
-            raise ValueError(f"The folder {path} holds no .vol, .npy or .npz density frames.")
-    elif path.is_file():
-        files = [path]
-    else:
-        raise ValueError(f"Density {path} does not exist.")
-    densities, velocities = [], []
-    for file in files:
-        if file.suffix.lower() == ".npz":
-            try:
-                frame = load_frame(file)
-            except ValueError:  # a density-only npz (e.g. fire frames)
-                with np.load(file, allow_pickle=False) as data:
-                    if "density" not in data.files:
-                        raise ValueError(f"{file} has no 'density' array.") from None
-                    frame = {"density": data["density"], "velocity": data["velocity"] if "velocity" in data.files else None}
-            densities.append(validate_density(frame["density"], name=str(file)))
-            velocities.append(None if frame.get("velocity") is None else np.asarray(frame["velocity"], np.float32))
-        else:
-            densities.append(load_density(file))
-            velocities.append(None)
-    shapes = {d.shape for d in densities}
-    if len(shapes) > 1:
-        raise ValueError(f"The frames in {path} have different shapes {sorted(shapes)}; a sequence needs one grid size.")
-    return densities, (velocities if all(v is not None for v in velocities) else None), [f.stem for f in files]
+
+@dataclass
+class Job:
+    """Everything a run needs, loaded and checked before any heavy work (``load``)."""
+
+    args: argparse.Namespace
+    out: Path
+    stylizer: object  # api.Stylizer
+    style: np.ndarray  # (H, W, 3) display RGB in [0, 1]
+    densities: list[np.ndarray]  # frames, (Z, Y, X) each
+    velocities: list[np.ndarray] | None  # per frame (Z, Y, X, 3), when every frame has one
+    names: list[str]
+    views: list  # scenes.View
+    light: object  # scenes.LightSpec
+    density_scale: float
+    camera_distance: float
+    refine_steps: int
+    coat_mesh: Path | None = None
+    notes: list[str] = field(default_factory=list)
+    prepared: dict = field(default_factory=dict)  # frame -> integrators.PreparedDensity, made once
+
+    @property
+    def sequence(self) -> bool:
+        return len(self.densities) > 1
+
+    def prepared_frame(self, frame: int):
+        """The frame's density prepared for the fast layer (its Ls grid), computed once."""
+        from .integrators import prepare_density
+
+        if frame not in self.prepared:
+            self.prepared[frame] = prepare_density(self.densities[frame], self.density_scale)
+        return self.prepared[frame]
+
+    def render_jobs(self) -> list[tuple[int, list]]:
+        """``(frame, views)`` to path trace: a turntable of one frame, or each frame of a sequence
+        from the views in turn."""
+        if self.sequence:
+            return [(i, [self.views[i % len(self.views)]]) for i in range(len(self.densities))]
+        return [(0, self.views)]
 
 
 def run(args) -> int:
-    from .api import Stylizer, display, load_style, path_trace
-    from .backend import use_variant
-    from .io import atomic_write_bytes, check_writable_dir, write_exr, write_png
-    from .scenes import CameraPath, prepare_density
-    from .scenes.final import LightSpec
-    from .scenes.medium import validate_density_scale
-    from .train.metrics import style_distance, temporal_flicker
-    from .volume import write_vol
+    job = load(args)
+    report = {"inputs": _inputs_record(job), "notes": job.notes}
+    albedos = stylize_frames(job, report)
+    rendered = correct_frames(job, albedos, report)
+    images, layer_images = render_frames(job, rendered, albedos, report)
+    write_report(job, albedos, images, layer_images, report)
+    return 0
 
-    # ---- every input checked before any heavy work
+
+# ---------------------------------------------------------------------------- stage 1: load and check
+def load(args) -> Job:
+    """Check every option and input and load them; nothing heavy runs before this returns."""
+    from .api import Stylizer
+    from .backend import use_variant
+    from .io import check_writable_dir, load_density_frames, load_style
+    from .scenes import CameraPath, LightSpec, validate_density_scale
+
     if args.spp < 1 or not 8 <= args.res <= 8192 or args.turntable < 0 or args.fps < 1 or (args.refine or 0) < 0:
         raise ValueError("Need --spp >= 1, 8 <= --res <= 8192, --turntable >= 0, --fps >= 1 and --refine >= 0.")
     notes: list[str] = []
     style = load_style(args.style, notes)
     for note in notes:
-        print(f"note: {note}", file=sys.stderr)
-    check_writable_dir(args.out)
+        log(f"note: {note}")
+    out = check_writable_dir(args.out)
     use_variant(args.device)
     stylizer = Stylizer(args.checkpoint, args.device, args.vgg_weights)
     config = stylizer.config
-    radiance = config.render.radiance
-    light = LightSpec.parse(args.light, default_radiance=radiance)
+    light = LightSpec.parse(args.light, default_radiance=config.render.radiance)
     density_scale = validate_density_scale(args.density_scale if args.density_scale is not None else stylizer.density_scale)
     coat_mesh = None
     if args.mesh is not None:
@@ -157,173 +181,181 @@ def run(args) -> int:
         densities, velocities, names = [voxelize(vertices, faces, args.mesh_res, supersample=2)], None, [args.mesh.stem]
         if args.coat is not None:
             placed, _ = fit_to_box(np.asarray(vertices, np.float64), args.mesh_res, 0.05)
-            coat_mesh = write_ply(args.out / "coat_mesh.ply", placed, faces)
+            coat_mesh = write_ply(out / "coat_mesh.ply", placed, faces)
     else:
-        densities, velocities, names = load_frames(args.density)
+        densities, velocities, names = load_density_frames(args.density)
     for name, grid in zip(names, densities):
         if not grid.any():
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
     sequence = len(densities) > 1
-    if args.refine is None:
-        args.refine = 0 if sequence else DEFAULT_REFINE_STEPS
-    distance = args.camera_distance or config.render.camera_distance
-    orbit = CameraPath(distance=distance)
+    refine_steps = args.refine if args.refine is not None else (0 if sequence else DEFAULT_REFINE_STEPS)
+    camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
+    orbit = CameraPath(distance=camera_distance)
     views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
-    report = {"inputs": {"density": str(args.density or args.mesh), "style": str(args.style), "frames": len(densities),
-                         "shape_zyx": list(densities[0].shape), "checkpoint": str(stylizer.path), "light": args.light,
-                         "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": density_scale,
-                         "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct,
-                         "refine_steps": args.refine, "views": len(views)}, "notes": notes}
+    return Job(args=args, out=out, stylizer=stylizer, style=style, densities=densities, velocities=velocities, names=names,
+               views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
+               refine_steps=refine_steps, coat_mesh=coat_mesh, notes=notes)
 
-    # ---- stylize
+
+def _inputs_record(job: Job) -> dict:
+    args = job.args
+    return {"density": str(args.density or args.mesh), "style": str(args.style), "frames": len(job.densities),
+            "shape_zyx": list(job.densities[0].shape), "checkpoint": str(job.stylizer.path), "light": args.light,
+            "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": job.density_scale,
+            "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct,
+            "refine_steps": job.refine_steps, "views": len(job.views)}
+
+
+def _albedo_stem(job: Job, kind: str, index: int) -> str:
+    return f"{kind}_frame{index:04d}" if job.sequence else kind
+
+
+# ---------------------------------------------------------------------------- stage 2: stylize
+def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
+    """The network's albedo for every frame, written as ``albedo*.vol/.npy``; flicker for sequences."""
+    from .io import write_npy, write_vol
+    from .objective.metrics import temporal_flicker
+
     started = time.perf_counter()
-    albedos = [stylizer(grid, style, args.scale_structures) for grid in densities]
+    albedos = [job.stylizer(grid, job.style, job.args.scale_structures) for grid in job.densities]
     report["stylize_seconds"] = time.perf_counter() - started
-    print(f"stylized {len(albedos)} frame(s) of {densities[0].shape} in {report['stylize_seconds']:.2f} s", file=sys.stderr)
+    log(f"stylized {len(albedos)} frame(s) of {job.densities[0].shape} in {report['stylize_seconds']:.2f} s")
     for index, albedo in enumerate(albedos):
-        stem = f"albedo_frame{index:04d}" if sequence else "albedo"
-        write_vol(args.out / f"{stem}.vol", albedo)
-        _write_npy(args.out / f"{stem}.npy", albedo)
-    if sequence and velocities is not None:
-        report["temporal_flicker"] = temporal_flicker(np.stack(albedos), np.stack(velocities))
-    elif sequence:
+        stem = _albedo_stem(job, "albedo", index)
+        write_vol(job.out / f"{stem}.vol", albedo)
+        write_npy(job.out / f"{stem}.npy", albedo)
+    if job.sequence and job.velocities is not None:
+        report["temporal_flicker"] = temporal_flicker(np.stack(albedos), np.stack(job.velocities))
+    elif job.sequence:
         report["temporal_flicker_unwarped"] = float(np.mean(np.abs(np.diff(np.stack(albedos), axis=0))))
         report["notes"].append("the frames carry no velocity; temporal_flicker_unwarped compares frames without warping")
+    return albedos
 
-    # ---- correction for multiple scattering
-    prepared = {}  # frame -> PreparedDensity (its Ls grid), computed once per frame
 
-    def prepared_frame(frame):
-        if frame not in prepared:
-            prepared[frame] = prepare_density(densities[frame], density_scale)
-        return prepared[frame]
+# ---------------------------------------------------------------------------- stage 3: correct and refine
+def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np.ndarray]:
+    """The albedos to path trace: calibrated for multiple scattering and/or refined, as asked."""
+    from .io import write_vol
 
-    rendered_albedos = albedos
-    if args.correct == "calibrate":
+    rendered = albedos
+    radiance = job.stylizer.config.render.radiance
+    if job.args.correct == "calibrate":
         from .correct import measure_calibration
 
-        calibration = measure_calibration(densities[0], density_scale, radiance, views[:2], res=64, spp=16,
-                                          prepared=prepared_frame(0))
-        rendered_albedos = [calibration.apply(a) for a in albedos]
+        calibration = measure_calibration(job.densities[0], job.density_scale, radiance, job.views[:2], res=64, spp=16,
+                                          prepared=job.prepared_frame(0))
+        rendered = [calibration.apply(a) for a in rendered]
         report["calibration"] = calibration.as_dict()
-        print(f"multiple-scattering calibration in {calibration.seconds:.1f} s", file=sys.stderr)
-    if args.refine:
-        from .correct import refine_albedo
-        from .train.dataset import square_style
-        from .train.objective import StyleObjective
+        log(f"multiple-scattering calibration in {calibration.seconds:.1f} s")
+    if job.refine_steps:
+        rendered, report["refine_seconds"] = refine_frames(job, rendered)
+    if rendered is not albedos:
+        for index, albedo in enumerate(rendered):
+            write_vol(job.out / f"{_albedo_stem(job, 'albedo_refined', index)}.vol", albedo)
+    return rendered
 
-        objective = StyleObjective(stylizer.extractor, config.loss.style, config.loss.rgb_weight)
-        target = square_style(style, config.data.style_size).permute(1, 2, 0).numpy()
-        refined, seconds = [], 0.0
-        for index, (grid, albedo) in enumerate(zip(densities, rendered_albedos)):
-            result, took = refine_albedo(grid, density_scale, albedo, target, objective, steps=args.refine, res=min(args.res, 64),
-                                         radiance=radiance, camera_distance=distance, tv_weight=config.loss.tv_weight,
-                                         progress=lambda done, count, loss: print(
-                                             f"refining frame {index}: step {done}/{count}, loss {loss:.4g}", file=sys.stderr))
-            refined.append(result)
-            seconds += took
-        rendered_albedos = refined
-        report["refine_seconds"] = seconds
-        for index, albedo in enumerate(refined):
-            stem = f"albedo_refined_frame{index:04d}" if sequence else "albedo_refined"
-            write_vol(args.out / f"{stem}.vol", albedo)
 
-    # ---- path trace: a turntable of one frame, or every frame of a sequence from the views in turn
-    render_seconds, images, layer_images = [], [], []
-    jobs = [(i, [views[i % len(views)]]) for i in range(len(densities))] if sequence else [(0, views)]
-    total = sum(len(v) for _, v in jobs)
+def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray], float]:
+    """``job.refine_steps`` steps of ``fit.fit_albedo`` per frame with the path tracer in the loop."""
+    from .fit import FitSettings, refine_albedo
+    from .objective.style import StyleObjective
 
+    config = job.stylizer.config
+    objective = StyleObjective(job.stylizer.extractor, config.loss.style, config.loss.rgb_weight)
+    style = job.stylizer.style_tensor(job.style)
+    settings = FitSettings(steps=job.refine_steps, lr=REFINE_LR, views_per_step=REFINE_VIEWS, tv_weight=config.loss.tv_weight,
+                           camera_distance=job.camera_distance)
+    refined, seconds = [], 0.0
+    for index, (grid, albedo) in enumerate(zip(job.densities, albedos)):
+        result, took = refine_albedo(
+            grid, job.density_scale, albedo, style, objective, settings, res=min(job.args.res, REFINE_RES), spp=REFINE_SPP,
+            radiance=config.render.radiance, device=job.args.device,
+            progress=lambda done, count, loss: log(f"refining frame {index}: step {done}/{count}, loss {loss:.4g}"))
+        refined.append(result)
+        seconds += took
+    return refined, seconds
+
+
+# ---------------------------------------------------------------------------- stage 4: path trace
+def render_frames(job: Job, rendered: list[np.ndarray], albedos: list[np.ndarray], report: dict):
+    """Path-trace the rendered albedos and write EXR/PNG (and video); also the layer's images of
+    the network's albedos. Returns ``(images, layer_images)``, linear ``(H, W, 3)`` each."""
+    from .api import path_trace
+    from .display import display
+    from .io import write_exr, write_gif, write_mp4, write_png
+
+    args = job.args
+    jobs = job.render_jobs()
+    total = sum(len(views) for _, views in jobs)
     finished = []
 
     def progress(done, count, seconds):
         finished.append(seconds)
-        print(f"path tracing {len(finished)}/{total}: {seconds:.1f} s", file=sys.stderr, flush=True)
+        log(f"path tracing {len(finished)}/{total}: {seconds:.1f} s")
 
+    images, layer_images, render_seconds = [], [], []
     started = time.perf_counter()
     for frame, frame_views in jobs:
-        frame_images, seconds = path_trace(densities[frame], rendered_albedos[frame], frame_views, args.res, args.spp,
-                                           args.max_depth, density_scale, light, args.coat, coat_mesh, args.device,
+        frame_images, seconds = path_trace(job.densities[frame], rendered[frame], frame_views, **_trace_options(job),
                                            progress=progress)
         images += frame_images
         render_seconds += seconds
-        layer_images += _layer_images(prepared_frame(frame), albedos[frame], frame_views, args.res, config, args.device)
+        layer_images += _layer_images(job, frame, albedos[frame], frame_views)
     report["render_seconds"] = time.perf_counter() - started
     report["render_seconds_per_image"] = float(np.mean(render_seconds))
 
-    kind = "sequence" if sequence else "turntable" if args.turntable else "view"
+    kind = "sequence" if job.sequence else "turntable" if args.turntable else "view"
     for index, image in enumerate(images):
         stem = f"{kind}_{index:04d}" if len(images) > 1 else "final"
-        write_exr(args.out / f"{stem}.exr", image)
-        write_png(args.out / f"{stem}.png", display(image), srgb=False)
-        write_png(args.out / f"{stem}_layer.png", display(layer_images[index]), srgb=False)
+        write_exr(job.out / f"{stem}.exr", image)
+        write_png(job.out / f"{stem}.png", display(image), srgb=False)
+        write_png(job.out / f"{stem}_network_layer.png", display(layer_images[index]), srgb=False)
     if len(images) > 1:
         frames = [(display(image) * 255 + 0.5).astype(np.uint8) for image in images]
-        report["video"] = [str(write_mp4(args.out / f"{kind}.mp4", frames, args.fps)), str(write_gif(args.out / f"{kind}.gif", frames, args.fps))]
-
-    # ---- style metrics
-    final = [style_distance(image, style) for image in images]
-    report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
-    report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
-    report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in layer_images]))
-    if args.correct != "none" or args.refine:
-        # The same views and settings without the correction: how much the correction moved the metric.
-        plain = [image for frame, frame_views in jobs
-                 for image in path_trace(densities[frame], albedos[frame], frame_views, args.res, args.spp, args.max_depth,
-                                         density_scale, light, args.coat, coat_mesh, args.device)[0]]
-        report["swd_plain"] = float(np.mean([style_distance(image, style)["swd"] for image in plain]))
-    atomic_write_bytes(args.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
-    print(json.dumps({k: report[k] for k in ("stylize_seconds", "render_seconds", "swd_layer", "swd_final") if k in report}))
-    print(f"wrote {args.out}/: albedo grid(s), {len(images)} image(s) (EXR + PNG)"
-          + (", MP4 and GIF" if len(images) > 1 else "") + ", report.json")
-    return 0
+        report["video"] = [str(write_mp4(job.out / f"{kind}.mp4", frames, args.fps)),
+                           str(write_gif(job.out / f"{kind}.gif", frames, args.fps))]
+    return images, layer_images
 
 
-def _layer_images(prepared, albedo, views, res, config, device="cpu") -> list[np.ndarray]:
+def _trace_options(job: Job) -> dict:
+    args = job.args
+    return {"res": args.res, "spp": args.spp, "max_depth": args.max_depth, "density_scale": job.density_scale,
+            "light": job.light, "coat_ior": args.coat, "coat_mesh": job.coat_mesh, "device": args.device}
+
+
+def _layer_images(job: Job, frame: int, albedo: np.ndarray, views) -> list[np.ndarray]:
     import torch
 
     from .bridge_torch import render_views
 
+    config = job.stylizer.config
+    grid = torch.from_numpy(albedo).permute(3, 0, 1, 2).to(job.args.device)
     with torch.no_grad():
-        images = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2).to(device), prepared, views, res,
-                              steps=config.render.steps, radiance=config.render.radiance)
+        images = render_views(grid, job.prepared_frame(frame), views, job.args.res, steps=config.render.steps,
+                              radiance=config.render.radiance)
     return [image.permute(1, 2, 0).cpu().numpy() for image in images]
 
 
-def _write_npy(path: Path, array: np.ndarray) -> Path:
-    from .io import atomic_output
+# ---------------------------------------------------------------------------- stage 5: report
+def write_report(job: Job, albedos, images, layer_images, report: dict) -> None:
+    """Style metrics of every image against the style, ``report.json``, and a summary line."""
+    from .api import path_trace
+    from .io import atomic_write_bytes
+    from .objective.metrics import style_distance
 
-    with atomic_output(path) as tmp:
-        with open(tmp, "wb") as handle:
-            np.save(handle, array)
-    return path
-
-
-def write_mp4(path: Path, frames: list[np.ndarray], fps: int) -> Path:
-    """H.264 MP4 of ``(H, W, 3)`` uint8 frames with the ffmpeg that ``imageio-ffmpeg`` ships."""
-    import imageio_ffmpeg
-
-    from .io import atomic_output
-
-    height, width = frames[0].shape[:2]
-    with atomic_output(path) as tmp:
-        writer = imageio_ffmpeg.write_frames(str(tmp), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
-                                             macro_block_size=2, quality=8, output_params=["-f", "mp4"])
-        writer.send(None)
-        for frame in frames:
-            writer.send(np.ascontiguousarray(frame))
-        writer.close()
-    return path
-
-
-def write_gif(path: Path, frames: list[np.ndarray], fps: int) -> Path:
-    from PIL import Image
-
-    from .io import atomic_output
-
-    with atomic_output(path) as tmp:
-        images = [Image.fromarray(frame) for frame in frames]
-        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
-    return path
+    final = [style_distance(image, job.style) for image in images]
+    report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
+    report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
+    report["swd_layer"] = float(np.mean([style_distance(image, job.style)["swd"] for image in layer_images]))
+    if job.args.correct != "none" or job.refine_steps:
+        # The same views and settings without the correction: how much the correction moved the metric.
+        plain = [image for frame, frame_views in job.render_jobs()
+                 for image in path_trace(job.densities[frame], albedos[frame], frame_views, **_trace_options(job))[0]]
+        report["swd_plain"] = float(np.mean([style_distance(image, job.style)["swd"] for image in plain]))
+    atomic_write_bytes(job.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
+    print(json.dumps({k: report[k] for k in ("stylize_seconds", "render_seconds", "swd_layer", "swd_final") if k in report}))
+    print(f"wrote {job.out}/: albedo grid(s), {len(images)} image(s) (EXR + PNG)"
+          + (", MP4 and GIF" if len(images) > 1 else "") + ", report.json")
 
 
 if __name__ == "__main__":

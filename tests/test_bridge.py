@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from mistyle.bridge_torch import render_views
-from mistyle.scenes import CameraPath, prepare_density
+from mistyle.integrators import prepare_density
+from mistyle.scenes import CameraPath
 
 VIEWS = CameraPath().turntable(3)
 

@@ -3,16 +3,15 @@
 import numpy as np
 import pytest
 
+from mistyle.integrators import layer_scene, prepare_density
+from mistyle.io import read_vol, write_vol
 from mistyle.scenes import (
     CameraPath,
     MediumBox,
     View,
-    layer_scene,
-    prepare_density,
+    heterogeneous_medium,
     split_views,
 )
-from mistyle.scenes.builder import heterogeneous_medium
-from mistyle.volume import read_vol, write_vol
 
 SHAPE = (8, 10, 12)  # (Z, Y, X)
 
@@ -53,10 +52,11 @@ def test_gridvolume_of_path_tracer_reads_arr_z_y_x(mi):
 
 
 def test_cube_shape_spans_the_box(mi):
-    box = MediumBox(SHAPE)
-    from mistyle.scenes.builder import _transform
+    from mistyle.scenes import medium_cube
 
-    scene = mi.load_dict({"type": "scene", "box": {"type": "cube", "to_world": _transform(box.cube_to_world_matrix())}})
+    box = MediumBox(SHAPE)
+    cube = medium_cube(np.ones(SHAPE, np.float32), 1.0, np.ones(SHAPE + (3,), np.float32))
+    scene = mi.load_dict({"type": "scene", "box": cube})
     for axis in range(3):
         direction = np.zeros(3)
         direction[axis] = 1.0
@@ -65,11 +65,15 @@ def test_cube_shape_spans_the_box(mi):
         assert hit.p.numpy()[axis][0] == pytest.approx(box.bbox_min[axis], abs=1e-5)
 
 
-def test_vol_file_round_trip_and_mitsuba_reads_it(mi, tmp_path):
-    grid = np.random.default_rng(0).random(SHAPE).astype(np.float32)
-    path = write_vol(tmp_path / "grid.vol", grid)
-    np.testing.assert_array_equal(read_vol(path), grid)
-    np.testing.assert_array_equal(np.array(mi.VolumeGrid(str(path))).reshape(SHAPE), grid)
+@pytest.mark.parametrize("channels", [1, 3])
+def test_vol_files_round_trip_through_mitsubas_own_reader_and_writer(mi, tmp_path, channels):
+    grid = np.random.default_rng(0).random(SHAPE + (channels,)).astype(np.float32)
+    expected = grid[..., 0] if channels == 1 else grid
+    path = write_vol(tmp_path / "grid.vol", grid, bbox_min=(-0.5, -0.4, -0.3), bbox_max=(0.5, 0.4, 0.3))
+    np.testing.assert_array_equal(read_vol(path), expected)
+    np.testing.assert_array_equal(np.array(mi.VolumeGrid(str(path))).reshape(grid.shape), grid)
+    mi.VolumeGrid(grid).write(str(tmp_path / "mitsuba.vol"))
+    np.testing.assert_array_equal(read_vol(tmp_path / "mitsuba.vol"), expected)
 
 
 def test_image_orientation_plus_x_right_plus_y_up(mi):
@@ -80,7 +84,7 @@ def test_image_orientation_plus_x_right_plus_y_up(mi):
     albedo[:, 8:, 8:] = 1.0  # y >= 0 and x >= 0
     prepared = prepare_density(density, 4.0)
     view = View(origin=(0.0, 0.0, 3.0))
-    image = split_views(mi.render(mi.load_dict(layer_scene(prepared, albedo, [view], 32, 32))), 1)[0].mean(-1)
+    image = split_views(mi.render(mi.load_dict(layer_scene(prepared, albedo, [view], res=32))), 1)[0].mean(-1)
     quadrants = {"top_right": image[:16, 16:], "top_left": image[:16, :16], "bottom_right": image[16:, 16:]}
     assert quadrants["top_right"].mean() > 4 * quadrants["top_left"].mean()
     assert quadrants["top_right"].mean() > 4 * quadrants["bottom_right"].mean()
@@ -95,7 +99,7 @@ def test_split_views_layout():
 
 def test_camera_path_views_look_at_the_box():
     path = CameraPath()
-    for view in path.turntable(8) + path.sample(8, np.random.default_rng(0)):
+    for view in path.turntable(8) + path.sample(8, np.random.default_rng(0)) + path.held_out(2):
         assert np.linalg.norm(view.origin) == pytest.approx(path.distance)
     with pytest.raises(ValueError):
         View(origin=(0.0, 2.0, 0.0), up=(0.0, 1.0, 0.0))  # looking straight down its up vector

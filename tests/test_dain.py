@@ -2,7 +2,7 @@
 
 import torch
 
-from mistyle.train.dain import dain, density_mask, masked_statistics
+from mistyle.model.dain import dain, density_mask, masked_statistics
 
 GEN = torch.Generator().manual_seed(0)
 

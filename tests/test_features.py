@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from mistyle.train.features import (
+from mistyle.model.features import (
     FilterBankFeatures,
     VGG16Features,
     make_extractor,

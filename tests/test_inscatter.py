@@ -82,7 +82,8 @@ def test_ls_is_only_computed_where_the_layer_uses_it(mi, blob_density):
     import torch
 
     from mistyle.bridge_torch import render_views
-    from mistyle.scenes import CameraPath, PreparedDensity
+    from mistyle.integrators import PreparedDensity
+    from mistyle.scenes import CameraPath
 
     sigma_t = 25.0 * blob_density
     dense = inscattered_radiance(sigma_t, directions=32, only_where_used=False)
@@ -105,7 +106,8 @@ def test_sheared_ls_changes_layer_images_by_under_half_a_percent_at_64(mi):
 
     from mistyle.bridge_torch import render_views
     from mistyle.data.procedural import pyroclastic_sphere
-    from mistyle.scenes import CameraPath, prepare_density
+    from mistyle.integrators import prepare_density
+    from mistyle.scenes import CameraPath
 
     density = pyroclastic_sphere((64, 64, 64), seed=1)
     fast = prepare_density(density, 20.0, 128, method="sheared")

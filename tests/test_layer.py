@@ -5,8 +5,9 @@ import pytest
 import torch
 
 from mistyle.bridge_torch import render_views
+from mistyle.integrators import PreparedDensity, prepare_density
 from mistyle.reference_torch import camera_rays, clip_to_box, render_views_torch
-from mistyle.scenes import CameraPath, MediumBox, PreparedDensity, View, prepare_density
+from mistyle.scenes import CameraPath, MediumBox, View
 
 VIEWS = CameraPath().turntable(2, offset=0.05)
 SIZE = (20, 24)

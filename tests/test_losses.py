@@ -4,18 +4,10 @@ import numpy as np
 import pytest
 import torch
 
-from mistyle.train.losses import (
-    gram_loss,
-    histogram_loss,
-    histogram_match,
-    mean_std_loss,
-    pool_mask,
-    render_mask,
-    temporal_loss,
-    tone_map,
-    tv_loss,
-)
-from mistyle.train.metrics import (
+from mistyle.display import tone_map
+from mistyle.objective.losses import gram_loss, histogram_loss, mean_std_loss, temporal_loss, tv_loss
+from mistyle.objective.masks import pool_mask, render_mask
+from mistyle.objective.metrics import (
     colour_histogram_distance,
     multiview_spread,
     sliced_wasserstein,
@@ -27,17 +19,20 @@ from mistyle.warp import semi_lagrangian_warp
 GEN = torch.Generator().manual_seed(0)
 
 
-def test_histogram_match_is_exact_for_equal_sizes():
-    values = torch.randn(50, generator=GEN)
-    target = torch.sort(torch.rand(50, generator=GEN) * 7).values
-    matched = histogram_match(values, target)
-    assert torch.equal(torch.sort(matched).values, target)
-    assert torch.equal(torch.argsort(matched), torch.argsort(values))  # ranks preserved
+def test_histogram_loss_matches_rank_for_rank_for_equal_sizes():
+    values = torch.randn(1, 1, 50, 1, generator=GEN, dtype=torch.float64)
+    target = torch.rand(1, 50, 1, generator=GEN, dtype=torch.float64) * 7
+    # Equal counts: the k-th smallest value is matched with the k-th smallest target value.
+    expected = ((torch.sort(values.flatten()).values - torch.sort(target.flatten()).values) ** 2).mean()
+    torch.testing.assert_close(histogram_loss(values, target), expected)
 
 
-def test_histogram_match_interpolates_other_sizes():
-    matched = histogram_match(torch.tensor([3.0, 1.0, 2.0]), torch.tensor([0.0, 1.0, 2.0, 3.0, 4.0]))
-    torch.testing.assert_close(matched, torch.tensor([4.0, 0.0, 2.0]))
+def test_histogram_loss_interpolates_the_style_quantiles_for_other_sizes():
+    values = torch.tensor([3.0, 1.0, 2.0]).reshape(1, 1, 3, 1)
+    style = torch.tensor([0.0, 1.0, 2.0, 3.0, 4.0]).reshape(1, 5, 1)
+    # Quantiles at 0, 1/2, 1 of the style are 0, 2, 4: the values 1, 2, 3 are matched with them.
+    loss = histogram_loss(values, style)
+    assert float(loss) == pytest.approx(((1 - 0) ** 2 + (2 - 2) ** 2 + (3 - 4) ** 2) / 3)
 
 
 def test_style_losses_vanish_on_the_style_itself_and_have_finite_gradients():

@@ -8,13 +8,12 @@ import torch
 from PIL import Image
 
 import mistyle
-import mistyle.volume
 from mistyle import __version__
+from mistyle.io import read_vol, write_vol
+from mistyle.model.config import config_to_dict, load_config
+from mistyle.model.features import make_extractor
+from mistyle.model.skpn import SKPN
 from mistyle.render_final import main
-from mistyle.train.config import config_to_dict, load_config
-from mistyle.train.features import make_extractor
-from mistyle.train.skpn import SKPN
-from mistyle.volume import write_vol
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +89,7 @@ def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_pa
     assert code == 0
     names = {p.name for p in out.iterdir()}
     assert {"albedo.vol", "albedo.npy", "report.json", "turntable.mp4", "turntable.gif", "turntable_0000.exr",
-            "turntable_0002.png", "turntable_0001_layer.png"} <= names
+            "turntable_0002.png", "turntable_0001_network_layer.png"} <= names
     report = json.loads((out / "report.json").read_text())
     for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "swd_plain", "calibration", "refine_seconds"):
         assert key in report, key
@@ -134,11 +133,11 @@ def test_refine_with_the_path_tracer_in_the_loop(mi, checkpoint, inputs, tmp_pat
     assert code == 0
     report = json.loads((out / "report.json").read_text())
     assert report["refine_seconds"] > 0 and "swd_plain" in report
-    refined = mistyle.volume.read_vol(out / "albedo_refined.vol")
+    refined = read_vol(out / "albedo_refined.vol")
     assert refined.shape == (16, 18, 20, 3) and not np.allclose(refined, np.load(out / "albedo.npy"))
 
 
-@pytest.mark.parametrize("style, note", [("rgba.png", "alpha channel"), ("grey.png", "greyscale"), ("deep.png", "16-bit")])
+@pytest.mark.parametrize("style, note", [("rgba.png", "alpha composited"), ("grey.png", "greyscale"), ("deep.png", "16-bit")])
 def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, tmp_path, capsys, style, note):
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / style),
                  "--out", str(tmp_path / "out"), "--res", "16", "--spp", "1", "--refine", "0"])

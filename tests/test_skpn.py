@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from mistyle.train.skpn import SKPN, SKPNConfig, parameter_count
+from mistyle.model.skpn import SKPN, SKPNConfig, parameter_count
 
 GEN = torch.Generator().manual_seed(0)
 TINY = dict(widths=(4, 8, 8), style_channels=(3, 4, 5, 6), style_hidden=16)

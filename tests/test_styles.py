@@ -4,14 +4,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from mistyle.data.styles import (
-    ImageFolder,
-    load_image,
-    material_texture,
-    offline_style_set,
-    random_crop,
-    style_set_diversity,
-)
+from mistyle.data.styles import ImageFolder, material_texture, offline_style_set, random_crop, style_set_diversity
+from mistyle.io import load_style
 
 
 def save(path, array, mode=None):
@@ -23,12 +17,12 @@ def save(path, array, mode=None):
 def test_image_formats_become_rgb_floats(tmp_path):
     rgba = np.zeros((16, 16, 4), np.uint8)
     rgba[..., 0], rgba[..., 3] = 200, 128
-    image = load_image(save(tmp_path / "rgba.png", rgba))
+    image = load_style(save(tmp_path / "rgba.png", rgba))
     assert image.shape == (16, 16, 3) and image.dtype == np.float32
     assert image[0, 0, 0] == pytest.approx(200 / 255 * 128 / 255, abs=1e-3)  # over black
-    gray = load_image(save(tmp_path / "gray.png", np.full((12, 10), 51, np.uint8)))
+    gray = load_style(save(tmp_path / "gray.png", np.full((12, 10), 51, np.uint8)))
     assert gray.shape == (12, 10, 3) and np.allclose(gray, 0.2)
-    deep = load_image(save(tmp_path / "deep.png", np.full((9, 9), 65535, np.uint16)))
+    deep = load_style(save(tmp_path / "deep.png", np.full((9, 9), 65535, np.uint16)))
     assert np.allclose(deep, 1.0)
 
 
@@ -40,9 +34,9 @@ def test_bad_images_raise(tmp_path, content, match):
     else:
         path.write_bytes(content)
     with pytest.raises(ValueError, match=match):
-        load_image(path)
+        load_style(path)
     with pytest.raises(ValueError, match="does not exist"):
-        load_image(tmp_path / "missing.jpg")
+        load_style(tmp_path / "missing.jpg")
 
 
 def test_dtd_style_folder_with_a_corrupt_file(tmp_path):
@@ -62,7 +56,7 @@ def test_dtd_style_folder_with_a_corrupt_file(tmp_path):
 
 def test_empty_folder_is_refused(tmp_path):
     (tmp_path / "notes.txt").write_text("no images here")
-    with pytest.raises(ValueError, match="No .jpg"):
+    with pytest.raises(ValueError, match="No images"):
         ImageFolder(tmp_path)
 
 

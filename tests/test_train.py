@@ -70,7 +70,7 @@ def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
     row = json.loads(baseline.stdout.splitlines()[0])
     assert {"swd_network", "network_seconds", "swd_optimized", "optimize_seconds", "swd_grey"} <= row.keys()
     assert (tmp_path / "baseline" / "baseline.json").is_file()
-    from mistyle.train.trainer import export_checkpoint, load_model
+    from mistyle.model.checkpoint import export_checkpoint, load_model
 
     exported = export_checkpoint(out / "final.pt", tmp_path / "inference.pt")
     assert "optimizer" not in torch.load(exported, weights_only=True)
@@ -163,7 +163,7 @@ def test_two_process_ddp_on_cpu(tmp_path, tiny_smoke):
 
 def test_training_reads_ls_from_the_dataset_cache(mi, tmp_path, tiny_smoke, monkeypatch):
     import mistyle.integrators.inscatter as inscatter
-    from mistyle.train.config import load_config
+    from mistyle.model.config import load_config
     from mistyle.train.trainer import Trainer
 
     def recompute(*args, **kwargs):

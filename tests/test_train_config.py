@@ -1,6 +1,6 @@
 import pytest
 
-from mistyle.train.config import (
+from mistyle.model.config import (
     ConfigError,
     config_from_dict,
     config_to_dict,
@@ -41,7 +41,7 @@ def test_overrides_are_typed():
     ("optim.steps=\"ten\"", "steps must be int"),
     ("model.widths=[1, 2]", "must have 3 entries"),
     ("optim.lr=-1", "optim.lr must be > 0"),
-    ("run.device=tpu", "run.device must be cpu or cuda"),
+    ("run.device=tpu", "run.device must be one of cpu, cuda"),
     ("model.kernels=3", "kernels must be 1, 2 or 4"),
     ("optim.lr", "--set takes section.key=value"),
 ])

@@ -125,13 +125,8 @@ def main(argv=None) -> int:
 
 
 def _mesh_command(args) -> int:
-    import io
-
-    import numpy as np
-
-    from ..io import atomic_write_bytes
+    from ..io import write_npy, write_vol
     from ..scenes.box import MediumBox
-    from ..volume import write_vol
     from .mesh import icosphere, load_mesh, voxelize
 
     try:
@@ -142,9 +137,7 @@ def _mesh_command(args) -> int:
             box = MediumBox(density.shape)
             write_vol(args.out, density, box.bbox_min, box.bbox_max)
         elif suffix == ".npy":
-            buffer = io.BytesIO()
-            np.save(buffer, density)
-            atomic_write_bytes(args.out, buffer.getvalue())
+            write_npy(args.out, density)
         else:
             raise ValueError(f"--out must end in .vol or .npy, got {args.out}.")
     except ValueError as error:

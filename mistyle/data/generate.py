@@ -16,7 +16,6 @@ shardable (``--shard i/n`` takes plumes ``p`` with ``p % n == i``).
 from __future__ import annotations
 
 import json
-import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -24,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..io import atomic_output, atomic_write_bytes
+from ..io import atomic_write_bytes, write_npz
 
 GENERATOR_VERSION = f"mistyle-smoke-{__version__}-1"
 
@@ -142,21 +141,11 @@ def _cropped(array: np.ndarray, window, size: int) -> np.ndarray:
 
 def _write_frame(path: Path, density, velocity, ls, spec: SmokeDatasetSpec, plume: int, frame: int) -> None:
     # float16 halves the disk for the two fields that tolerate it (1e-3 relative).
-    write_arrays(
+    write_npz(
         path, density=density.astype(np.float32), velocity=velocity.astype(np.float16),
         ls=ls.astype(np.float16), density_scale=np.float32(spec.density_scale),
         directions=np.int32(spec.directions), plume=np.int32(plume), frame=np.int32(frame),
     )
-
-
-def write_arrays(path: Path, **arrays) -> None:
-    """A compressed ``.npz``, written to a temporary file and renamed into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_output(path) as tmp:
-        with open(tmp, "wb") as handle:
-            np.savez_compressed(handle, **arrays)
-            handle.flush()
-            os.fsync(handle.fileno())
 
 
 def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path, seed: int = 0, log=print) -> list[Path]:
@@ -175,7 +164,7 @@ def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path
         if frame >= keep[0]:
             path = out / f"frame{frame:04d}.npz"
             if not path.is_file():
-                write_arrays(path, density=flame.astype(np.float32), velocity=velocity.astype(np.float16), frame=np.int32(frame))
+                write_npz(path, density=flame.astype(np.float32), velocity=velocity.astype(np.float16), frame=np.int32(frame))
             written.append(path)
     log(f"fire: {len(written)} frames in {out}")
     return written

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
-MIN_SIZE = 8
+from ..io import STYLE_SUFFIXES, load_style
+
 PHOTOS = {
     "astronaut": "astronaut.png", "chelsea": "chelsea.png", "coffee": "coffee.png",
     "hubble_deep_field": "hubble_deep_field.jpg", "immunohistochemistry": "ihc.png",
@@ -29,51 +29,6 @@ PHOTOS = {
 }
 TEXTURES = {"brick": "brick.png", "grass": "grass.png", "gravel": "gravel.png"}
 MATERIALS = ("marble", "jade", "fire", "wood", "cells", "clouds", "lava")
-
-
-def load_image(path, notes: list | None = None) -> np.ndarray:
-    """Read a style image as float32 ``(H, W, 3)`` in [0, 1].
-
-    Grayscale is replicated to RGB, an alpha channel is composited over black, 16-bit images are
-    scaled by 1/65535 (each conversion is described in ``notes`` when given). Raises ``ValueError``
-    for a missing, unreadable or non-image file and for images smaller than 8 x 8 pixels.
-    """
-    from PIL import Image, UnidentifiedImageError
-
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"Style image {path} does not exist.")
-    try:
-        with Image.open(path) as image:
-            image.load()
-            mode, array = image.mode, np.asarray(image)
-    except (UnidentifiedImageError, OSError, SyntaxError) as error:
-        raise ValueError(f"{path} is not a readable image ({error}); use a PNG or JPEG file.") from error
-    return _to_rgb(array, mode, str(path), notes)
-
-
-def _to_rgb(array: np.ndarray, mode: str, name: str, notes: list | None = None) -> np.ndarray:
-    notes = [] if notes is None else notes
-    if array.dtype == np.uint16 or mode.startswith("I;16") or mode == "I":
-        values = array.astype(np.float32) / 65535.0
-        notes.append(f"{name}: 16-bit image scaled to [0, 1]")
-    elif array.dtype == np.bool_:
-        values = array.astype(np.float32)
-    else:
-        values = array.astype(np.float32) / 255.0
-    if values.ndim == 2:
-        values = np.repeat(values[..., None], 3, axis=-1)
-        notes.append(f"{name}: greyscale image replicated to RGB")
-    elif values.shape[-1] == 2:  # gray + alpha
-        values = np.repeat(values[..., :1] * values[..., 1:], 3, axis=-1)
-        notes.append(f"{name}: greyscale + alpha image composited over black and replicated to RGB")
-    elif values.shape[-1] == 4:  # RGBA: composite over black, as the renders' background
-        values = values[..., :3] * values[..., 3:]
-        notes.append(f"{name}: alpha channel composited over black (the renders' background)")
-    values = np.clip(values[..., :3], 0.0, 1.0)
-    if min(values.shape[:2]) < MIN_SIZE:
-        raise ValueError(f"{name} is {values.shape[1]}x{values.shape[0]} pixels; a style image needs at least {MIN_SIZE}x{MIN_SIZE}.")
-    return np.ascontiguousarray(values, dtype=np.float32)
 
 
 def random_crop(image: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:
@@ -94,7 +49,7 @@ def random_crop(image: np.ndarray, size: int, rng: np.random.Generator) -> np.nd
 
 @dataclass
 class ImageFolder:
-    """Every ``.jpg``/``.jpeg``/``.png`` under ``root`` (DTD's ``images/<class>/*.jpg`` included).
+    """Every style picture under ``root`` (``io.STYLE_SUFFIXES``; DTD's ``images/<class>/*.jpg`` included).
 
     Unreadable files are skipped when first read and counted in ``skipped``. ``split()`` assigns
     each file to train or held-out by a hash of its relative path, so the split is stable when
@@ -109,9 +64,9 @@ class ImageFolder:
         self.root = Path(self.root)
         if not self.root.is_dir():
             raise ValueError(f"Style folder {self.root} does not exist or is not a directory.")
-        self.paths = sorted(p for p in self.root.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+        self.paths = sorted(p for p in self.root.rglob("*") if p.suffix.lower() in STYLE_SUFFIXES and p.is_file())
         if not self.paths:
-            raise ValueError(f"No .jpg/.jpeg/.png images under {self.root}.")
+            raise ValueError(f"No images ({', '.join(STYLE_SUFFIXES)}) under {self.root}.")
 
     def split(self, holdout_fraction: float = 0.1) -> tuple[list[Path], list[Path]]:
         def held_out(path: Path) -> bool:
@@ -126,7 +81,7 @@ class ImageFolder:
         images = []
         for path in self.paths if paths is None else paths:
             try:
-                images.append(load_image(path))
+                images.append(load_style(path))
             except ValueError:
                 self.skipped.append(path)
         if not images:
@@ -221,11 +176,11 @@ def offline_style_set(size: int = 128, crops_per_photo: int = 6, palettes_per_te
     styles = []
     data = skimage_data_dir()
     for name, filename in PHOTOS.items():
-        photo = load_image(data / filename)
+        photo = load_style(data / filename)
         for index in range(crops_per_photo):
             styles.append((f"photo/{name}_{index}", random_crop(photo, size, rng)))
     for name, filename in TEXTURES.items():
-        gray = load_image(data / filename)[..., 0]
+        gray = load_style(data / filename)[..., 0]
         for index in range(palettes_per_texture):
             crop = random_crop(gray[..., None].repeat(3, -1), size, rng)[..., 0]
             styles.append((f"texture/{name}_{index}", apply_palette(crop, palette(rng))))

@@ -1,16 +1,19 @@
-"""The fast layer as Mitsuba plugins, and the in-scattered radiance precompute.
+"""The fast layer's Mitsuba side: the ``mistyle_single_scatter`` plugin, the Ls precompute
+(``inscatter``), the prepared density and the layer's scene. Nothing torch-specific: the torch side
+is ``mistyle.bridge_torch``.
 
 Plugins are defined against the active Mitsuba variant, so they are registered by ``register()``
-(which ``mistyle.backend.use_variant`` calls) rather than at import of ``mistyle``.
+(which ``layer_scene`` calls) rather than at import of ``mistyle``.
 """
 
 from __future__ import annotations
 
 import importlib
 
-SCHEMES = ("exact", "midpoint", "riemann")
-"""Per-segment weights of the fast layer; see ``single_scatter``."""
-DEFAULT_SCHEME = "exact"
+from .layer import layer_scene
+from .prepared import PreparedDensity, prepare_density
+
+__all__ = ["PreparedDensity", "layer_scene", "prepare_density", "register"]
 
 _registered_variant: str | None = None
 

@@ -61,7 +61,7 @@ between the two passes. Rays that miss the box return zero and are marked invali
         'albedo': mi.TensorXf(albedo), 'bbox_min': [-.5, -.5, -.5], 'bbox_max': [.5, .5, .5],
     }
 
-Use ``mistyle.scenes.layer_scene`` rather than writing this dictionary by hand.
+Use ``mistyle.integrators.layer_scene`` rather than writing this dictionary by hand.
 """
 
 from __future__ import annotations
@@ -69,7 +69,8 @@ from __future__ import annotations
 import drjit as dr
 import mitsuba as mi
 
-from . import DEFAULT_SCHEME, SCHEMES
+from ..conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
+from ..conventions import LAYER_SCHEMES as SCHEMES
 
 
 class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
@@ -161,7 +162,7 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         if environment is None:
             raise ValueError(
                 "mistyle_single_scatter needs a constant environment emitter in the scene "
-                "(use mistyle.scenes.layer_scene)."
+                "(use mistyle.integrators.layer_scene)."
             )
         si = dr.zeros(mi.SurfaceInteraction3f)
         si.wi = mi.Vector3f(0.0, 0.0, 1.0)

@@ -1,11 +1,18 @@
-"""Scene parts shared by the fast layer and the path tracer: box, cameras, medium, environment."""
+"""What the fast layer and the path tracer share: the medium box, cameras, the medium, lights,
+and the one path-traced scene builder. Imports ``backend``, ``conventions`` and ``volume`` only."""
 
 from .box import MediumBox
-from .builder import constant_environment, layer_scene, pathtraced_scene, split_views
-from .cameras import CameraPath, View, batch_sensor_dict, sensor_dict
-from .medium import DEFAULT_DENSITY_SCALE, PreparedDensity, prepare_density
+from .cameras import CameraPath, View, batch_sensor_dict, sensor_dict, split_views
+from .lights import LightSpec, constant_environment
+from .medium import (
+    albedo_parameter,
+    heterogeneous_medium,
+    medium_cube,
+    validate_density_scale,
+)
+from .pathtraced import pathtraced_scene
 
 __all__ = [
-    "CameraPath", "DEFAULT_DENSITY_SCALE", "MediumBox", "PreparedDensity", "View", "batch_sensor_dict",
-    "constant_environment", "layer_scene", "pathtraced_scene", "prepare_density", "sensor_dict", "split_views",
+    "CameraPath", "LightSpec", "MediumBox", "View", "albedo_parameter", "batch_sensor_dict", "constant_environment",
+    "heterogeneous_medium", "medium_cube", "pathtraced_scene", "sensor_dict", "split_views", "validate_density_scale",
 ]

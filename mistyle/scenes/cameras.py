@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backend import active_variant
+from ..backend import require_variant
+from ..conventions import HELD_OUT_VIEW, ORBIT_DISTANCE
 
 
 @dataclass(frozen=True)
@@ -46,7 +47,7 @@ class CameraPath:
     above and below as well as from the side.
     """
 
-    distance: float = 2.5
+    distance: float = ORBIT_DISTANCE
     elevation_deg: float = 10.0
     elevation_wobble_deg: float = 20.0
     fov_deg: float = 40.0
@@ -67,10 +68,14 @@ class CameraPath:
         """``frames`` evenly spaced views, one full turn."""
         return [self.view(offset + i / frames) for i in range(frames)]
 
+    def held_out(self, count: int = 1) -> list[View]:
+        """The evaluation views: ``count`` evenly spaced, starting at ``conventions.HELD_OUT_VIEW``."""
+        return self.turntable(count, offset=HELD_OUT_VIEW)
+
 
 def sensor_dict(view: View, width: int, height: int, spp: int = 1, seed: int = 0) -> dict:
     """Mitsuba ``perspective`` sensor for ``view`` with a box-filtered linear RGB film."""
-    mi = active_variant()
+    mi = require_variant()
 
     if width < 1 or height < 1:
         raise ValueError(f"Image size must be at least 1x1, got {width}x{height}.")
@@ -108,3 +113,12 @@ def batch_sensor_dict(views: list[View], width: int, height: int) -> dict:
         sub.pop("sampler")
         sensor[f"view{index:03d}"] = sub
     return sensor
+
+
+def split_views(image, view_count: int) -> np.ndarray:
+    """A ``batch_sensor_dict`` film ``(H, V*W, 3)`` -> per-view images ``(V, H, W, 3)``."""
+    array = np.asarray(image, dtype=np.float32)
+    height, total_width, channels = array.shape
+    if total_width % view_count:
+        raise ValueError(f"Film width {total_width} is not a multiple of {view_count} views.")
+    return array.reshape(height, view_count, total_width // view_count, channels).transpose(1, 0, 2, 3).copy()

@@ -1,82 +1,65 @@
-"""A density prepared for the fast layer: validated grid, extinction scale and its Ls grid."""
+"""The heterogeneous medium in its box, as the path tracer sees it (Mitsuba ``heterogeneous``)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from ..volume import validate_density
+from ..backend import require_variant
+from ..volume import validate_albedo
 from .box import MediumBox
-
-DEFAULT_DENSITY_SCALE = 20.0
-DEFAULT_DIRECTIONS = 128
-
-
-@dataclass(frozen=True, eq=False)
-class PreparedDensity:
-    """Everything about one density that the layer needs and that does not depend on the albedo.
-
-    Attributes:
-        density: ``(Z, Y, X)`` float32, unitless, >= 0.
-        density_scale: ``sigma_t = density_scale * density`` in 1/world-length (box side 1).
-        ls: ``(Z, Y, X)`` float32 in-scattered radiance for unit environment radiance.
-        directions: K used for ``ls``.
-    """
-
-    density: np.ndarray
-    density_scale: float
-    ls: np.ndarray
-    directions: int = DEFAULT_DIRECTIONS
-
-    def __post_init__(self):
-        if self.ls.shape != self.density.shape:
-            raise ValueError(f"Ls grid {self.ls.shape} does not match the density grid {self.density.shape}.")
-
-    @property
-    def shape(self) -> tuple[int, int, int]:
-        return tuple(self.density.shape)
-
-    @property
-    def box(self) -> MediumBox:
-        return MediumBox(self.shape)
-
-    @property
-    def sigma_t(self) -> np.ndarray:
-        return (self.density * np.float32(self.density_scale)).astype(np.float32)
 
 
 def validate_density_scale(density_scale) -> float:
-    scale = float(density_scale)
+    """``density_scale`` as a float; ``ValueError`` unless positive and finite."""
+    try:
+        scale = float(density_scale)
+    except (TypeError, ValueError):
+        raise ValueError(f"density_scale must be a positive finite number, got {density_scale!r}.") from None
     if not np.isfinite(scale) or scale <= 0:
         raise ValueError(f"density_scale must be a positive finite number, got {density_scale!r}.")
     return scale
 
 
-def prepare_density(
-    density,
-    density_scale: float = DEFAULT_DENSITY_SCALE,
-    directions: int = DEFAULT_DIRECTIONS,
-    method: str = "sheared",
-    ls: np.ndarray | None = None,
-) -> PreparedDensity:
-    """Validate ``density`` and precompute its Ls grid (or adopt a cached ``ls``).
+def heterogeneous_medium(density: np.ndarray, density_scale: float, albedo: np.ndarray) -> dict:
+    """Mitsuba ``heterogeneous`` medium filling the medium box, trilinear grids, isotropic phase."""
+    mi = require_variant()
 
-    Args:
-        density: ``(Z, Y, X)`` array, finite and >= 0.
-        density_scale: extinction per unit density, 1/world-length.
-        directions: K Hammersley directions for Ls.
-        method: ``"sheared"`` or ``"bruteforce"`` (see ``mistyle.integrators.inscatter``).
-        ls: a previously computed Ls grid for this density and scale, e.g. from a dataset cache.
-    """
-    from ..backend import active_variant
+    box = MediumBox(density.shape)
+    to_world = mi.ScalarTransform4f(box.unit_to_world_matrix().tolist())
+    return {
+        "type": "heterogeneous",
+        "sigma_t": {
+            "type": "gridvolume",
+            "grid": mi.VolumeGrid(np.ascontiguousarray(density, dtype=np.float32)),
+            "to_world": to_world,
+            "filter_type": "trilinear",
+        },
+        "scale": validate_density_scale(density_scale),
+        "albedo": {
+            "type": "gridvolume",
+            "grid": mi.VolumeGrid(validate_albedo(albedo, density.shape)),
+            "to_world": to_world,
+            "filter_type": "trilinear",
+        },
+        "phase": {"type": "isotropic"},
+    }
 
-    grid = validate_density(density)
-    scale = validate_density_scale(density_scale)
-    if ls is None:
-        active_variant()
-        from ..integrators.inscatter import inscattered_radiance
 
-        ls = inscattered_radiance(grid * np.float32(scale), directions=directions, method=method)
-    ls = np.ascontiguousarray(ls, dtype=np.float32)
-    return PreparedDensity(density=grid, density_scale=scale, ls=ls, directions=directions)
+def medium_cube(density: np.ndarray, density_scale: float, albedo: np.ndarray, bsdf: dict | None = None) -> dict:
+    """The cube spanning the medium box with the heterogeneous medium inside; ``bsdf`` default ``null``."""
+    mi = require_variant()
+    return {
+        "type": "cube",
+        "to_world": mi.ScalarTransform4f(MediumBox(density.shape).cube_to_world_matrix().tolist()),
+        "bsdf": bsdf or {"type": "null"},
+        "interior": heterogeneous_medium(density, density_scale, albedo),
+    }
+
+
+ALBEDO_PARAMETER_SUFFIX = "interior_medium.albedo.data"
+"""How ``mi.traverse`` names the medium's albedo grid in a scene built with ``medium_cube``."""
+
+
+def albedo_parameter(params) -> str:
+    """The key of the medium's albedo grid among a loaded scene's parameters (``mi.traverse``)."""
+    return next(key for key in params.keys() if key.endswith(ALBEDO_PARAMETER_SUFFIX))

@@ -1,1 +1,5 @@
-"""SKPN, its feature extractors, losses and metrics, datasets and the training loop."""
+"""Training SKPN: config files, datasets, the training loop and ``python -m mistyle.train``.
+
+Imports ``model``, ``objective``, ``fit``, ``data`` and the layer; nothing imports it, so inference
+(``mistyle.api``, ``render_final``) runs without it.
+"""

@@ -17,7 +17,6 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 
@@ -38,7 +37,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     from ..backend import BackendError
-    from .config import ConfigError, load_config
+    from ..model.config import ConfigError, load_config
 
     overrides = list(args.overrides)
     if args.device:
@@ -49,7 +48,9 @@ def main(argv=None) -> int:
     try:
         config = load_config(args.config, overrides)
         if args.optimize:
-            return _baseline(config, args)
+            from .baseline import compare_with_direct_fit
+
+            return compare_with_direct_fit(config, args.out, args.checkpoint, args.optimize_steps, args.optimize_styles)
         if distributed:
             _init_distributed(config)
         from .trainer import Interrupted, Trainer
@@ -78,68 +79,6 @@ def _init_distributed(config) -> None:
 
     backend = "nccl" if config.run.device == "cuda" else "gloo"
     dist.init_process_group(backend=backend)
-
-
-def _baseline(config, args) -> int:
-    """Network feed-forward vs direct optimisation on held-out densities and styles."""
-    import numpy as np
-    import torch
-
-    from ..bridge_torch import render_views
-    from ..io import atomic_write_bytes
-    from ..scenes import CameraPath, prepare_density
-    from .dataset import SmokePairs, StyleSet
-    from .features import make_extractor
-    from .metrics import style_distance
-    from .objective import StyleObjective
-    from .optimize import optimize_albedo
-    from .trainer import device_for, load_model
-
-    device_for(config)
-    network = None
-    if args.checkpoint is not None:  # the network from the checkpoint; data, light and views from --config/--set
-        network, trained = load_model(args.checkpoint)
-        config.model = trained.model
-    data = SmokePairs(config.data.smoke, config.data.val_plumes, config.data.make)
-    styles = StyleSet(config.data.styles, config.data.style_size)
-    extractor = make_extractor(config.run.extractor, config.run.vgg_weights or None)
-    print(f"feature extractor: {extractor.name}", file=sys.stderr)
-    if network is not None and tuple(extractor.channels) != tuple(config.model.style_channels):
-        raise ValueError(f"{args.checkpoint} was trained with another feature extractor than {extractor.name}; "
-                         "set run.extractor (and --vgg-weights) as in its training config.")
-    objective = StyleObjective(extractor, config.loss.style, config.loss.rgb_weight)
-    render = config.render
-    held_out_views = CameraPath(distance=render.camera_distance).turntable(4, offset=0.0625)
-    frame = data.load(data.val[len(data.val) // 2])
-    prepared = prepare_density(frame["density0"], data.density_scale, ls=frame["ls0"])
-    density = torch.from_numpy(frame["density0"])[None, None]
-
-    def quality(albedo, style_np):
-        with torch.no_grad():
-            images = render_views(albedo, prepared, held_out_views, render.image_size, steps=render.steps, radiance=render.radiance)
-        return float(np.mean([style_distance(image.permute(1, 2, 0).numpy(), style_np)["swd"] for image in images]))
-
-    rows = []
-    picks = styles.comparison_styles(min(args.optimize_styles, len(styles.val)))
-    for index in picks:
-        style = styles.val[index]
-        style_np = style.permute(1, 2, 0).numpy()
-        row = {"style": styles.val_names[index], "swd_grey": quality(torch.full((3,) + prepared.shape, 0.5), style_np)}
-        if network is not None:
-            started = time.perf_counter()
-            with torch.no_grad():
-                albedo = network(density, list(extractor(style[None])))[0]
-            row.update(network_seconds=time.perf_counter() - started, swd_network=quality(albedo, style_np))
-        fit = optimize_albedo(prepared, style, objective, steps=args.optimize_steps, image_size=render.image_size,
-                              views=render.views, render_steps=render.steps, radiance=render.radiance,
-                              tv_weight=config.loss.tv_weight, camera_distance=render.camera_distance)
-        row.update(optimize_seconds=fit.seconds, optimize_steps=args.optimize_steps, swd_optimized=quality(fit.albedo, style_np))
-        rows.append(row)
-        print(json.dumps(row), flush=True)
-    summary = {key: float(np.mean([r[key] for r in rows])) for key in rows[0] if key != "style"}
-    print(json.dumps({"mean": summary}))
-    atomic_write_bytes(args.out / "baseline.json", (json.dumps({"rows": rows, "mean": summary}, indent=1) + "\n").encode())
-    return 0
 
 
 if __name__ == "__main__":

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 from ..data.generate import SmokeDatasetSpec, generate_smoke, load_frame
 from ..data.tiny import TINY_SMOKE
+from ..model.features import square_style
 
 # The bundled dataset specs ``data.make`` can generate when the dataset directory is missing.
 DATASET_SPECS = {
@@ -125,15 +125,3 @@ class StyleSet:
 
 def _as_batch(images: list[np.ndarray], size: int) -> torch.Tensor:
     return torch.stack([square_style(image, size) for image in images])
-
-
-def square_style(image: np.ndarray, size: int) -> torch.Tensor:
-    """Centre-crop an ``(H, W, 3)`` image to a square and resize it to ``(3, size, size)`` (antialiased)."""
-    tensor = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)
-    height, width = tensor.shape[1:]
-    side = min(height, width)
-    top, left = (height - side) // 2, (width - side) // 2
-    tensor = tensor[:, top : top + side, left : left + side]
-    if side != size:
-        tensor = F.interpolate(tensor[None], size=(size, size), mode="bilinear", antialias=True, align_corners=False)[0]
-    return tensor.clamp(0, 1).contiguous()

@@ -28,17 +28,24 @@ import torch
 import torch.distributed as dist
 
 from .. import __version__
-from ..io import atomic_output, atomic_write_bytes, check_writable_dir, write_png
-from ..scenes import CameraPath, prepare_density
-from .config import TrainConfig, config_from_dict, config_to_dict, to_toml
+from ..display import tone_map
+from ..integrators import prepare_density
+from ..io import atomic_write_bytes, check_writable_dir, write_png
+from ..model.checkpoint import (
+    CHECKPOINT_FORMAT,
+    build_model,
+    load_checkpoint,
+    save_checkpoint,
+)
+from ..model.config import TrainConfig, config_from_dict, config_to_dict, to_toml
+from ..model.features import make_extractor
+from ..model.skpn import parameter_count
+from ..objective.losses import temporal_loss, tv_loss
+from ..objective.masks import render_mask
+from ..objective.metrics import multiview_spread, style_distance
+from ..objective.style import StyleObjective
+from ..scenes import CameraPath
 from .dataset import SmokePairs, StyleSet
-from .features import make_extractor
-from .losses import temporal_loss, tone_map, tv_loss
-from .metrics import multiview_spread, style_distance
-from .objective import StyleObjective
-from .skpn import SKPN, parameter_count
-
-CHECKPOINT_FORMAT = 1
 
 
 class Interrupted(Exception):
@@ -59,12 +66,6 @@ def device_for(config: TrainConfig) -> torch.device:
     return device
 
 
-def build_model(config: TrainConfig, extractor) -> SKPN:
-    """SKPN for ``config.model`` with the style widths of ``extractor``."""
-    config.model.style_channels = tuple(int(c) for c in extractor.channels)
-    return SKPN(config.model)
-
-
 class Trainer:
     def __init__(self, config: TrainConfig, out: Path, resume: bool = False, log=print):
         self.config, self.out = config, Path(out)
@@ -78,6 +79,9 @@ class Trainer:
         if not resume and (self.out / "last.pt").exists():
             raise ValueError(f"{self.out} already holds a run (last.pt); pass --resume to continue it, or choose another --out.")
         if resume:
+            if not (self.out / "last.pt").is_file():
+                raise ValueError(f"No checkpoint at {self.out / 'last.pt'}; start without --resume, "
+                                 "or give the --out of the run to resume.")
             checkpoint = load_checkpoint(self.out / "last.pt")
             saved = config_from_dict(checkpoint["config"])
             if saved.optim.steps != config.optim.steps:
@@ -238,7 +242,7 @@ class Trainer:
         pick = np.linspace(0, len(self.data.val) - 1, min(config.run.eval_densities, len(self.data.val))).round().astype(int)
         pairs = [self.data.val[i] for i in pick]
         style_ids = np.linspace(0, len(self.styles.val) - 1, min(config.run.eval_styles, len(self.styles.val))).round().astype(int)
-        views = self.path.turntable(config.run.eval_views, offset=0.0625)
+        views = self.path.held_out(config.run.eval_views)
         self.model.eval()
         swd, hist, spreads, rows = [], [], [], []
         for pair in pairs:
@@ -294,7 +298,7 @@ class Trainer:
         tb, images = self._tb(), visuals["images"][0]  # the first batch item's views
         tb.add_image("train/style", visuals["styles"][0].clamp(0, 1), self.step)
         tb.add_images("train/views", tone_map(images).clamp(0, 1), self.step)
-        tb.add_images("train/masks", (images.amax(dim=1, keepdim=True) > 1e-3).float(), self.step)
+        tb.add_images("train/masks", render_mask(images), self.step)
 
     def _progress(self, record: dict) -> None:
         if self.rank != 0:
@@ -330,9 +334,7 @@ class Trainer:
             "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
             "scheduler": self.scheduler.state_dict(), "rng": states, "world_size": self.world,
         }
-        with atomic_output(path) as tmp:
-            torch.save(payload, tmp)
-        return path
+        return save_checkpoint(path, payload)
 
     def _restore(self, checkpoint: dict) -> None:
         if checkpoint["extractor"] != self.extractor.name:
@@ -350,49 +352,5 @@ class Trainer:
         self.log(f"resumed from {self.out / 'last.pt'} at step {self.step}")
 
 
-def load_checkpoint(path) -> dict:
-    """Read a training checkpoint; ``ValueError`` naming the problem for a missing, damaged or foreign file."""
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"No checkpoint at {path}; start without --resume, or give the --out of the run to resume.")
-    try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as error:  # torch raises many kinds for a damaged file
-        raise ValueError(f"{path} is not a readable mistyle checkpoint ({type(error).__name__}: {error}).") from None
-    if not isinstance(checkpoint, dict) or checkpoint.get("format") != CHECKPOINT_FORMAT or "model" not in checkpoint:
-        raise ValueError(f"{path} is not a mistyle SKPN checkpoint (format {CHECKPOINT_FORMAT}).")
-    return checkpoint
-
-
 def _fit(image: torch.Tensor, size) -> torch.Tensor:
     return torch.nn.functional.interpolate(image[None], size=tuple(size), mode="bilinear", antialias=True, align_corners=False)[0]
-
-
-def load_model(path) -> tuple[SKPN, TrainConfig]:
-    """The trained network of a checkpoint (eval mode, CPU) and its resolved config."""
-    return model_from_checkpoint(load_checkpoint(path), path)
-
-
-def model_from_checkpoint(checkpoint: dict, path) -> tuple[SKPN, TrainConfig]:
-    """``load_model`` for a checkpoint already read by ``load_checkpoint``."""
-    try:
-        config = config_from_dict(checkpoint["config"])
-        model = SKPN(config.model)
-        model.load_state_dict(checkpoint["model"])
-    except (KeyError, RuntimeError, ValueError) as error:
-        raise ValueError(f"{path} does not match this version's SKPN ({type(error).__name__}: {error}); "
-                         "retrain, or use the mistyle version that wrote it "
-                         f"({checkpoint.get('mistyle_version', 'unknown')}).") from None
-    return model.eval(), config
-
-
-def export_checkpoint(source, destination) -> Path:
-    """An inference checkpoint: the weights, config, extractor and provenance of a training checkpoint,
-    without the optimizer state (a third of the size). ``load_model`` and ``mistyle.stylize`` read it."""
-    checkpoint = load_checkpoint(source)
-    keep = ("format", "mistyle_version", "step", "seconds", "config", "extractor", "density_scale", "model")
-    payload = {key: checkpoint[key] for key in keep if key in checkpoint}
-    payload.setdefault("density_scale", 20.0)
-    with atomic_output(destination) as tmp:
-        torch.save(payload, tmp)
-    return Path(destination)

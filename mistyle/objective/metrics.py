@@ -1,7 +1,7 @@
 """Style-match metrics for experiments and training logs.
 
 Images are numpy or torch ``(H, W, 3)``. Renders are linear radiance and go through the training
-tone curve (``losses.tone_map``) so they are compared with style images in display space.
+tone curve (``mistyle.display``) so they are compared with style images in display space.
 """
 
 from __future__ import annotations
@@ -9,16 +9,16 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from ..conventions import FOREGROUND_THRESHOLD
+from ..display import display
 from ..warp import semi_lagrangian_warp
-from .losses import tone_map
 
 
-def foreground_pixels(render: np.ndarray, threshold: float = 1e-3) -> np.ndarray:
+def foreground_pixels(render: np.ndarray, threshold: float = FOREGROUND_THRESHOLD) -> np.ndarray:
     """Tone-mapped RGB of the pixels that see the medium (any channel above ``threshold``): ``(N, 3)``."""
     render = np.asarray(render, dtype=np.float32)
     keep = render.max(axis=-1) > threshold
-    mapped = tone_map(torch.from_numpy(render[keep])).numpy()
-    return mapped.reshape(-1, 3)
+    return display(render[keep]).reshape(-1, 3)
 
 
 def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, seed: int = 0) -> float:

@@ -1,6 +1,8 @@
-"""Training configuration: nested dataclasses, read from TOML and ``--set section.key=value``.
+"""A model's configuration: how it is built, trained and meant to be rendered, as nested dataclasses.
 
-Every key has a type; a key the dataclasses do not name, or a value of the wrong type, is a
+Read from TOML and ``--set section.key=value`` by ``python -m mistyle.train``, stored in every
+checkpoint, and read back from there by inference (the style size, the light and the orbit a
+network was trained with). Every key has a type; a key the dataclasses do not name, or a value of the wrong type, is a
 ``ConfigError`` that says which key and what was expected, before any work starts. The resolved
 config is written next to a run's outputs and stored in each checkpoint.
 
@@ -21,7 +23,15 @@ from pathlib import Path
 
 import tomllib
 
-from ..scenes.builder import DEFAULT_ENV_RADIANCE
+from ..conventions import (
+    DEFAULT_ENV_RADIANCE,
+    DEFAULT_LAYER_SCHEME,
+    DEVICES,
+    EXTRACTOR_KINDS,
+    LAYER_SCHEMES,
+    ORBIT_DISTANCE,
+    STYLE_LOSSES,
+)
 from .skpn import SKPNConfig
 
 
@@ -43,9 +53,9 @@ class RenderConfig:
     image_size: int = 160
     views: int = 4
     steps: int = 64  # N, ray-marching segments
-    scheme: str = "exact"
+    scheme: str = DEFAULT_LAYER_SCHEME
     radiance: float = DEFAULT_ENV_RADIANCE  # the training light's constant environment radiance Le
-    camera_distance: float = 2.5  # radius of the training orbit (the box's longest side is 1)
+    camera_distance: float = ORBIT_DISTANCE  # radius of the training orbit (the box's longest side is 1)
 
 
 @dataclass
@@ -98,15 +108,14 @@ class TrainConfig:
             (self.data.val_plumes >= 1, "data.val_plumes must be >= 1 (validation needs unseen densities)"),
             (self.render.image_size >= 16, "render.image_size must be >= 16 (the extractor pools three times)"),
             (self.render.views >= 1 and self.render.steps >= 1, "render.views and render.steps must be >= 1"),
-            (self.render.scheme in ("exact", "midpoint", "riemann"), "render.scheme must be exact, midpoint or riemann"),
+            (self.render.scheme in LAYER_SCHEMES, f"render.scheme must be one of {', '.join(LAYER_SCHEMES)}"),
             (self.render.radiance > 0, "render.radiance must be > 0"),
             (self.render.camera_distance > 0.9, "render.camera_distance must be > 0.9 (cameras stay outside the box)"),
-            (self.loss.style in ("histogram", "gram", "meanstd"), "loss.style must be histogram, gram or meanstd"),
+            (self.loss.style in STYLE_LOSSES, f"loss.style must be one of {', '.join(STYLE_LOSSES)}"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),
-            (self.run.device in ("cpu", "cuda"), "run.device must be cpu or cuda"),
-            (self.run.extractor in ("auto", "vgg16", "vgg16-random", "filterbank"),
-             "run.extractor must be auto, vgg16, vgg16-random or filterbank"),
+            (self.run.device in DEVICES, f"run.device must be one of {', '.join(DEVICES)}"),
+            (self.run.extractor in EXTRACTOR_KINDS, f"run.extractor must be one of {', '.join(EXTRACTOR_KINDS)}"),
             (min(self.run.log_every, self.run.eval_every, self.run.checkpoint_every) >= 1,
              "run.log_every, run.eval_every and run.checkpoint_every must be >= 1"),
         ]
@@ -149,9 +158,11 @@ def config_to_dict(config) -> dict:
     return dataclasses.asdict(config)
 
 
-def config_from_dict(table: dict) -> TrainConfig:
+def config_from_dict(table: dict, where: str = "checkpoint") -> TrainConfig:
+    """A config from its ``config_to_dict`` form (as stored in checkpoints), checked like a file's."""
     config = TrainConfig()
-    _update(config, table, where="checkpoint")
+    _update(config, table, where=where)
+    config.validate()
     return config
 
 

@@ -1,43 +1,14 @@
-"""Training objective (paper, Sec. 4.4): histogram, Gram and mean-std style losses, 3D TV, temporal.
+"""The paper's losses (Sec. 4.4): histogram, Gram and mean-std style losses, 3D TV, temporal.
 
-Feature maps are ``(B, C, H, W)`` with a foreground mask ``(B, 1, H, W)`` in {0, 1} (rendered value
-above 0.001, max-pooled to the feature resolution); style features are ``(C, Hs, Ws)``.
+Feature maps are ``(B, C, H, W)`` with a foreground mask ``(B, 1, H, W)`` in {0, 1}
+(``masks.render_mask``, max-pooled to the feature resolution); style features are ``(C, Hs, Ws)``.
 """
 
 from __future__ import annotations
 
 import torch
-import torch.nn.functional as F
 
 from ..warp import semi_lagrangian_warp
-
-
-def tone_map(radiance: torch.Tensor, epsilon: float = 1e-3) -> torch.Tensor:
-    """Smooth, HDR-safe display transform applied to renders before the feature extractor.
-
-    ``y = ((x / (1 + x)) + eps)^(1/2.2) - eps^(1/2.2)``: Reinhard compression keeps any radiance in
-    [0, 1), the 2.2 gamma approximates the display encoding of style photographs, and ``eps`` keeps
-    the derivative finite at 0 (a plain power has an infinite slope there). Monotone, smooth,
-    bounded. (The paper uses Kettunen et al.'s transform for the same purpose.)
-    """
-    compressed = radiance.clamp_min(0.0) / (1.0 + radiance.clamp_min(0.0))
-    return (compressed + epsilon) ** (1.0 / 2.2) - epsilon ** (1.0 / 2.2)
-
-
-def histogram_match(values: torch.Tensor, target_sorted: torch.Tensor) -> torch.Tensor:
-    """Map ``values (N,)`` onto the distribution of ``target_sorted (M,)``, rank for rank.
-
-    The k-th smallest value becomes the target's quantile at ``k / (N - 1)`` (linear
-    interpolation between target samples when ``M != N``; exactly the k-th target when ``M == N``).
-    """
-    count = values.shape[0]
-    if count == 0:
-        return values
-    order = torch.argsort(values)
-    targets = _quantiles(target_sorted, count)
-    matched = torch.empty_like(values)
-    matched[order] = targets.to(values.dtype)
-    return matched
 
 
 def _quantiles(sorted_values: torch.Tensor, count: int) -> torch.Tensor:
@@ -127,15 +98,3 @@ def temporal_loss(current: torch.Tensor, previous: torch.Tensor, velocity: torch
     ``velocity (B, 3, D, H, W)`` is frame t's, in voxels per frame, ``(x, y, z)``.
     """
     return ((current - semi_lagrangian_warp(previous, velocity)) ** 2).mean()
-
-
-def render_mask(images: torch.Tensor, threshold: float = 1e-3) -> torch.Tensor:
-    """Foreground mask ``(B, 1, H, W)`` of rendered images ``(B, 3, H, W)``: any channel above ``threshold``."""
-    return (images.detach().amax(dim=1, keepdim=True) > threshold).to(images.dtype)
-
-
-def pool_mask(mask: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
-    """Max-pool a mask to a feature map's ``(H, W)`` (paper: masks are max-pooled to each level)."""
-    if tuple(mask.shape[-2:]) == tuple(size):
-        return mask
-    return F.adaptive_max_pool2d(mask, size)

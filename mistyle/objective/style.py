@@ -1,6 +1,6 @@
 """The style objective on renders, shared by SKPN training and the direct-optimisation baseline.
 
-Renders (linear radiance from the fast layer) are tone-mapped (``losses.tone_map``), masked where
+Renders (linear radiance from the fast layer) are tone-mapped (``mistyle.display.tone_map``), masked where
 they see the medium, passed through the feature extractor, and compared with the style: the
 histogram loss (or, for ablations, Gram or mean-std) on every feature level plus the histogram
 loss in RGB (paper Sec. 4.4).
@@ -11,16 +11,12 @@ from __future__ import annotations
 import torch
 import torch.nn as nn
 
-from .losses import (
-    gram_loss,
-    histogram_loss,
-    mean_std_loss,
-    pool_mask,
-    render_mask,
-    tone_map,
-)
+from ..conventions import STYLE_LOSSES
+from ..display import tone_map
+from .losses import gram_loss, histogram_loss, mean_std_loss
+from .masks import pool_mask, render_mask
 
-STYLE_LOSSES = {"histogram": histogram_loss, "gram": gram_loss, "meanstd": mean_std_loss}
+FEATURE_LOSSES = dict(zip(STYLE_LOSSES, (histogram_loss, gram_loss, mean_std_loss)))
 
 
 class StyleObjective:
@@ -33,9 +29,9 @@ class StyleObjective:
     """
 
     def __init__(self, extractor: nn.Module, style_loss: str = "histogram", rgb_weight: float = 1.0):
-        if style_loss not in STYLE_LOSSES:
-            raise ValueError(f"Unknown style loss {style_loss!r}; use one of {sorted(STYLE_LOSSES)}.")
-        self.extractor, self.feature_loss, self.rgb_weight = extractor, STYLE_LOSSES[style_loss], rgb_weight
+        if style_loss not in FEATURE_LOSSES:
+            raise ValueError(f"Unknown style loss {style_loss!r}; use one of {', '.join(STYLE_LOSSES)}.")
+        self.extractor, self.feature_loss, self.rgb_weight = extractor, FEATURE_LOSSES[style_loss], rgb_weight
 
     @torch.no_grad()
     def targets(self, styles: torch.Tensor, levels: list[torch.Tensor] | None = None) -> list[list[torch.Tensor]]:

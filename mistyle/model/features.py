@@ -19,11 +19,15 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 
+import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+
+from ..conventions import EXTRACTOR_KINDS, OFFLINE_EXTRACTOR
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
@@ -148,27 +152,56 @@ def vgg16_weights_path(explicit: str | os.PathLike | None = None) -> Path | None
 def make_extractor(kind: str = "auto", weights: str | os.PathLike | None = None) -> nn.Module:
     """``auto``: VGG16-ImageNet when weights are found, else the offline default; or name one:
     ``vgg16`` (needs weights), ``vgg16-random``, ``filterbank``."""
+    if kind not in EXTRACTOR_KINDS:
+        raise ValueError(f"Unknown feature extractor {kind!r}: use one of {', '.join(EXTRACTOR_KINDS)}.")
     if kind in ("auto", "vgg16"):
         path = vgg16_weights_path(weights)
         if path is not None:
-            model = VGG16Features(name="vgg16-imagenet")
-            try:
-                state = torch.load(path, map_location="cpu", weights_only=True)
-            except Exception as error:  # a corrupt or foreign file
-                raise ValueError(f"Cannot read VGG16 weights from {path}: {error}") from error
-            model.load_torchvision_state_dict(state, source=str(path))
-            return model.eval()
+            return _imagenet_vgg16(path)
         if kind == "vgg16":
             raise ValueError(
                 "VGG16 ImageNet weights were not found: pass --vgg-weights FILE, set MISTYLE_VGG16_WEIGHTS, or put "
                 f"{VGG16_FILE} in {Path(torch.hub.get_dir()) / 'checkpoints'}."
             )
-        kind = OFFLINE_DEFAULT
+        kind = OFFLINE_EXTRACTOR
     if kind == "vgg16-random":
         return random_vgg16().eval()
-    if kind == "filterbank":
+    return FilterBankFeatures().eval()
+
+
+def extractor_from_name(name: str, weights: str | os.PathLike | None = None) -> nn.Module:
+    """The extractor whose ``.name`` is ``name``, as a checkpoint records it.
+
+    ``vgg16-imagenet`` (needs the weights, as for ``make_extractor("vgg16")``),
+    ``vgg16-random-seed<N>`` or ``filterbank``.
+    """
+    if name == "vgg16-imagenet":
+        return make_extractor("vgg16", weights)
+    if name == "filterbank":
         return FilterBankFeatures().eval()
-    raise ValueError(f"Unknown feature extractor {kind!r}: use auto, vgg16, vgg16-random or filterbank.")
+    seeded = re.fullmatch(r"vgg16-random-seed(\d+)", name)
+    if seeded:
+        return random_vgg16(int(seeded.group(1))).eval()
+    raise ValueError(f"Unknown feature extractor {name!r}; this mistyle knows vgg16-imagenet, vgg16-random-seed<N> and filterbank.")
 
 
-OFFLINE_DEFAULT = "filterbank"
+def _imagenet_vgg16(path: Path) -> VGG16Features:
+    model = VGG16Features(name="vgg16-imagenet")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # a corrupt or foreign file; never advise weights_only=False for it
+        raise ValueError(f"Cannot read VGG16 weights from {path}: {type(error).__name__}.") from None
+    model.load_torchvision_state_dict(state, source=str(path))
+    return model.eval()
+
+
+def square_style(image: np.ndarray, size: int) -> torch.Tensor:
+    """Centre-crop an ``(H, W, 3)`` image to a square and resize it to ``(3, size, size)`` (antialiased)."""
+    tensor = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)
+    height, width = tensor.shape[1:]
+    side = min(height, width)
+    top, left = (height - side) // 2, (width - side) // 2
+    tensor = tensor[:, top : top + side, left : left + side]
+    if side != size:
+        tensor = F.interpolate(tensor[None], size=(size, size), mode="bilinear", antialias=True, align_corners=False)[0]
+    return tensor.clamp(0, 1).contiguous()

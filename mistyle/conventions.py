@@ -1,0 +1,45 @@
+"""Conventions written once: every module that needs one of these values imports it from here.
+
+Numbers (each chosen by measurement where a comment says so):
+
+* ``DEFAULT_DENSITY_SCALE``: extinction per unit density, ``sigma_t = scale * density``, in
+  1/world-length with the medium box's longest side 1. Training data and renders use it unless
+  told otherwise.
+* ``DEFAULT_ENV_RADIANCE``: the training light, a constant white environment. Single scattering
+  under a unit environment cannot exceed a radiance of about 0.7 even for white albedo, which the
+  tone curve shows as mid grey, so bright styles were out of reach; measured with
+  ``experiments/optimize_albedo.py --quick`` (held-out SWD after 60 steps, 3 styles): Le = 2: 0.224,
+  4: 0.178, 8: 0.162, 16: 0.167. Le = 8 puts white albedo at about 0.93 on screen.
+* ``ORBIT_DISTANCE``: radius of the camera orbit (``mistyle.scenes.CameraPath``) by default.
+* ``HELD_OUT_VIEW``: the orbit position of the first view that evaluations, reports and final
+  renders use. Training samples positions uniformly, so no position is strictly unseen; this one
+  sits between the four quarter turns that previews and tests favour.
+* ``FOREGROUND_THRESHOLD``: a pixel sees the medium when any channel of its linear radiance
+  exceeds this (masks of the losses, the metrics and the calibration).
+* ``LS_DIRECTIONS``: K, the Hammersley directions of the in-scattered radiance precompute.
+
+Names of choices (config values and command-line options), so no string literal is repeated.
+"""
+
+from __future__ import annotations
+
+DEFAULT_DENSITY_SCALE = 20.0
+DEFAULT_ENV_RADIANCE = 8.0
+ORBIT_DISTANCE = 2.5
+HELD_OUT_VIEW = 0.0625
+FOREGROUND_THRESHOLD = 1e-3
+LS_DIRECTIONS = 128
+
+LAYER_SCHEMES = ("exact", "midpoint", "riemann")
+"""Per-segment weights of the fast layer (see ``mistyle.integrators.single_scatter``)."""
+DEFAULT_LAYER_SCHEME = "exact"
+
+EXTRACTOR_KINDS = ("auto", "vgg16", "vgg16-random", "filterbank")
+"""Feature extractors a config or a command line may ask for (``mistyle.model.features``)."""
+OFFLINE_EXTRACTOR = "filterbank"
+"""What ``auto`` falls back to when no VGG16 ImageNet weights are found."""
+
+STYLE_LOSSES = ("histogram", "gram", "meanstd")
+LIGHT_KINDS = ("constant", "envmap", "point", "area")
+CORRECTIONS = ("none", "calibrate")
+DEVICES = ("cpu", "cuda")

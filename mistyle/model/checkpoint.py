@@ -1,0 +1,106 @@
+"""Checkpoints: the one reader and writer of SKPN checkpoint files, for training and inference.
+
+A checkpoint is a ``dict`` saved with ``torch.save`` and read with ``weights_only=True`` (no pickle
+code ever runs): ``format``, ``mistyle_version``, ``step``, ``seconds``, ``config``
+(``config_to_dict``), ``extractor`` (the feature extractor's ``name``), ``density_scale`` and
+``model`` (the state dict); training checkpoints add ``optimizer``, ``scheduler``, ``rng`` and
+``world_size``, which ``export_checkpoint`` strips for inference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+import torch.nn as nn
+
+from ..conventions import DEFAULT_DENSITY_SCALE
+from ..io import atomic_output
+from .config import TrainConfig, config_from_dict
+from .features import extractor_from_name
+from .skpn import SKPN
+
+CHECKPOINT_FORMAT = 1
+INFERENCE_KEYS = ("format", "mistyle_version", "step", "seconds", "config", "extractor", "density_scale", "model")
+
+
+def load_checkpoint(path) -> dict:
+    """Read a checkpoint; ``ValueError`` naming the problem for a missing, damaged or foreign file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"No checkpoint file at {path}.")
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # torch raises many kinds for a damaged or unsafe file
+        # torch's own message advises weights_only=False; never pass that advice on for a foreign file.
+        raise ValueError(f"{path} is not a readable mistyle checkpoint ({type(error).__name__}); "
+                         "only checkpoints written by mistyle can be loaded.") from None
+    if not isinstance(checkpoint, dict) or checkpoint.get("format") != CHECKPOINT_FORMAT or "model" not in checkpoint:
+        raise ValueError(f"{path} is not a mistyle SKPN checkpoint (format {CHECKPOINT_FORMAT}).")
+    return checkpoint
+
+
+def save_checkpoint(path, payload: dict) -> Path:
+    """Write ``payload`` (see the module docstring) atomically."""
+    with atomic_output(path) as tmp:
+        torch.save(payload, tmp)
+    return Path(path)
+
+
+def build_model(config: TrainConfig, extractor: nn.Module) -> SKPN:
+    """SKPN for ``config.model`` with the style widths of ``extractor`` (written into the config)."""
+    config.model.style_channels = tuple(int(c) for c in extractor.channels)
+    return SKPN(config.model)
+
+
+def model_from_checkpoint(checkpoint: dict, path) -> tuple[SKPN, TrainConfig]:
+    """The network of a checkpoint read by ``load_checkpoint`` (eval mode, CPU) and its config."""
+    try:
+        config = config_from_dict(checkpoint["config"], where=str(path))
+        model = SKPN(config.model)
+        model.load_state_dict(checkpoint["model"])
+    except (KeyError, RuntimeError, ValueError) as error:
+        raise ValueError(f"{path} does not match this version's SKPN ({type(error).__name__}: {error}); "
+                         "retrain, or use the mistyle version that wrote it "
+                         f"({checkpoint.get('mistyle_version', 'unknown')}).") from None
+    return model.eval(), config
+
+
+@dataclass
+class TrainedModel:
+    """Everything inference needs from a checkpoint."""
+
+    path: Path
+    model: SKPN  # eval mode
+    config: TrainConfig  # as trained: style size, light, orbit, objective
+    extractor: nn.Module  # the feature extractor the network's style code was trained on
+    density_scale: float  # extinction per unit density of the training data
+
+
+def load_model(path, vgg_weights=None) -> TrainedModel:
+    """Load a checkpoint for inference, with the feature extractor it names; ``ValueError`` if unusable."""
+    path = Path(path)
+    checkpoint = load_checkpoint(path)
+    model, config = model_from_checkpoint(checkpoint, path)
+    name = checkpoint.get("extractor")
+    try:
+        extractor = extractor_from_name(str(name), vgg_weights)
+    except ValueError as error:
+        raise ValueError(f"{path} was trained with the feature extractor {name!r}: {error}") from None
+    if tuple(extractor.channels) != tuple(config.model.style_channels):
+        raise ValueError(f"{path} expects style features of widths {config.model.style_channels}, "
+                         f"the {extractor.name} extractor gives {extractor.channels}.")
+    density_scale = float(checkpoint.get("density_scale", DEFAULT_DENSITY_SCALE))
+    if not density_scale > 0 or density_scale == float("inf"):
+        raise ValueError(f"{path} records an invalid density_scale {density_scale}.")
+    return TrainedModel(path, model, config, extractor, density_scale)
+
+
+def export_checkpoint(source, destination) -> Path:
+    """An inference checkpoint: the weights, config, extractor and provenance of a training checkpoint,
+    without the optimizer state (a third of the size). ``load_model`` and ``mistyle.stylize`` read it."""
+    checkpoint = load_checkpoint(source)
+    payload = {key: checkpoint[key] for key in INFERENCE_KEYS if key in checkpoint}
+    payload.setdefault("density_scale", DEFAULT_DENSITY_SCALE)
+    return save_checkpoint(destination, payload)

@@ -1,0 +1,85 @@
+"""The one path-traced scene: the medium in its box (or a coat mesh), a light, and cameras.
+
+``volpath`` (Mitsuba's heterogeneous-medium path tracer) renders the medium of
+``medium.heterogeneous_medium``. The boundary is invisible (``null`` BSDF) or a smooth dielectric
+coat (``dielectric``, for the translucent-solid look of marble or jade): the box, or a closed mesh
+placed in the box (for voxelized meshes, so the coat follows the surface). Emitters are hidden,
+so pixels that see no medium are black, as in the fast layer.
+
+The comparison with the fast layer uses the same builder with the training light, ``max_depth=2``
+(single scattering, the layer's model) and ``batch=True`` (all views side by side in one film, as
+the layer renders them); ``tests/test_layer_vs_pathtracer.py`` checks that the two agree.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .cameras import View, batch_sensor_dict, sensor_dict
+from .lights import LightSpec
+from .medium import heterogeneous_medium, medium_cube
+
+PATH_TRACERS = ("volpath", "prbvolpath")
+
+
+def pathtraced_scene(
+    density: np.ndarray,
+    albedo: np.ndarray,
+    views: list[View],
+    *,
+    res: int | tuple[int, int],
+    density_scale: float,
+    spp: int = 64,
+    max_depth: int = -1,
+    light: LightSpec = LightSpec(),
+    coat_ior: float | None = None,
+    coat_mesh: str | Path | None = None,
+    seed: int = 0,
+    batch: bool = False,
+    integrator: str = "volpath",
+) -> dict:
+    """A Mitsuba scene dictionary for ``mi.load_dict``.
+
+    Args:
+        density: ``(Z, Y, X)``; albedo: ``(Z, Y, X, 3)`` in [0, 1].
+        views: the cameras; with ``batch=False`` one sensor each (``mi.render(scene, sensor=i)``, view
+            ``i`` seeded ``seed + i``), with ``batch=True`` one ``batch`` sensor whose film holds all
+            views side by side (``cameras.split_views``).
+        res: image side, or ``(height, width)``, per view.
+        max_depth: ``-1`` full multiple scattering; ``2`` single scattering.
+        coat_ior: index of refraction of a smooth dielectric boundary; ``None``: no coat.
+        coat_mesh: a closed ``.ply`` already placed in the medium box (see
+            ``mistyle.data.mesh.fit_to_box``), used as the coat instead of the box.
+        integrator: ``volpath``, or ``prbvolpath`` for gradients with respect to the albedo.
+    """
+    height, width = (res, res) if np.isscalar(res) else (int(res[0]), int(res[1]))
+    if spp < 1:
+        raise ValueError(f"spp must be >= 1, got {spp}.")
+    if max_depth < -1 or max_depth == 0:
+        raise ValueError(f"max_depth must be -1 (unlimited) or >= 1, got {max_depth}.")
+    if integrator not in PATH_TRACERS:
+        raise ValueError(f"Unknown path tracer {integrator!r}; use one of {PATH_TRACERS}.")
+    if coat_ior is not None and not 1.0 < coat_ior < 4.0:
+        raise ValueError(f"The coat's index of refraction must lie in (1, 4), e.g. 1.5; got {coat_ior}.")
+    bsdf = {"type": "null"} if coat_ior is None else {"type": "dielectric", "int_ior": float(coat_ior), "ext_ior": 1.0}
+    if coat_mesh is not None and coat_ior is not None:
+        boundary = {"type": "ply", "filename": str(coat_mesh), "bsdf": bsdf,
+                    "interior": heterogeneous_medium(density, density_scale, albedo)}
+    else:
+        boundary = medium_cube(density, density_scale, albedo, bsdf)
+    scene = {
+        "type": "scene",
+        "integrator": {"type": integrator, "max_depth": int(max_depth), "hide_emitters": True},
+        "medium_box": boundary,
+        **light.emitters(),
+    }
+    if batch:
+        sensor = batch_sensor_dict(views, width, height)
+        sensor["sampler"] = {"type": "independent", "sample_count": int(spp), "seed": int(seed)}
+        scene["sensor"] = sensor
+    else:
+        for index, view in enumerate(views):
+            scene[f"sensor{index:03d}"] = sensor_dict(view, width, height, spp=spp, seed=seed + index)
+    return scene

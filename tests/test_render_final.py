@@ -68,17 +68,28 @@ def test_render_api_path_traces_the_medium(mi, blob_density):
     assert image.shape == (24, 24, 3) and image.max() > 0.1 and image[0, 0].max() == 0
 
 
-@pytest.mark.parametrize("light", ["constant:2", "envmap", "point:0,1.5,1.5:20", "area:4"])
-def test_render_api_lights(mi, blob_density, tmp_path, light):
-    from mistyle.io import write_exr
-
-    if light == "envmap":
-        sky = np.ones((8, 16, 3), np.float32)
-        sky[:4] *= 3.0  # a brighter upper half
-        light = f"envmap:{write_exr(tmp_path / 'sky.exr', sky)}:2"
+@pytest.mark.parametrize("light", ["constant:2", "point:0,1.5,1.5:20", "area:4"])
+def test_render_api_lights(mi, blob_density, light):
     albedo = np.full(blob_density.shape + (3,), 0.8, np.float32)
     image = mistyle.render(blob_density, albedo, res=16, spp=4, light=light)
     assert np.isfinite(image).all() and image.max() > 0
+
+
+def test_environment_map_lights_the_side_it_is_bright_on(mi, blob_density, tmp_path):
+    from mistyle.io import write_exr
+
+    albedo = np.full(blob_density.shape + (3,), 0.8, np.float32)
+
+    def top_over_bottom(bright_rows):
+        sky = np.ones((8, 16, 3), np.float32)
+        sky[bright_rows] = 6.0
+        image = mistyle.render(blob_density, albedo, view=0.25, res=24, spp=32,
+                               light=f"envmap:{write_exr(tmp_path / 'sky.exr', sky)}")
+        luminance = image.mean(axis=-1)
+        return luminance[:12].mean() / luminance[12:].mean()
+
+    # Rows 0-3 of a latitude-longitude map are the upper hemisphere (+y, the image's top).
+    assert top_over_bottom(slice(0, 4)) > 1.5 * top_over_bottom(slice(4, 8))
 
 
 def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_path):
@@ -183,3 +194,18 @@ def test_unwritable_output_directory(mi, checkpoint, inputs, tmp_path, capsys):
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
                  "--out", str(blocker / "out")])
     assert code == 2 and "Cannot write to the output directory" in capsys.readouterr().err
+
+
+def test_calibration_is_applied_to_the_rendered_albedo(mi, checkpoint, inputs, tmp_path):
+    from mistyle.correct import ScatteringCalibration
+
+    out = tmp_path / "out"
+    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "16", "--spp", "2", "--correct", "calibrate", "--refine", "0"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    saved = report["calibration"]
+    calibration = ScatteringCalibration(np.array(saved["levels"]), np.array(saved["multiple"]), saved["single"], 0.0)
+    network, rendered = np.load(out / "albedo.npy"), read_vol(out / "albedo_refined.vol")
+    np.testing.assert_allclose(rendered, calibration.apply(network), atol=1e-6)
+    # Multiple scattering brightens the medium, so matching single scattering darkens the albedo.
+    assert calibration.multiple[-1] > calibration.single and rendered.mean() < network.mean()

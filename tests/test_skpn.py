@@ -47,3 +47,25 @@ def test_style_changes_the_output():
 def test_parameter_counts_grow_with_width():
     small = parameter_count(SKPN(SKPNConfig(**TINY)))
     assert small < parameter_count(SKPN(SKPNConfig(widths=(16, 32, 64))))
+
+
+@pytest.mark.parametrize("kernels, sites", [(1, [0]), (2, [0, 3]), (4, [0, 1, 2, 3])])
+def test_kernel_sites_and_the_style_level_each_reads(kernels, sites):
+    """Site 0 is the bottleneck (deepest style level), sites 1-3 precede the decoder's last three convs."""
+    config = SKPNConfig(**TINY, kernels=kernels)
+    model = SKPN(config)
+    assert model.sites == sites
+    widths = {0: config.widths[2], 1: config.widths[2], 2: config.widths[1], 3: config.widths[0]}
+    for site in sites:
+        predictor = model.predictors[str(site)]
+        level = model.style_for_site[site]
+        assert level == 3 - site
+        assert predictor.channels == widths[site]
+        assert predictor.mlp[0].in_features == 2 * config.style_channels[level]  # mean and std of that level
+    # Only the levels read by an active site influence the albedo.
+    density = torch.rand(1, 1, 8, 8, 8, generator=GEN)
+    levels = [level.requires_grad_() for level in style_levels()]
+    model(density, levels).sum().backward()
+    for index, level in enumerate(levels):
+        used = any(model.style_for_site[site] == index for site in sites)
+        assert (level.grad is not None and float(level.grad.abs().sum()) > 0) == used

@@ -83,3 +83,23 @@ def test_material_textures_differ_by_seed_and_kind():
     assert not np.array_equal(material_texture("marble", 32, 0), material_texture("marble", 32, 1))
     with pytest.raises(ValueError, match="Unknown material"):
         material_texture("plastic")
+
+
+def test_no_held_out_style_is_a_training_style(tmp_path):
+    from mistyle.train.dataset import StyleSet
+
+    styles = StyleSet("offline", size=32)
+    assert styles.val_names and not set(styles.val_names) & set(styles.train_names)
+    # Held out by source variant: the last variant of every source, and no pixel-identical copies.
+    sources = {name.rpartition("_")[0] for name in styles.train_names}
+    assert {name.rpartition("_")[0] for name in styles.val_names} == sources
+    train = styles.train.flatten(1)
+    for image in styles.val.flatten(1):
+        assert not (train == image).all(dim=1).any()
+
+    rng = np.random.default_rng(0)
+    for index in range(12):
+        save(tmp_path / "folder" / f"style_{index}.png", (rng.random((16, 16, 3)) * 255).astype(np.uint8))
+    folder = StyleSet(str(tmp_path / "folder"), size=16)
+    assert folder.val_names and not set(folder.val_names) & set(folder.train_names)
+    assert len(folder.val_names) + len(folder.train_names) == 12

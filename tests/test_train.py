@@ -173,3 +173,18 @@ def test_training_reads_ls_from_the_dataset_cache(mi, tmp_path, tiny_smoke, monk
     config = load_config(TINY, [f'data.smoke="{tiny_smoke}"', "optim.steps=2", "run.eval_every=1"])
     Trainer(config, tmp_path / "run", log=lambda *a: None).run()
     assert [r["step"] for r in records(tmp_path / "run") if "val_swd" in r] == [0, 1, 2]
+
+
+@pytest.mark.parametrize("kind", ["filterbank", "vgg16-random", "vgg16"])
+def test_a_checkpoint_of_every_extractor_kind_stylizes_through_the_public_api(tmp_path, tiny_smoke, kind, blob_density):
+    import mistyle
+    from mistyle.model.features import random_vgg16
+
+    weights = tmp_path / "vgg16.pth"
+    torch.save({f"features.{k}": v for k, v in random_vgg16(7).features.state_dict().items()}, weights)
+    out = tmp_path / kind
+    extra = ["--vgg-weights", str(weights)] if kind == "vgg16" else []
+    run(out, tiny_smoke, "--set", "optim.steps=2", "--set", f'run.extractor="{kind}"', "--set", "run.eval_every=100", *extra)
+    style = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
+    albedo = mistyle.stylize(blob_density, style, checkpoint=out / "final.pt", vgg_weights=weights if extra else None)
+    assert albedo.shape == blob_density.shape + (3,) and np.isfinite(albedo).all()

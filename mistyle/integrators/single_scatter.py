@@ -119,6 +119,14 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         origin_unit = (ray.o - self.bbox.min) / self.bbox.extents()
         direction_unit = ray.d / self.bbox.extents()
         Le = self._environment_radiance(scene)
+        δα_texture = None
+        if dr.hint(mode == dr.ADMode.Forward, mode="scalar"):
+            # L is linear in α, so its tangent is the march of the tangent δα. The texture holds its
+            # own copy of the parameter tensor, an AD edge the loop's scope cannot cross; take δα
+            # here, outside the loop, and look it up like α.
+            with dr.resume_grad():
+                δα = dr.forward_to(self.albedo.tensor())
+            δα_texture = mi.Texture3f(mi.TensorXf(dr.detach(δα)))
 
         # ------------------------------ Loop state ------------------------------
         L = mi.Spectrum(0.0)
@@ -141,15 +149,17 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
             β = Le * (w * self.ls.eval(p)[0])
 
             # --------------- Differentiable part: the albedo lookup ---------------
-            with dr.resume_grad(when=not primal):
-                α = self.albedo.eval(p)
-                contribution = β * mi.Spectrum(α[0], α[1], α[2])
-                if dr.hint(primal, mode="scalar"):
-                    L += contribution
-                elif dr.hint(mode == dr.ADMode.Backward, mode="scalar"):
-                    dr.backward_from(δL * contribution)
-                else:
-                    δL += dr.forward_to(contribution)
+            if dr.hint(mode == dr.ADMode.Forward, mode="scalar"):
+                δα = δα_texture.eval(p)
+                δL += β * mi.Spectrum(δα[0], δα[1], δα[2])
+            else:
+                with dr.resume_grad(when=not primal):
+                    α = self.albedo.eval(p)
+                    contribution = β * mi.Spectrum(α[0], α[1], α[2])
+                    if dr.hint(primal, mode="scalar"):
+                        L += contribution
+                    else:
+                        dr.backward_from(δL * contribution)
 
             T = T_next
             i += 1

@@ -1,0 +1,89 @@
+"""The package map of README.md, enforced: imports flow one way and inference never needs training."""
+
+import ast
+from pathlib import Path
+
+import mistyle
+
+ROOT = Path(mistyle.__file__).parent
+# A unit may import units of a lower layer only (or itself). Same as the map in README.md.
+LAYERS = [
+    {"conventions", "display", "volume", "warp", "backend"},
+    {"io"},
+    {"scenes"},
+    {"integrators"},
+    {"bridge_torch", "reference_torch", "pathtrace"},
+    {"model", "objective"},
+    {"fit", "correct", "data"},
+    {"api"},
+    {"render_final", "train"},
+    {"demo"},
+]
+RANK = {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
+INFERENCE = ("api", "render_final", "demo")
+
+
+def unit_of(module: str) -> str:
+    return module.split(".")[1] if "." in module else module
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports_of(path: Path) -> set[str]:
+    """Every mistyle module ``path`` imports, at module level or inside functions."""
+    name = module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names if alias.name.startswith("mistyle.")}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target == "mistyle":  # `from mistyle import x` or `from . import x` at the top
+                found |= {f"mistyle.{alias.name}" for alias in node.names}
+            elif target.startswith("mistyle."):
+                found.add(target)
+    return found
+
+
+def unit_graph() -> dict[str, set[str]]:
+    graph: dict[str, set[str]] = {}
+    for path in ROOT.rglob("*.py"):
+        if path == ROOT / "__init__.py":
+            continue  # the lazy public attributes (mistyle.stylize, ...) point at api by design
+        source = unit_of(module_name(path))
+        for target in imports_of(path):
+            if target != "mistyle.__version__" and unit_of(target) != "__version__":
+                graph.setdefault(source, set()).add(unit_of(target))
+    return graph
+
+
+def test_every_unit_has_a_layer():
+    units = {unit_of(module_name(p)) for p in ROOT.rglob("*.py") if p != ROOT / "__init__.py"}
+    assert units <= RANK.keys(), f"add {sorted(units - RANK.keys())} to LAYERS and README's package map"
+
+
+def test_imports_only_go_down_the_layers():
+    upward = sorted((source, target) for source, targets in unit_graph().items() for target in targets
+                    if target in RANK and target != source and RANK[target] >= RANK[source])
+    assert not upward, f"imports that go up or sideways: {upward}"
+
+
+def test_inference_never_reaches_the_training_package():
+    graph = unit_graph()
+    for start in INFERENCE:
+        seen, todo = set(), [start]
+        while todo:
+            unit = todo.pop()
+            if unit not in seen:
+                seen.add(unit)
+                todo += graph.get(unit, ())
+        assert "train" not in seen or start == "train", f"{start} reaches mistyle.train"

@@ -57,6 +57,53 @@ def check_writable_dir(directory) -> Path:
     return directory
 
 
+@contextlib.contextmanager
+def staged_directory(directory):
+    """Yield an empty staging folder; when the block succeeds, it becomes ``directory`` whole.
+
+    The staging folder is a hidden sibling of ``directory``, so the final rename stays on one file
+    system. An existing ``directory`` is replaced only once the new one is complete; a failure or an
+    interrupt removes the staging folder and leaves ``directory`` as it was. A lock file beside it
+    refuses a second run into the same ``directory`` while one is in progress, so a finished folder
+    always comes from one run.
+    """
+    import fcntl
+    import shutil
+
+    directory = Path(directory)
+    parent = directory.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        lock = open(parent / f".{directory.name}.lock", "w")  # noqa: SIM115 - held for the whole block
+    except OSError as error:
+        raise ValueError(f"Cannot write to the output directory {directory} ({error.strerror or error}); "
+                         "choose another --out.") from None
+    try:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise ValueError(f"Another mistyle run is writing to {directory}; wait for it to finish or choose "
+                             "another --out.") from None
+        if directory.exists() and not directory.is_dir():
+            raise ValueError(f"The output path {directory} is a file; choose a folder for --out.")
+        staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.partial-", dir=parent))
+        try:
+            yield staging
+            if directory.exists():
+                retired = Path(tempfile.mkdtemp(prefix=f".{directory.name}.replaced-", dir=parent))
+                os.replace(directory, retired / directory.name)
+                os.replace(staging, directory)
+                shutil.rmtree(retired, ignore_errors=True)
+            else:
+                os.replace(staging, directory)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(parent / f".{directory.name}.lock")
+        lock.close()
+
+
 def atomic_write_bytes(path, data: bytes) -> Path:
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as handle:

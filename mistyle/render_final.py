@@ -16,7 +16,9 @@ path-traced images against the style), ``swd_layer`` (the ``*_network_layer`` im
 ``temporal_flicker`` for sequences. By default single frames are
 refined for a few steps with the path tracer in the loop (``--refine``), which brought the final
 renders closest to unseen styles; ``--refine 0`` renders the network's albedo as predicted.
-Every file is written to a temporary name and renamed, so an interrupted run leaves no half-written output.
+A run writes into a hidden staging folder beside ``--out`` that replaces ``--out`` only when the
+run is complete, so a failed or interrupted run leaves nothing half-written, and a second run
+into the same ``--out`` is refused while one is in progress.
 """
 
 from __future__ import annotations
@@ -119,7 +121,8 @@ class Job:
     density_scale: float
     camera_distance: float
     refine_steps: int
-    coat_mesh: Path | None = None
+    coat_mesh: tuple | None = None  # (vertices, faces) placed in the medium box, for --mesh with --coat
+    coat_mesh_path: Path | None = None
     notes: list[str] = field(default_factory=list)
     prepared: dict = field(default_factory=dict)  # frame -> integrators.PreparedDensity, made once
 
@@ -144,13 +147,57 @@ class Job:
 
 
 def run(args) -> int:
+    from .io import staged_directory
+
+    check_options(args)
     job = load(args)
-    report = {"inputs": _inputs_record(job), "notes": job.notes}
-    albedos = stylize_frames(job, report)
-    rendered = correct_frames(job, albedos, report)
-    images, layer_images = render_frames(job, rendered, albedos, report)
-    write_report(job, albedos, images, layer_images, report)
+    # Everything is written into a staging folder that replaces --out only when the run is complete.
+    with staged_directory(args.out) as staging:
+        job.out = staging
+        report = {"inputs": _inputs_record(job), "notes": job.notes}
+        write_coat_mesh(job)
+        albedos = stylize_frames(job, report)
+        rendered = correct_frames(job, albedos, report)
+        images, layer_images = render_frames(job, rendered, albedos, report)
+        write_report(job, albedos, images, layer_images, report)
+    print(f"wrote {args.out}/: albedo grid(s), {len(images)} image(s) (EXR + PNG)"
+          + (", MP4 and GIF" if len(images) > 1 else "") + ", report.json")
     return 0
+
+
+# ---------------------------------------------------------------------------- stage 0: options
+def check_options(args) -> None:
+    """Every option's range, before anything is read or written; one message names the option."""
+    from .api import SCALE_STRUCTURES_RANGE
+    from .conventions import MIN_CAMERA_DISTANCE
+
+    def finite(value) -> bool:
+        return value is None or np.isfinite(value)
+
+    low, high = SCALE_STRUCTURES_RANGE
+    checks = [
+        (1 <= args.spp <= 1 << 16, f"--spp must lie in [1, 65536], got {args.spp}"),
+        (8 <= args.res <= 8192, f"--res must lie in [8, 8192], got {args.res}"),
+        (0 <= args.turntable <= 3600, f"--turntable must lie in [0, 3600] frames, got {args.turntable}"),
+        (1 <= args.fps <= 240, f"--fps must lie in [1, 240], got {args.fps}"),
+        (args.refine is None or 0 <= args.refine <= 10000, f"--refine must lie in [0, 10000] steps, got {args.refine}"),
+        (args.max_depth == -1 or 1 <= args.max_depth <= 1024,
+         f"--max-depth must be -1 (unlimited) or lie in [1, 1024], got {args.max_depth}"),
+        (finite(args.view) and 0.0 <= args.view < 1.0, f"--view is an orbit position in [0, 1), got {args.view}"),
+        (args.camera_distance is None or (finite(args.camera_distance) and MIN_CAMERA_DISTANCE < args.camera_distance <= 100),
+         f"--camera-distance must lie in ({MIN_CAMERA_DISTANCE}, 100] (the medium box's longest side is 1), "
+         f"got {args.camera_distance}"),
+        (args.density_scale is None or (finite(args.density_scale) and 0 < args.density_scale <= 1e6),
+         f"--density-scale must lie in (0, 1e6], got {args.density_scale}"),
+        (finite(args.scale_structures) and low <= args.scale_structures <= high,
+         f"--scale-structures must lie in [{low}, {high}], got {args.scale_structures}"),
+        (8 <= args.mesh_res <= 512, f"--mesh-res must lie in [8, 512], got {args.mesh_res}"),
+        (args.coat is None or (finite(args.coat) and 1.0 < args.coat < 4.0),
+         f"--coat dielectric:<ior> needs an index of refraction in (1, 4), e.g. 1.5; got {args.coat}"),
+    ]
+    for ok, message in checks:
+        if not ok:
+            raise ValueError(message + ".")
 
 
 # ---------------------------------------------------------------------------- stage 1: load and check
@@ -158,16 +205,13 @@ def load(args) -> Job:
     """Check every option and input and load them; nothing heavy runs before this returns."""
     from .api import Stylizer
     from .backend import use_variant
-    from .io import check_writable_dir, load_density_frames, load_style
+    from .io import load_density_frames, load_style
     from .scenes import CameraPath, LightSpec, validate_density_scale
 
-    if args.spp < 1 or not 8 <= args.res <= 8192 or args.turntable < 0 or args.fps < 1 or (args.refine or 0) < 0:
-        raise ValueError("Need --spp >= 1, 8 <= --res <= 8192, --turntable >= 0, --fps >= 1 and --refine >= 0.")
     notes: list[str] = []
     style = load_style(args.style, notes)
     for note in notes:
         log(f"note: {note}")
-    out = check_writable_dir(args.out)
     use_variant(args.device)
     stylizer = Stylizer(args.checkpoint, args.device, args.vgg_weights)
     config = stylizer.config
@@ -175,13 +219,13 @@ def load(args) -> Job:
     density_scale = validate_density_scale(args.density_scale if args.density_scale is not None else stylizer.density_scale)
     coat_mesh = None
     if args.mesh is not None:
-        from .data.mesh import fit_to_box, load_mesh, voxelize, write_ply
+        from .data.mesh import fit_to_box, load_mesh, voxelize
 
         vertices, faces = load_mesh(args.mesh)
         densities, velocities, names = [voxelize(vertices, faces, args.mesh_res, supersample=2)], None, [args.mesh.stem]
         if args.coat is not None:
             placed, _ = fit_to_box(np.asarray(vertices, np.float64), args.mesh_res, 0.05)
-            coat_mesh = write_ply(out / "coat_mesh.ply", placed, faces)
+            coat_mesh = (placed, faces)
     else:
         densities, velocities, names = load_density_frames(args.density)
     for name, grid in zip(names, densities):
@@ -192,9 +236,25 @@ def load(args) -> Job:
     camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
     orbit = CameraPath(distance=camera_distance)
     views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
-    return Job(args=args, out=out, stylizer=stylizer, style=style, densities=densities, velocities=velocities, names=names,
+    return Job(args=args, out=args.out, stylizer=stylizer, style=style, densities=densities, velocities=velocities, names=names,
                views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
                refine_steps=refine_steps, coat_mesh=coat_mesh, notes=notes)
+
+
+def write_coat_mesh(job: Job) -> None:
+    """The coat of ``--mesh ... --coat``, placed in the medium box, as the path tracer reads it."""
+    from .data.mesh import write_ply
+
+    if job.coat_mesh is not None:
+        job.coat_mesh_path = write_ply(job.out / "coat_mesh.ply", *job.coat_mesh)
+
+
+def check_finite(what: str, arrays) -> None:
+    """``ValueError`` naming the stage whose output holds NaN/inf, instead of writing it."""
+    for index, array in enumerate(arrays):
+        if not np.all(np.isfinite(array)):
+            raise ValueError(f"{what} {index} holds NaN/inf values; nothing was written. Check the density's range "
+                             "(normalise it and use --density-scale) and the light's strength.")
 
 
 def _inputs_record(job: Job) -> dict:
@@ -219,6 +279,7 @@ def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
     started = time.perf_counter()
     albedos = [job.stylizer(grid, job.style, job.args.scale_structures) for grid in job.densities]
     report["stylize_seconds"] = time.perf_counter() - started
+    check_finite("The network's albedo of frame", albedos)
     log(f"stylized {len(albedos)} frame(s) of {job.densities[0].shape} in {report['stylize_seconds']:.2f} s")
     for index, albedo in enumerate(albedos):
         stem = _albedo_stem(job, "albedo", index)
@@ -249,6 +310,7 @@ def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np
         log(f"multiple-scattering calibration in {calibration.seconds:.1f} s")
     if job.refine_steps:
         rendered, report["refine_seconds"] = refine_frames(job, rendered)
+    check_finite("The corrected albedo of frame", rendered)
     if rendered is not albedos:
         for index, albedo in enumerate(rendered):
             write_vol(job.out / f"{_albedo_stem(job, 'albedo_refined', index)}.vol", albedo)
@@ -303,6 +365,8 @@ def render_frames(job: Job, rendered: list[np.ndarray], albedos: list[np.ndarray
         layer_images += _layer_images(job, frame, albedos[frame], frame_views)
     report["render_seconds"] = time.perf_counter() - started
     report["render_seconds_per_image"] = float(np.mean(render_seconds))
+    check_finite("The path-traced image", images)
+    check_finite("The fast layer's image", layer_images)
 
     kind = "sequence" if job.sequence else "turntable" if args.turntable else "view"
     for index, image in enumerate(images):
@@ -312,15 +376,15 @@ def render_frames(job: Job, rendered: list[np.ndarray], albedos: list[np.ndarray
         write_png(job.out / f"{stem}_network_layer.png", display(layer_images[index]), srgb=False)
     if len(images) > 1:
         frames = [(display(image) * 255 + 0.5).astype(np.uint8) for image in images]
-        report["video"] = [str(write_mp4(job.out / f"{kind}.mp4", frames, args.fps)),
-                           str(write_gif(job.out / f"{kind}.gif", frames, args.fps))]
+        report["video"] = [write_mp4(job.out / f"{kind}.mp4", frames, args.fps).name,
+                           write_gif(job.out / f"{kind}.gif", frames, args.fps).name]
     return images, layer_images
 
 
 def _trace_options(job: Job) -> dict:
     args = job.args
     return {"res": args.res, "spp": args.spp, "max_depth": args.max_depth, "density_scale": job.density_scale,
-            "light": job.light, "coat_ior": args.coat, "coat_mesh": job.coat_mesh, "device": args.device}
+            "light": job.light, "coat_ior": args.coat, "coat_mesh": job.coat_mesh_path, "device": args.device}
 
 
 def _layer_images(job: Job, frame: int, albedo: np.ndarray, views) -> list[np.ndarray]:
@@ -354,8 +418,6 @@ def write_report(job: Job, albedos, images, layer_images, report: dict) -> None:
         report["swd_plain"] = float(np.mean([style_distance(image, job.style)["swd"] for image in plain]))
     atomic_write_bytes(job.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
     print(json.dumps({k: report[k] for k in ("stylize_seconds", "render_seconds", "swd_layer", "swd_final") if k in report}))
-    print(f"wrote {job.out}/: albedo grid(s), {len(images)} image(s) (EXR + PNG)"
-          + (", MP4 and GIF" if len(images) > 1 else "") + ", report.json")
 
 
 if __name__ == "__main__":

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .conventions import MAX_DENSITY
+
 
 def validate_density(density, name: str = "density") -> np.ndarray:
     """Check a density grid and return it as float32 C-contiguous ``(Z, Y, X)``.
@@ -32,6 +34,11 @@ def validate_density(density, name: str = "density") -> np.ndarray:
         raise ValueError(
             f"{name} holds {int(bad.sum())} NaN/inf values (first at [z, y, x] = {where}); "
             "clean the volume, e.g. np.nan_to_num(density, nan=0.0, posinf=0.0)."
+        )
+    if array.max(initial=0.0) > MAX_DENSITY:
+        raise ValueError(
+            f"{name} holds values up to {float(array.max()):.4g}; mistyle takes densities up to {MAX_DENSITY:g}. "
+            "Normalise the volume (e.g. density / density.max()) and set the extinction with --density-scale."
         )
     if (array < 0).any():
         raise ValueError(

@@ -37,3 +37,29 @@ def test_unwritable_directory_names_the_fix(tmp_path):
     blocker.write_text("")
     with pytest.raises(OSError, match="writable output directory"):
         write_png(blocker / "sub" / "a.png", np.zeros((2, 2, 3), np.float32))
+
+
+def test_vol_files_with_impossible_headers_name_the_file(tmp_path):
+    import struct
+
+    from mistyle.io import read_vol
+
+    path = tmp_path / "bad.vol"
+    path.write_bytes(struct.pack("<3sBiiiii6f", b"VOL", 3, 1, -4, 4, 4, 1, 0, 0, 0, 1, 1, 1) + bytes(64))
+    with pytest.raises(ValueError, match="bad.vol.*every size must be >= 1"):
+        read_vol(path)
+
+
+def test_foreign_checkpoints_never_get_the_advice_to_unpickle_them(tmp_path):
+    import pickle
+
+    from mistyle.model.checkpoint import load_checkpoint
+
+    path = tmp_path / "evil.pt"
+    with open(path, "wb") as handle:  # a pickle that would run code (os.getcwd) if unpickled freely
+        pickle.dump({"format": 1, "model": os.getcwd}, handle)
+    with pytest.raises(ValueError) as error:
+        load_checkpoint(path)
+    assert "weights_only" not in str(error.value) and "only checkpoints written by mistyle" in str(error.value)
+    with pytest.raises(ValueError, match="No checkpoint file"):
+        load_checkpoint(tmp_path / "nowhere.pt")

@@ -8,7 +8,8 @@ import mistyle
 ROOT = Path(mistyle.__file__).parent
 # A unit may import units of a lower layer only (or itself). Same as the map in README.md.
 LAYERS = [
-    {"conventions", "display", "volume", "warp", "backend"},
+    {"conventions"},
+    {"display", "volume", "warp", "backend"},
     {"io"},
     {"scenes"},
     {"integrators"},

@@ -43,6 +43,7 @@ def inputs(tmp_path_factory, blob_density):
     np.save(folder / "negative.npy", -np.ones((8, 8, 8), np.float32))
     np.save(folder / "zeros.npy", np.zeros((8, 8, 8), np.float32))
     np.save(folder / "empty.npy", np.zeros((0, 8, 8), np.float32))
+    np.save(folder / "huge.npy", np.full((8, 8, 8), 1e20, np.float32))
     (folder / "garbage.pt").write_bytes(b"\x00not a checkpoint")
     return folder
 
@@ -166,16 +167,78 @@ def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, 
     ({"--checkpoint": "garbage.pt"}, "not a readable mistyle checkpoint"),
     ({"--light": "laser"}, "not a known light"),
     ({"--light": "envmap:missing.exr"}, "does not exist"),
-    ({"--density-scale": "-1"}, "density_scale must be a positive"),
+    ({"--density-scale": "-1"}, "--density-scale must lie in"),
+    ({"--style": "."}, "is a folder"),
+    ({"--density": "huge.npy"}, "mistyle takes densities up to"),
+    ({"--light": "constant:-5"}, "must be a finite number > 0"),
+    ({"--light": "point:nan,0,0"}, "must be finite"),
+    ({"--camera-distance": "0.1"}, "--camera-distance must lie in"),
+    ({"--camera-distance": "0"}, "--camera-distance must lie in"),
+    ({"--max-depth": "0"}, "--max-depth must be -1"),
+    ({"--max-depth": "-5"}, "--max-depth must be -1"),
+    ({"--view": "1.5"}, "--view is an orbit position"),
+    ({"--coat": "dielectric:9"}, "index of refraction in (1, 4)"),
 ])
 def test_bad_input_is_a_clear_error_and_leaves_nothing(mi, checkpoint, inputs, tmp_path, capsys, change, message):
     arguments = {"--checkpoint": str(checkpoint), "--density": str(inputs / "blob.vol"), "--style": str(inputs / "style.png")}
-    arguments.update({key: value if key in ("--light", "--density-scale") else str(inputs / value) for key, value in change.items()})
+    arguments.update({key: str(inputs / value) if key in ("--style", "--density", "--checkpoint") else value
+                      for key, value in change.items()})
     out = tmp_path / "out"
     code = main([item for pair in arguments.items() for item in pair] + ["--out", str(out), "--res", "16", "--spp", "1"])
     error = capsys.readouterr().err
-    assert code == 2 and message in error and "Traceback" not in error
-    assert not out.exists() or not any(out.iterdir())
+    assert code == 2 and message in error and "Traceback" not in error, error
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_random_bad_option_values_give_one_clear_line_and_write_nothing(mi, checkpoint, inputs, tmp_path, capsys):
+    rng = np.random.default_rng(7)
+    bad = {"--spp": ["0", "-3", "100000000"], "--res": ["0", "4", "99999"], "--turntable": ["-1", "99999"],
+           "--fps": ["0", "-2"], "--refine": ["-1", "1000000"], "--max-depth": ["0", "-2", "-100"],
+           "--view": ["-0.1", "1", "nan", "inf"], "--camera-distance": ["0", "-2", "nan", "0.5", "1e9"],
+           "--density-scale": ["0", "-1", "nan", "inf", "1e30"], "--scale-structures": ["0", "100", "nan"],
+           "--mesh-res": ["1", "99999"], "--light": ["constant:-1", "constant:nan", "point:1,2", "area:-4", "sun"],
+           "--coat": ["dielectric:1", "dielectric:nan", "glass"]}
+    for option in rng.permutation(list(bad)):
+        value = str(rng.choice(bad[option]))
+        out = tmp_path / "out"
+        try:
+            code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style",
+                         str(inputs / "style.png"), "--out", str(out), "--res", "16", "--spp", "1", option, value])
+        except SystemExit as exit:  # argparse refuses values of the wrong type with its usage line
+            code = exit.code
+        error = capsys.readouterr().err
+        assert code == 2 and "error:" in error and "Traceback" not in error, (option, value, error)
+        assert not any(tmp_path.iterdir()), (option, value)
+
+
+def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint, inputs, tmp_path, monkeypatch):
+    from mistyle import render_final
+
+    out = tmp_path / "out"
+    arguments = ["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "16", "--spp", "1", "--refine", "0"]
+    assert main(arguments) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(render_final, "write_report", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        main(arguments + ["--view", "0.5"])
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder or lock left
+
+
+def test_a_second_run_into_an_output_in_use_is_refused(mi, checkpoint, inputs, tmp_path, capsys):
+    from mistyle.io import staged_directory
+
+    out = tmp_path / "out"
+    with staged_directory(out):
+        code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style",
+                     str(inputs / "style.png"), "--out", str(out), "--res", "16", "--spp", "1", "--refine", "0"])
+        assert code == 2 and "Another mistyle run is writing to" in capsys.readouterr().err
+    assert out.is_dir() and not any(out.iterdir())
 
 
 def test_checkpoint_from_another_config_is_refused(mi, checkpoint, inputs, tmp_path, capsys):

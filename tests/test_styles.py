@@ -103,3 +103,65 @@ def test_no_held_out_style_is_a_training_style(tmp_path):
     folder = StyleSet(str(tmp_path / "folder"), size=16)
     assert folder.val_names and not set(folder.val_names) & set(folder.train_names)
     assert len(folder.val_names) + len(folder.train_names) == 12
+
+
+def test_every_pillow_mode_reads_as_the_colours_it_shows(tmp_path):
+    """Palette, CMYK, 1-bit, greyscale+alpha, 16-bit and premultiplied images: the RGB a viewer shows."""
+    rng = np.random.default_rng(0)
+    rgb = (rng.random((16, 16, 3)) * 255).astype(np.uint8)
+    reference = Image.fromarray(rgb, "RGB")
+    expected = rgb.astype(np.float32) / 255
+
+    palette = reference.quantize(colors=256)  # mode P: indices into a colour table
+    palette.save(tmp_path / "palette.png")
+    shown = np.asarray(palette.convert("RGB"), np.float32) / 255
+    np.testing.assert_allclose(load_style(tmp_path / "palette.png"), shown, atol=1e-6)
+    assert not np.allclose(shown[..., 0], shown[..., 1])  # not read as grey
+
+    reference.convert("CMYK").save(tmp_path / "cmyk.jpg", quality=100)
+    cmyk = load_style(tmp_path / "cmyk.jpg")
+    assert np.abs(cmyk - expected).mean() < 0.05 and cmyk.mean() > 0.2  # not black (K was once taken as alpha)
+
+    Image.fromarray(rgb[..., 0] > 127).save(tmp_path / "bits.png")
+    np.testing.assert_array_equal(load_style(tmp_path / "bits.png")[..., 1], (rgb[..., 0] > 127).astype(np.float32))
+
+    grey_alpha = Image.fromarray(np.stack([rgb[..., 0], np.full((16, 16), 255, np.uint8)], -1), "LA")
+    grey_alpha.save(tmp_path / "la.png")
+    np.testing.assert_allclose(load_style(tmp_path / "la.png")[..., 2], expected[..., 0], atol=1e-6)
+
+    transparent = palette.copy()
+    transparent.info["transparency"] = 0
+    transparent.save(tmp_path / "transparent.png", transparency=0)
+    assert load_style(tmp_path / "transparent.png").shape == (16, 16, 3)
+
+
+def test_embedded_colour_profiles_are_applied_and_broken_ones_noted(tmp_path):
+    from PIL import ImageCms
+
+    rgb = np.full((16, 16, 3), (200, 60, 30), np.uint8)
+    image = Image.fromarray(rgb, "RGB")
+    image.save(tmp_path / "tagged.png", icc_profile=ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes())
+    np.testing.assert_allclose(load_style(tmp_path / "tagged.png"), rgb / 255, atol=2 / 255)
+
+    image.save(tmp_path / "broken.png", icc_profile=b"not a profile")
+    notes = []
+    np.testing.assert_allclose(load_style(tmp_path / "broken.png", notes), rgb / 255, atol=1e-6)
+    assert any("unreadable" in note for note in notes)
+
+
+def test_exr_styles_are_read_with_the_display_curve(tmp_path):
+    from mistyle.display import display
+    from mistyle.io import write_exr
+
+    radiance = np.random.default_rng(2).random((12, 12, 3)).astype(np.float32) * 4
+    notes = []
+    style = load_style(write_exr(tmp_path / "sky.exr", radiance), notes)
+    np.testing.assert_allclose(style, display(radiance), atol=1e-6)
+    assert any("display curve" in note for note in notes)
+
+
+def test_huge_images_are_refused_before_decoding(tmp_path, monkeypatch):
+    save(tmp_path / "big.png", np.zeros((64, 64, 3), np.uint8))
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # 64 x 64 > 2 x 1000: Pillow's bomb error
+    with pytest.raises(ValueError, match="safety limit"):
+        load_style(tmp_path / "big.png")

@@ -17,6 +17,7 @@ config is written next to a run's outputs and stored in each checkpoint.
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,7 @@ from ..conventions import (
     DEVICES,
     EXTRACTOR_KINDS,
     LAYER_SCHEMES,
+    MIN_CAMERA_DISTANCE,
     ORBIT_DISTANCE,
     STYLE_LOSSES,
 )
@@ -109,8 +111,9 @@ class TrainConfig:
             (self.render.image_size >= 16, "render.image_size must be >= 16 (the extractor pools three times)"),
             (self.render.views >= 1 and self.render.steps >= 1, "render.views and render.steps must be >= 1"),
             (self.render.scheme in LAYER_SCHEMES, f"render.scheme must be one of {', '.join(LAYER_SCHEMES)}"),
-            (self.render.radiance > 0, "render.radiance must be > 0"),
-            (self.render.camera_distance > 0.9, "render.camera_distance must be > 0.9 (cameras stay outside the box)"),
+            (math.isfinite(self.render.radiance) and self.render.radiance > 0, "render.radiance must be a finite number > 0"),
+            (math.isfinite(self.render.camera_distance) and self.render.camera_distance > MIN_CAMERA_DISTANCE,
+             f"render.camera_distance must be a finite number > {MIN_CAMERA_DISTANCE} (cameras stay outside the box)"),
             (self.loss.style in STYLE_LOSSES, f"loss.style must be one of {', '.join(STYLE_LOSSES)}"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),

@@ -21,13 +21,22 @@ def foreground_pixels(render: np.ndarray, threshold: float = FOREGROUND_THRESHOL
     return display(render[keep]).reshape(-1, 3)
 
 
+MAX_METRIC_POINTS = 1 << 18
+"""Point sets larger than this are subsampled (without replacement, seeded) before the sliced
+Wasserstein distance, so its cost is bounded whatever the image size: 2^18 points x 128 projections
+in float64 is 256 MB. Measured on a 1000x1000 photograph against a 64^2 render, the subsampled
+distance differs from the exact one by under 0.5% (``tests/test_losses.py``)."""
+
+
 def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, seed: int = 0) -> float:
     """Sliced 2-Wasserstein distance between two RGB point sets ``(N, 3)`` and ``(M, 3)``.
 
     ``sqrt(mean over random unit directions of W2^2 between the 1D projections)``; quantiles are
-    compared at a common count, so the sets need not have equal sizes.
+    compared at a common count, so the sets need not have equal sizes. Sets of more than
+    ``MAX_METRIC_POINTS`` points are subsampled first.
     """
-    a, b = np.asarray(a, dtype=np.float64).reshape(-1, 3), np.asarray(b, dtype=np.float64).reshape(-1, 3)
+    rng = np.random.default_rng(seed)
+    a, b = (np.asarray(bounded_points(points, rng), dtype=np.float64) for points in (a, b))
     if len(a) == 0 or len(b) == 0:
         raise ValueError("sliced_wasserstein needs non-empty point sets (did the render see any medium?).")
     directions = np.random.default_rng(seed).normal(size=(projections, 3))
@@ -37,6 +46,14 @@ def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, see
     qa = _sorted_quantiles(np.sort(a @ directions.T, axis=0), levels)
     qb = _sorted_quantiles(np.sort(b @ directions.T, axis=0), levels)
     return float(np.sqrt(np.mean((qa - qb) ** 2)))
+
+
+def bounded_points(points, rng: np.random.Generator) -> np.ndarray:
+    """``points`` as ``(N, 3)``, subsampled to ``MAX_METRIC_POINTS`` rows when larger (no copy otherwise)."""
+    points = np.asarray(points).reshape(-1, 3)
+    if len(points) <= MAX_METRIC_POINTS:
+        return points
+    return points[np.sort(rng.choice(len(points), MAX_METRIC_POINTS, replace=False))]
 
 
 def _sorted_quantiles(sorted_values: np.ndarray, levels: np.ndarray) -> np.ndarray:
@@ -58,8 +75,9 @@ def colour_histogram_distance(a: np.ndarray, b: np.ndarray, bins: int = 8) -> fl
 
 def style_distance(render: np.ndarray, style: np.ndarray) -> dict:
     """Sliced Wasserstein and colour-histogram distances between a render's foreground and a style."""
-    pixels = foreground_pixels(render)
-    style_pixels = np.asarray(style, dtype=np.float32).reshape(-1, 3)
+    rng = np.random.default_rng(0)
+    pixels = bounded_points(foreground_pixels(render), rng)
+    style_pixels = bounded_points(np.asarray(style, dtype=np.float32), rng)
     return {"swd": sliced_wasserstein(pixels, style_pixels), "hist": colour_histogram_distance(pixels, style_pixels)}
 
 

@@ -1,7 +1,7 @@
 """``python -m mistyle.train``: train SKPN through the fast Mitsuba layer, or run the direct baseline.
 
     python -m mistyle.train --config configs/cpu.toml --out runs/cpu
-    python -m mistyle.train --config configs/cpu.toml --out runs/cpu --resume         # continue exactly
+    python -m mistyle.train --config configs/cpu.toml --out runs/cpu --resume         # continue from last.pt
     python -m mistyle.train --config configs/tiny.toml --set optim.steps=50 --out runs/t
     torchrun --nproc_per_node 2 -m mistyle.train --config configs/tiny.toml --out runs/ddp
     python -m mistyle.train --config configs/cpu.toml --optimize --checkpoint runs/cpu/final.pt --out runs/baseline

@@ -136,8 +136,7 @@ def test_style_metric_subsamples_large_images_with_a_small_error(monkeypatch):
     assert metrics.style_distance(render, style)["swd"] == pytest.approx(exact, rel=0.02)
 
 
-def test_style_metric_of_a_16_megapixel_style_fits_in_a_small_memory_limit():
-    """Before the subsampling, every style pixel was projected on 128 directions: 4.8 GiB per megapixel."""
+def run_metric_under_a_memory_limit(render_side: int, style_side: int) -> float:
     import subprocess
     import sys
 
@@ -145,9 +144,20 @@ def test_style_metric_of_a_16_megapixel_style_fits_in_a_small_memory_limit():
         "import resource, numpy as np\n"
         "resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))\n"
         "from mistyle.objective.metrics import style_distance\n"
-        "style = np.random.default_rng(0).random((4096, 4096, 3), dtype=np.float32)\n"
-        "print(style_distance(np.full((64, 64, 3), 0.5, np.float32), style)['swd'])\n"
+        f"style = np.random.default_rng(0).random(({style_side}, {style_side}, 3), dtype=np.float32)\n"
+        f"render = np.full(({render_side}, {render_side}, 3), 0.5, np.float32)\n"
+        "print(style_distance(render, style)['swd'])\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr[-2000:]
-    assert 0.0 < float(result.stdout.strip()) < 1.0
+    return float(result.stdout.strip())
+
+
+def test_style_metric_of_a_16_megapixel_style_fits_in_a_small_memory_limit():
+    """Before the subsampling, every style pixel was projected on 128 directions: 4.8 GiB per megapixel."""
+    assert 0.0 < run_metric_under_a_memory_limit(64, 4096) < 1.0
+
+
+@pytest.mark.slow
+def test_style_metric_of_a_4096_render_fits_in_a_small_memory_limit():
+    assert 0.0 < run_metric_under_a_memory_limit(4096, 4096) < 1.0

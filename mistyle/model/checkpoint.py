@@ -9,6 +9,7 @@ code ever runs): ``format``, ``mistyle_version``, ``step``, ``seconds``, ``confi
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,7 +32,9 @@ def load_checkpoint(path) -> dict:
     if not path.is_file():
         raise ValueError(f"No checkpoint file at {path}.")
     try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+        with warnings.catch_warnings():  # torch warns about foreign pickle protocols; the error below says it all
+            warnings.simplefilter("ignore")
+            checkpoint = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # torch raises many kinds for a damaged or unsafe file
         # torch's own message advises weights_only=False; never pass that advice on for a foreign file.
         raise ValueError(f"{path} is not a readable mistyle checkpoint ({type(error).__name__}); "

@@ -70,7 +70,9 @@ def staged_directory(directory):
     import fcntl
     import shutil
 
-    directory = Path(directory)
+    directory = Path(directory).absolute()  # "--out ." has no name of its own to stage beside
+    if directory.name in ("", ".", ".."):
+        directory = directory.resolve()
     parent = directory.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)

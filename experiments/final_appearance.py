@@ -44,12 +44,12 @@ def main() -> None:
     from mistyle.api import Stylizer, path_trace
     from mistyle.bridge_torch import render_views
     from mistyle.correct import measure_calibration
-    from mistyle.fit import FitSettings, refine_albedo
+    from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
     from mistyle.io import load_density
     from mistyle.objective.metrics import style_distance
     from mistyle.objective.style import StyleObjective
-    from mistyle.render_final import REFINE_LR, REFINE_RES, REFINE_SPP, REFINE_VIEWS
+    from mistyle.render_final import REFINE_RES, REFINE_SPP, refine_settings
     from mistyle.scenes import CameraPath
     from mistyle.train.dataset import StyleSet
 
@@ -63,8 +63,7 @@ def main() -> None:
     styles = StyleSet(config.data.styles, 128)
     picks = styles.comparison_styles(min(args.styles, len(styles.val)))
     objective = StyleObjective(stylizer.extractor, config.loss.style, config.loss.rgb_weight)
-    settings = FitSettings(steps=args.refine, lr=REFINE_LR, views_per_step=REFINE_VIEWS, tv_weight=config.loss.tv_weight,
-                           camera_distance=config.render.camera_distance)
+    settings = refine_settings(config, args.refine, config.render.camera_distance)
 
     def swd(images, style):
         return float(np.mean([style_distance(image, style)["swd"] for image in images]))

@@ -28,6 +28,14 @@ PACKAGE = Path(__file__).resolve().parent
 DEFAULT_CHECKPOINT = PACKAGE / "checkpoints" / "skpn_cpu.pt"
 SCALE_STRUCTURES_RANGE = (0.125, 8.0)
 
+
+def validate_scale_structures(factor, name: str = "scale_structures") -> float:
+    """The structure-scale factor, in ``SCALE_STRUCTURES_RANGE``; ``ValueError`` naming ``name``."""
+    low, high = SCALE_STRUCTURES_RANGE
+    if not (np.isfinite(factor) and low <= factor <= high):
+        raise ValueError(f"{name} must lie in [{low}, {high}], got {factor}.")
+    return float(factor)
+
 __all__ = ["Stylizer", "display", "load_density", "load_style", "path_trace", "render", "stylize"]
 
 
@@ -92,9 +100,7 @@ class Stylizer:
         array = np.asarray(density)
         sequence = array.ndim == 4 and array.shape[-1] != 1
         frames = array if sequence else array[None]
-        low, high = SCALE_STRUCTURES_RANGE
-        if not np.isfinite(scale_structures) or not low <= scale_structures <= high:
-            raise ValueError(f"scale_structures must lie in [{low}, {high}], got {scale_structures}.")
+        validate_scale_structures(scale_structures)
         levels = self.style_levels(style)
         albedos = []
         for index, frame in enumerate(frames):
@@ -159,21 +165,12 @@ def render(density, albedo, view: float = HELD_OUT_VIEW, res: int = 256, spp: in
         camera_distance: the orbit's radius (the medium box's longest side is 1).
     """
     from .scenes import CameraPath, View
+    from .scenes.cameras import validate_orbit_position
 
-    camera = view if isinstance(view, View) else CameraPath(distance=camera_distance).view(_orbit_position(view))
+    camera = view if isinstance(view, View) else CameraPath(distance=camera_distance).view(validate_orbit_position(view))
     images, _ = path_trace(density, albedo, [camera], res=res, spp=spp, max_depth=max_depth, density_scale=density_scale,
                            light=light, coat_ior=coat_ior, coat_mesh=coat_mesh, device=device, seed=seed)
     return images[0]
-
-
-def _orbit_position(view) -> float:
-    try:
-        position = float(view)
-    except (TypeError, ValueError):
-        raise ValueError(f"view must be an orbit position in [0, 1) or a mistyle.scenes.View, got {view!r}.") from None
-    if not np.isfinite(position) or not 0.0 <= position < 1.0:
-        raise ValueError(f"view must be an orbit position in [0, 1), got {view!r}.")
-    return position
 
 
 def path_trace(density, albedo, views, *, res: int = 256, spp: int = 64, max_depth: int = -1,

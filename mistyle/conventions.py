@@ -28,6 +28,7 @@ DEFAULT_ENV_RADIANCE = 8.0
 ORBIT_DISTANCE = 2.5
 MIN_CAMERA_DISTANCE = 0.9  # cameras stay outside the medium box (half-diagonal of the unit cube: 0.87)
 MAX_DENSITY = 1e6  # above this, float32 statistics of the network (DAIN variances) overflow
+MAX_DENSITY_SCALE = 1e6  # extinction per unit density; beyond it a voxel is opaque many times over
 HELD_OUT_VIEW = 0.0625
 FOREGROUND_THRESHOLD = 1e-3
 LS_DIRECTIONS = 128

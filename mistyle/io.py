@@ -269,29 +269,29 @@ def _read_density_file(path: Path) -> dict:
     if not path.is_file():
         raise ValueError(f"Density {path} is not a file.")
     suffix = path.suffix.lower()
-    velocity = None
-    try:
-        if suffix == ".vol":
-            array = read_vol(path)
-        elif suffix == ".npy":
-            array = np.load(path, allow_pickle=False)
-        elif suffix == ".npz":
-            with np.load(path, allow_pickle=False) as data:
-                if "density" not in data.files:
-                    raise ValueError(f"{path} has no 'density' array (it holds {', '.join(data.files) or 'nothing'}).")
-                array = data["density"]
-                if "velocity" in data.files:
-                    velocity = np.asarray(data["velocity"], np.float32)
-        else:
-            raise ValueError(f"Unsupported density file {path}: use a Mitsuba .vol, a numpy .npy (Z, Y, X) grid "
-                             "or an .npz with a 'density' array.")
-    except (OSError, EOFError, ValueError) as error:
-        if isinstance(error, ValueError) and str(path) in str(error):
-            raise
-        raise ValueError(f"{path} cannot be read as a density ({error}).") from None
+    if suffix not in DENSITY_SUFFIXES:
+        raise ValueError(f"Unsupported density file {path}: use a Mitsuba .vol, a numpy .npy (Z, Y, X) grid "
+                         "or an .npz with a 'density' array.")
+    if suffix == ".vol":
+        array, velocity = read_vol(path), None  # read_vol names the file in its own errors
+    else:
+        try:
+            if suffix == ".npy":
+                array, velocity = np.load(path, allow_pickle=False), None
+            else:
+                with np.load(path, allow_pickle=False) as data:
+                    arrays = {key: data[key] for key in ("density", "velocity") if key in data.files}
+                    held = ", ".join(data.files) or "nothing"
+                if "density" not in arrays:
+                    raise ValueError(f"it has no 'density' array (it holds {held})")
+                array, velocity = arrays["density"], arrays.get("velocity")
+        except (OSError, EOFError, ValueError) as error:
+            raise ValueError(f"{path} cannot be read as a density ({error}).") from None
     density = validate_density(array, name=os.fspath(path))
-    if velocity is not None and velocity.shape != density.shape + (3,):
-        raise ValueError(f"{path}: velocity {velocity.shape} does not match the density grid {density.shape} (+ 3).")
+    if velocity is not None:
+        velocity = np.asarray(velocity, np.float32)
+        if velocity.shape != density.shape + (3,):
+            raise ValueError(f"{path}: velocity {velocity.shape} does not match the density grid {density.shape} (+ 3).")
     return {"density": density, "velocity": velocity}
 
 

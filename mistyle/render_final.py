@@ -110,7 +110,6 @@ class Job:
     """Everything a run needs, loaded and checked before any heavy work (``load``)."""
 
     args: argparse.Namespace
-    out: Path
     stylizer: object  # api.Stylizer
     style: np.ndarray  # (H, W, 3) display RGB in [0, 1]
     densities: list[np.ndarray]  # frames, (Z, Y, X) each
@@ -124,6 +123,7 @@ class Job:
     coat_mesh: tuple | None = None  # (vertices, faces) placed in the medium box, for --mesh with --coat
     coat_mesh_path: Path | None = None
     notes: list[str] = field(default_factory=list)
+    out: Path | None = None  # the staging folder of the run (``io.staged_directory``), set in ``run``
     prepared: dict = field(default_factory=dict)  # frame -> integrators.PreparedDensity, made once
 
     @property
@@ -167,33 +167,29 @@ def run(args) -> int:
 
 # ---------------------------------------------------------------------------- stage 0: options
 def check_options(args) -> None:
-    """Every option's range, before anything is read or written; one message names the option."""
-    from .api import SCALE_STRUCTURES_RANGE
-    from .conventions import MIN_CAMERA_DISTANCE
+    """Every option's range, before anything is read or written; one message names the option.
 
-    def finite(value) -> bool:
-        return value is None or np.isfinite(value)
+    Options that a library function also takes are checked by that function's own validator."""
+    from .api import validate_scale_structures
+    from .scenes import validate_density_scale
+    from .scenes.cameras import validate_camera_distance, validate_orbit_position
+    from .scenes.pathtraced import validate_coat_ior, validate_max_depth
 
-    low, high = SCALE_STRUCTURES_RANGE
+    validate_max_depth(args.max_depth, "--max-depth")
+    validate_orbit_position(args.view, "--view")
+    if args.camera_distance is not None:
+        validate_camera_distance(args.camera_distance, "--camera-distance")
+    if args.density_scale is not None:
+        validate_density_scale(args.density_scale, "--density-scale")
+    validate_scale_structures(args.scale_structures, "--scale-structures")
+    validate_coat_ior(args.coat, "--coat dielectric:<ior>")
     checks = [
         (1 <= args.spp <= 1 << 16, f"--spp must lie in [1, 65536], got {args.spp}"),
         (8 <= args.res <= 8192, f"--res must lie in [8, 8192], got {args.res}"),
         (0 <= args.turntable <= 3600, f"--turntable must lie in [0, 3600] frames, got {args.turntable}"),
         (1 <= args.fps <= 240, f"--fps must lie in [1, 240], got {args.fps}"),
         (args.refine is None or 0 <= args.refine <= 10000, f"--refine must lie in [0, 10000] steps, got {args.refine}"),
-        (args.max_depth == -1 or 1 <= args.max_depth <= 1024,
-         f"--max-depth must be -1 (unlimited) or lie in [1, 1024], got {args.max_depth}"),
-        (finite(args.view) and 0.0 <= args.view < 1.0, f"--view is an orbit position in [0, 1), got {args.view}"),
-        (args.camera_distance is None or (finite(args.camera_distance) and MIN_CAMERA_DISTANCE < args.camera_distance <= 100),
-         f"--camera-distance must lie in ({MIN_CAMERA_DISTANCE}, 100] (the medium box's longest side is 1), "
-         f"got {args.camera_distance}"),
-        (args.density_scale is None or (finite(args.density_scale) and 0 < args.density_scale <= 1e6),
-         f"--density-scale must lie in (0, 1e6], got {args.density_scale}"),
-        (finite(args.scale_structures) and low <= args.scale_structures <= high,
-         f"--scale-structures must lie in [{low}, {high}], got {args.scale_structures}"),
         (8 <= args.mesh_res <= 512, f"--mesh-res must lie in [8, 512], got {args.mesh_res}"),
-        (args.coat is None or (finite(args.coat) and 1.0 < args.coat < 4.0),
-         f"--coat dielectric:<ior> needs an index of refraction in (1, 4), e.g. 1.5; got {args.coat}"),
     ]
     for ok, message in checks:
         if not ok:
@@ -206,7 +202,7 @@ def load(args) -> Job:
     from .api import Stylizer
     from .backend import use_variant
     from .io import load_density_frames, load_style
-    from .scenes import CameraPath, LightSpec, validate_density_scale
+    from .scenes import CameraPath, LightSpec
 
     notes: list[str] = []
     style = load_style(args.style, notes)
@@ -216,7 +212,7 @@ def load(args) -> Job:
     stylizer = Stylizer(args.checkpoint, args.device, args.vgg_weights)
     config = stylizer.config
     light = LightSpec.parse(args.light, default_radiance=config.render.radiance)
-    density_scale = validate_density_scale(args.density_scale if args.density_scale is not None else stylizer.density_scale)
+    density_scale = args.density_scale if args.density_scale is not None else stylizer.density_scale
     coat_mesh = None
     if args.mesh is not None:
         from .data.mesh import fit_to_box, load_mesh, voxelize
@@ -236,7 +232,7 @@ def load(args) -> Job:
     camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
     orbit = CameraPath(distance=camera_distance)
     views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
-    return Job(args=args, out=args.out, stylizer=stylizer, style=style, densities=densities, velocities=velocities, names=names,
+    return Job(args=args, stylizer=stylizer, style=style, densities=densities, velocities=velocities, names=names,
                views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
                refine_steps=refine_steps, coat_mesh=coat_mesh, notes=notes)
 
@@ -319,14 +315,13 @@ def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np
 
 def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray], float]:
     """``job.refine_steps`` steps of ``fit.fit_albedo`` per frame with the path tracer in the loop."""
-    from .fit import FitSettings, refine_albedo
+    from .fit import refine_albedo
     from .objective.style import StyleObjective
 
     config = job.stylizer.config
     objective = StyleObjective(job.stylizer.extractor, config.loss.style, config.loss.rgb_weight)
     style = job.stylizer.style_tensor(job.style)
-    settings = FitSettings(steps=job.refine_steps, lr=REFINE_LR, views_per_step=REFINE_VIEWS, tv_weight=config.loss.tv_weight,
-                           camera_distance=job.camera_distance)
+    settings = refine_settings(config, job.refine_steps, job.camera_distance)
     refined, seconds = [], 0.0
     for index, (grid, albedo) in enumerate(zip(job.densities, albedos)):
         result, took = refine_albedo(
@@ -336,6 +331,14 @@ def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray]
         refined.append(result)
         seconds += took
     return refined, seconds
+
+
+def refine_settings(config, steps: int, camera_distance: float):
+    """The ``fit.FitSettings`` of ``--refine``: the REFINE_* constants and the network's TV weight."""
+    from .fit import FitSettings
+
+    return FitSettings(steps=steps, lr=REFINE_LR, views_per_step=REFINE_VIEWS, tv_weight=config.loss.tv_weight,
+                       camera_distance=camera_distance)
 
 
 # ---------------------------------------------------------------------------- stage 4: path trace

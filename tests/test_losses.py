@@ -5,7 +5,13 @@ import pytest
 import torch
 
 from mistyle.display import tone_map
-from mistyle.objective.losses import gram_loss, histogram_loss, mean_std_loss, temporal_loss, tv_loss
+from mistyle.objective.losses import (
+    gram_loss,
+    histogram_loss,
+    mean_std_loss,
+    temporal_loss,
+    tv_loss,
+)
 from mistyle.objective.masks import pool_mask, render_mask
 from mistyle.objective.metrics import (
     colour_histogram_distance,

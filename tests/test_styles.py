@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from mistyle.data.styles import ImageFolder, material_texture, offline_style_set, random_crop, style_set_diversity
+from mistyle.data.styles import (
+    ImageFolder,
+    material_texture,
+    offline_style_set,
+    random_crop,
+    style_set_diversity,
+)
 from mistyle.io import load_style
 
 

@@ -18,6 +18,7 @@ import torch.nn as nn
 
 from ..conventions import DEFAULT_DENSITY_SCALE
 from ..io import atomic_output
+from ..scenes.medium import validate_density_scale
 from .config import TrainConfig, config_from_dict
 from .features import extractor_from_name
 from .skpn import SKPN
@@ -94,9 +95,7 @@ def load_model(path, vgg_weights=None) -> TrainedModel:
     if tuple(extractor.channels) != tuple(config.model.style_channels):
         raise ValueError(f"{path} expects style features of widths {config.model.style_channels}, "
                          f"the {extractor.name} extractor gives {extractor.channels}.")
-    density_scale = float(checkpoint.get("density_scale", DEFAULT_DENSITY_SCALE))
-    if not density_scale > 0 or density_scale == float("inf"):
-        raise ValueError(f"{path} records an invalid density_scale {density_scale}.")
+    density_scale = validate_density_scale(checkpoint.get("density_scale", DEFAULT_DENSITY_SCALE), f"{path}: density_scale")
     return TrainedModel(path, model, config, extractor, density_scale)
 
 

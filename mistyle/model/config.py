@@ -30,10 +30,10 @@ from ..conventions import (
     DEVICES,
     EXTRACTOR_KINDS,
     LAYER_SCHEMES,
-    MIN_CAMERA_DISTANCE,
     ORBIT_DISTANCE,
     STYLE_LOSSES,
 )
+from ..scenes.cameras import validate_camera_distance
 from .skpn import SKPNConfig
 
 
@@ -112,8 +112,6 @@ class TrainConfig:
             (self.render.views >= 1 and self.render.steps >= 1, "render.views and render.steps must be >= 1"),
             (self.render.scheme in LAYER_SCHEMES, f"render.scheme must be one of {', '.join(LAYER_SCHEMES)}"),
             (math.isfinite(self.render.radiance) and self.render.radiance > 0, "render.radiance must be a finite number > 0"),
-            (math.isfinite(self.render.camera_distance) and self.render.camera_distance > MIN_CAMERA_DISTANCE,
-             f"render.camera_distance must be a finite number > {MIN_CAMERA_DISTANCE} (cameras stay outside the box)"),
             (self.loss.style in STYLE_LOSSES, f"loss.style must be one of {', '.join(STYLE_LOSSES)}"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),
@@ -125,6 +123,10 @@ class TrainConfig:
         for ok, message in checks:
             if not ok:
                 raise ConfigError(message + ".")
+        try:
+            validate_camera_distance(self.render.camera_distance, "render.camera_distance")
+        except ValueError as error:
+            raise ConfigError(str(error)) from None
         try:
             SKPNConfig.__post_init__(self.model)
         except ValueError as error:

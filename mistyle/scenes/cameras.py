@@ -13,7 +13,28 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..backend import require_variant
-from ..conventions import HELD_OUT_VIEW, ORBIT_DISTANCE
+from ..conventions import HELD_OUT_VIEW, MIN_CAMERA_DISTANCE, ORBIT_DISTANCE
+
+MAX_CAMERA_DISTANCE = 100.0
+
+
+def validate_camera_distance(distance, name: str = "camera distance") -> float:
+    """An orbit radius outside the medium box, ``(MIN_CAMERA_DISTANCE, MAX_CAMERA_DISTANCE]``."""
+    if not (np.isfinite(distance) and MIN_CAMERA_DISTANCE < distance <= MAX_CAMERA_DISTANCE):
+        raise ValueError(f"{name} must lie in ({MIN_CAMERA_DISTANCE}, {MAX_CAMERA_DISTANCE:g}] "
+                         f"(the medium box's longest side is 1), got {distance}.")
+    return float(distance)
+
+
+def validate_orbit_position(u, name: str = "view") -> float:
+    """A position on the orbit as ``--view`` and ``mistyle.render(view=u)`` take it, in ``[0, 1)``."""
+    try:
+        position = float(u)
+    except (TypeError, ValueError):
+        position = float("nan")
+    if not (np.isfinite(position) and 0.0 <= position < 1.0):
+        raise ValueError(f"{name} is an orbit position in [0, 1), got {u!r}.")
+    return position
 
 
 @dataclass(frozen=True)
@@ -51,6 +72,9 @@ class CameraPath:
     elevation_deg: float = 10.0
     elevation_wobble_deg: float = 20.0
     fov_deg: float = 40.0
+
+    def __post_init__(self):
+        validate_camera_distance(self.distance, "CameraPath.distance")
 
     def view(self, u: float) -> View:
         azimuth = 2.0 * math.pi * u

@@ -5,18 +5,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..backend import require_variant
+from ..conventions import MAX_DENSITY_SCALE
 from ..volume import validate_albedo
 from .box import MediumBox
 
 
-def validate_density_scale(density_scale) -> float:
-    """``density_scale`` as a float; ``ValueError`` unless positive and finite."""
+def validate_density_scale(density_scale, name: str = "density_scale") -> float:
+    """``density_scale`` as a float; ``ValueError`` naming ``name`` unless in ``(0, MAX_DENSITY_SCALE]``."""
     try:
         scale = float(density_scale)
     except (TypeError, ValueError):
-        raise ValueError(f"density_scale must be a positive finite number, got {density_scale!r}.") from None
-    if not np.isfinite(scale) or scale <= 0:
-        raise ValueError(f"density_scale must be a positive finite number, got {density_scale!r}.")
+        scale = float("nan")
+    if not np.isfinite(scale) or not 0 < scale <= MAX_DENSITY_SCALE:
+        raise ValueError(f"{name} must lie in (0, {MAX_DENSITY_SCALE:g}], got {density_scale!r}.")
     return scale
 
 

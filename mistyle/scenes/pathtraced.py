@@ -22,6 +22,23 @@ from .lights import LightSpec
 from .medium import heterogeneous_medium, medium_cube
 
 PATH_TRACERS = ("volpath", "prbvolpath")
+MAX_DEPTH_LIMIT = 1024
+COAT_IOR_RANGE = (1.0, 4.0)  # open interval
+
+
+def validate_max_depth(max_depth: int, name: str = "max_depth") -> int:
+    """``-1`` (unlimited) or a path length in ``[1, MAX_DEPTH_LIMIT]``; ``ValueError`` naming ``name``."""
+    if not (max_depth == -1 or 1 <= max_depth <= MAX_DEPTH_LIMIT):
+        raise ValueError(f"{name} must be -1 (unlimited) or lie in [1, {MAX_DEPTH_LIMIT}], got {max_depth}.")
+    return int(max_depth)
+
+
+def validate_coat_ior(coat_ior, name: str = "coat_ior") -> float | None:
+    """``None`` (no coat) or an index of refraction in ``COAT_IOR_RANGE``; ``ValueError`` naming ``name``."""
+    low, high = COAT_IOR_RANGE
+    if coat_ior is not None and not (np.isfinite(coat_ior) and low < coat_ior < high):
+        raise ValueError(f"{name} needs an index of refraction in ({low:g}, {high:g}), e.g. 1.5; got {coat_ior}.")
+    return coat_ior
 
 
 def pathtraced_scene(
@@ -57,12 +74,10 @@ def pathtraced_scene(
     height, width = (res, res) if np.isscalar(res) else (int(res[0]), int(res[1]))
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}.")
-    if max_depth < -1 or max_depth == 0:
-        raise ValueError(f"max_depth must be -1 (unlimited) or >= 1, got {max_depth}.")
+    validate_max_depth(max_depth)
+    validate_coat_ior(coat_ior)
     if integrator not in PATH_TRACERS:
         raise ValueError(f"Unknown path tracer {integrator!r}; use one of {PATH_TRACERS}.")
-    if coat_ior is not None and not 1.0 < coat_ior < 4.0:
-        raise ValueError(f"The coat's index of refraction must lie in (1, 4), e.g. 1.5; got {coat_ior}.")
     bsdf = {"type": "null"} if coat_ior is None else {"type": "dielectric", "int_ior": float(coat_ior), "ext_ior": 1.0}
     if coat_mesh is not None and coat_ior is not None:
         boundary = {"type": "ply", "filename": str(coat_mesh), "bsdf": bsdf,

@@ -52,9 +52,8 @@ def measure_calibration(density: np.ndarray, density_scale: float, radiance: flo
     from .backend import active_variant
     from .bridge_torch import render_views
     from .integrators import prepare_density
-    from .scenes import LightSpec, albedo_parameter, pathtraced_scene
 
-    mi = active_variant()
+    active_variant()
     started = time.perf_counter()
     shape = density.shape
     if prepared is None:
@@ -65,16 +64,54 @@ def measure_calibration(density: np.ndarray, density_scale: float, radiance: flo
     if not mask.any():
         raise ValueError("The medium is not visible from the calibration views.")
     single = float(layer.transpose(0, 2, 3, 1)[mask].mean())
-    # One scene; only the uniform albedo changes between levels.
+    multiple = [0.0] + [float(images[mask].mean()) for images in uniform_albedo_renders(
+        density, density_scale, radiance, views, levels, res=res, spp=spp)]
+    multiple = np.maximum.accumulate(np.array(multiple))  # monotone despite noise
+    return ScatteringCalibration(np.array((0.0,) + tuple(levels)), multiple, single, time.perf_counter() - started)
+
+
+def uniform_albedo_renders(density: np.ndarray, density_scale: float, radiance: float, views, levels, *,
+                           res: int, spp: int, max_depth: int = -1) -> list[np.ndarray]:
+    """``volpath`` renders ``(V, res, res, 3)`` of ``density`` with a uniform albedo at each of ``levels``
+    (one scene; only the albedo changes between levels)."""
+    from .backend import active_variant
+    from .scenes import LightSpec, albedo_parameter, pathtraced_scene
+
+    mi = active_variant()
+    shape = density.shape
     scene = mi.load_dict(pathtraced_scene(density, np.zeros(shape + (3,), np.float32), views, res=res,
-                                          density_scale=density_scale, spp=spp, light=LightSpec("constant", radiance), seed=17))
+                                          density_scale=density_scale, spp=spp, max_depth=max_depth,
+                                          light=LightSpec("constant", radiance), seed=17))
     params = mi.traverse(scene)
     albedo_key = albedo_parameter(params)
-    multiple = [0.0]
+    renders = []
     for level in levels:
         params[albedo_key] = mi.TensorXf(np.full(shape + (3,), level, np.float32))
         params.update()
-        images = np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32) for index in range(len(views))])
-        multiple.append(float(images[mask].mean()))
-    multiple = np.maximum.accumulate(np.array(multiple))  # monotone despite noise
-    return ScatteringCalibration(np.array((0.0,) + tuple(levels)), multiple, single, time.perf_counter() - started)
+        renders.append(np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32) for index in range(len(views))]))
+    return renders
+
+
+MATCH_LEVELS = tuple(np.geomspace(1e-4, 1.0, 17))
+
+
+def matched_uniform_albedo(density: np.ndarray, density_scale: float, radiance: float, style: np.ndarray, views, *,
+                           res: int = 64, spp: int = 16) -> np.ndarray:
+    """The uniform RGB albedo ``(3,)`` whose path-traced foreground has the style's mean display colour.
+
+    The must-beat baseline of the fidelity benchmark: the best a medium of one colour can do. Under a
+    white constant light the channels render independently, so one sweep of grey levels
+    ``MATCH_LEVELS`` gives the mean display value ``f(a)`` of every channel (over the pixels that see
+    the medium at full albedo); each channel is ``f^{-1}`` of the style's mean in that channel
+    (``f`` is monotone; interpolated in log albedo).
+    """
+    from .display import display
+
+    renders = uniform_albedo_renders(density, density_scale, radiance, views, MATCH_LEVELS, res=res, spp=spp)
+    mask = renders[-1].max(axis=-1) > FOREGROUND_THRESHOLD
+    if not mask.any():
+        raise ValueError("The medium is not visible from the matching views.")
+    means = np.maximum.accumulate([float(display(images[mask]).mean()) for images in renders])
+    target = np.asarray(style, dtype=np.float64).reshape(-1, 3).mean(axis=0)
+    log_albedo = np.interp(target, means, np.log(MATCH_LEVELS))
+    return np.exp(log_albedo).astype(np.float32)

@@ -2,7 +2,7 @@
 
 Stylizes the bundled smoke frame ``examples/smoke_64.vol`` with the bundled style
 ``examples/style_marble.png`` using the bundled checkpoint (trained with ``configs/cpu.toml``),
-refines the albedo for a few steps with the path tracer in the loop, path-traces a small turntable
+refines the albedo against the style (``--refine``), path-traces a small turntable
 with Mitsuba's ``volpath`` (multiple scattering, the training light), and writes the albedo grid, EXR/PNG frames, an MP4
 and a GIF and ``report.json`` to ``out/demo``. Any option of ``python -m mistyle.render_final``
 can be appended, e.g. ``python -m mistyle.demo --style my.png --coat dielectric:1.5``.

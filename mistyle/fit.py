@@ -1,17 +1,27 @@
 """The one albedo-fitting loop: Adam on an albedo grid against a style, through a differentiable renderer.
 
-Used by the direct-optimisation baseline (the paper's "tomography-like" comparison: no network,
-the grid itself is fitted through the fast layer with the training objective) and by the final
-render's refinement (the same loop with the path tracer, ``bridge_torch.PathTracedViews``, so the
-albedo is fitted to what the final image shows, multiple scattering included).
+Used by the direct-optimisation reference (the paper's "tomography-like" comparison: no network,
+the grid itself is fitted), by the final render's refinement and by the objective study. The
+renderer is the fast layer (``LayerViews``) or the path tracer (``bridge_torch.PathTracedViews``,
+multiple scattering, so the albedo is fitted to what the final image shows).
 
-The albedo is ``sigmoid`` of free logits, so it stays in [0, 1]. Each step renders
-``views_per_step`` random views on the training orbit and minimises
-``objective.loss(views) + tv_weight * TV(albedo)``.
+Parametrisation (``FitSettings.parametrisation``):
+
+* ``"log"`` (default): albedo = exp(y), y <= 0 (projected after each step). Equal steps in y are
+  equal *ratios* of albedo, so the dark, saturated corner of albedo space where most of a
+  render's visible range lives (albedo 0.003-0.3 spans display 0.07-0.64 on a smoke plume) is as
+  reachable as the bright one.
+* ``"sigmoid"``: albedo = sigmoid(x), the earlier choice; steps near 0.5 are small in ratio, and
+  dark colours are rarely reached.
+
+Each step renders ``views_per_step`` random views on the training orbit and minimises
+``objective.loss(views, targets, masks) + tv_weight * TV(albedo)``; ``masks(views)`` (optional)
+gives the pixels each view's style term sees (e.g. ``LayerViews.body_masks``).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -21,11 +31,16 @@ import torch
 
 from .conventions import DEFAULT_ENV_RADIANCE, ORBIT_DISTANCE
 from .objective.losses import tv_loss
-from .objective.style import StyleObjective
+from .objective.masks import body_mask
 from .scenes import CameraPath, View
 
 Renderer = Callable[[torch.Tensor, Sequence[View], int], torch.Tensor]
 """``render(albedo (3, Z, Y, X), views, seed) -> (V, 3, H, W)`` linear radiance, differentiable."""
+MaskMaker = Callable[[Sequence[View]], torch.Tensor]
+"""``masks(views) -> (V, 1, H, W)`` in {0, 1}: the pixels of each view the style term compares."""
+
+PARAMETRISATIONS = ("log", "sigmoid")
+MIN_ALBEDO = 1e-4  # the log parametrisation's floor: display 0.02 under the training light
 
 
 @dataclass
@@ -35,7 +50,12 @@ class FitSettings:
     views_per_step: int = 4
     tv_weight: float = 10.0
     camera_distance: float = ORBIT_DISTANCE
+    parametrisation: str = "log"
     seed: int = 0
+
+    def __post_init__(self):
+        if self.parametrisation not in PARAMETRISATIONS:
+            raise ValueError(f"Unknown parametrisation {self.parametrisation!r}; use one of {', '.join(PARAMETRISATIONS)}.")
 
 
 @dataclass
@@ -45,42 +65,149 @@ class AlbedoFit:
     losses: list[float] = field(default_factory=list)
 
 
-def fit_albedo(render: Renderer, style: torch.Tensor, objective: StyleObjective, initial: torch.Tensor,
-               settings: FitSettings = FitSettings(), progress=None) -> AlbedoFit:
+class _Albedo:
+    """The free variable of a fit and its map to albedo (see the module docstring)."""
+
+    def __init__(self, initial: torch.Tensor, parametrisation: str):
+        self.log = parametrisation == "log"
+        initial = initial.detach().to(torch.float32)
+        if self.log:
+            self.free = initial.clamp(MIN_ALBEDO, 1.0).log().requires_grad_(True)
+        else:
+            self.free = torch.logit(initial.clamp(1e-3, 1 - 1e-3)).requires_grad_(True)
+
+    def albedo(self) -> torch.Tensor:
+        return self.free.exp() if self.log else torch.sigmoid(self.free)
+
+    @torch.no_grad()
+    def project(self) -> None:
+        if self.log:
+            self.free.clamp_(math.log(MIN_ALBEDO), 0.0)
+
+
+def fit_albedo(render: Renderer, style: torch.Tensor, objective, initial: torch.Tensor,
+               settings: FitSettings = FitSettings(), progress=None, masks: MaskMaker | None = None) -> AlbedoFit:
     """Fit an albedo grid to ``style (3, S, S)`` starting from ``initial (3, Z, Y, X)`` in [0, 1].
 
-    ``progress(step, steps, loss)`` is called after every step when given.
+    ``objective``: ``objective.style.StyleObjective`` or ``SlicedObjective``. ``progress(step, steps,
+    loss)`` is called after every step when given.
     """
-    logits = torch.logit(initial.detach().to(torch.float32).clamp(1e-3, 1 - 1e-3)).requires_grad_(True)
-    optimizer = torch.optim.Adam([logits], lr=settings.lr)
+    variable = _Albedo(initial, settings.parametrisation)
+    optimizer = torch.optim.Adam([variable.free], lr=settings.lr)
     targets = objective.targets(style[None])
     orbit, rng = CameraPath(distance=settings.camera_distance), np.random.default_rng(settings.seed)
     losses = []
     started = time.perf_counter()
     for step in range(settings.steps):
-        albedo = torch.sigmoid(logits)
-        images = render(albedo, orbit.sample(settings.views_per_step, rng), step * settings.views_per_step)
-        loss = objective.loss(images[None], targets) + settings.tv_weight * tv_loss(albedo[None])
+        albedo = variable.albedo()
+        views = orbit.sample(settings.views_per_step, rng)
+        images = render(albedo, views, step * settings.views_per_step)
+        loss = (objective.loss(images[None], targets, None if masks is None else masks(views))
+                + settings.tv_weight * tv_loss(albedo[None]))
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
+        variable.project()
         losses.append(float(loss.detach()))
         if progress is not None:
             progress(step + 1, settings.steps, losses[-1])
-    return AlbedoFit(torch.sigmoid(logits).detach(), time.perf_counter() - started, losses)
+    return AlbedoFit(variable.albedo().detach(), time.perf_counter() - started, losses)
 
 
-def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray, style: torch.Tensor,
-                  objective: StyleObjective, settings: FitSettings, *, res: int = 64, spp: int = 8,
-                  radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu", progress=None) -> tuple[np.ndarray, float]:
-    """``fit_albedo`` with the path tracer in the loop (``prbvolpath``, multiple scattering).
+class LayerViews:
+    """The fast layer as a ``Renderer`` for one prepared density, and its body masks.
 
-    Starts from ``albedo (Z, Y, X, 3)``; returns ``(refined albedo (Z, Y, X, 3), seconds)``. Each step
-    renders ``settings.views_per_step`` views at ``res``^2 with ``spp`` paths per pixel.
+    ``views(albedo (3, Z, Y, X), views, seed) -> (V, 3, res, res)``; ``body_masks(views)`` renders a
+    white albedo from the same views (no gradient) and keeps the medium's body
+    (``objective.masks.body_mask``), for this renderer or any other with the same cameras.
+    """
+
+    def __init__(self, prepared, res: int, steps: int = 48, radiance: float = DEFAULT_ENV_RADIANCE):
+        self.prepared, self.res, self.steps, self.radiance = prepared, int(res), int(steps), float(radiance)
+
+    def __call__(self, albedo: torch.Tensor, views: Sequence[View], seed: int = 0) -> torch.Tensor:
+        from .bridge_torch import render_views
+
+        return render_views(albedo, self.prepared, list(views), self.res, steps=self.steps, radiance=self.radiance)
+
+    def body_masks(self, views: Sequence[View], res: int | None = None) -> torch.Tensor:
+        from .bridge_torch import render_views
+
+        white = torch.ones((3,) + tuple(self.prepared.density.shape), dtype=torch.float32)
+        with torch.no_grad():
+            images = render_views(white, self.prepared, list(views), res or self.res, steps=self.steps,
+                                  radiance=self.radiance)
+        return body_mask(images)
+
+
+@dataclass
+class RefineSettings:
+    """A refinement schedule: ``layer_steps`` through the fast layer (single scattering, cheap), then
+    ``path_steps`` with the path tracer in the loop (multiple scattering, what the final image shows).
+
+    The objective is ``objective.style.SlicedObjective`` (RGB and patch sliced Wasserstein, weights
+    ``rgb_weight`` and ``patch_weight``) on the medium's body (``LayerViews.body_masks``), with the
+    log-albedo parametrisation; chosen by ``experiments/objective_study.py``.
+    """
+
+    layer_steps: int = 150
+    path_steps: int = 0
+    layer_res: int = 64
+    path_res: int = 64
+    spp: int = 8
+    views_per_step: int = 4
+    path_views_per_step: int = 2
+    lr: float = 0.05
+    tv_weight: float = 10.0
+    rgb_weight: float = 1.0
+    patch_weight: float = 0.2
+    camera_distance: float = ORBIT_DISTANCE
+    layer_steps_per_ray: int = 48
+    seed: int = 0
+
+    def scaled(self, factor: float) -> "RefineSettings":
+        """The same schedule with ``factor`` times the steps."""
+        from dataclasses import replace
+
+        return replace(self, layer_steps=round(self.layer_steps * factor), path_steps=round(self.path_steps * factor))
+
+    def fit_settings(self, steps: int, views: int) -> FitSettings:
+        return FitSettings(steps=steps, lr=self.lr, views_per_step=views, tv_weight=self.tv_weight,
+                           camera_distance=self.camera_distance, parametrisation="log", seed=self.seed)
+
+
+def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray, style: np.ndarray,
+                  settings: RefineSettings, *, radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu",
+                  prepared=None, progress=None) -> tuple[np.ndarray, float]:
+    """Refine ``albedo (Z, Y, X, 3)`` towards the display-space ``style (H, W, 3)``: returns
+    ``(refined albedo (Z, Y, X, 3), seconds)``.
+
+    ``prepared``: the density's ``PreparedDensity`` when the caller has it. ``progress(stage, step,
+    steps, loss)`` is called after every step when given, ``stage`` being ``"layer"`` or ``"path"``.
     """
     from .bridge_torch import PathTracedViews
+    from .integrators import prepare_density
+    from .model.features import square_style
+    from .objective.style import SLICED_STYLE_SIZE, SlicedObjective
 
-    render = PathTracedViews(density, density_scale, res=res, spp=spp, radiance=radiance, device=device)
-    initial = torch.from_numpy(np.ascontiguousarray(albedo, dtype=np.float32)).permute(3, 0, 1, 2)
-    fit = fit_albedo(render, style, objective, initial, settings, progress=progress)
-    return np.ascontiguousarray(fit.albedo.permute(1, 2, 3, 0).numpy()), fit.seconds
+    started = time.perf_counter()
+    prepared = prepare_density(density, density_scale) if prepared is None else prepared
+    target = square_style(style, SLICED_STYLE_SIZE).to(device)
+    objective = SlicedObjective(rgb_weight=settings.rgb_weight, patch_weight=settings.patch_weight, seed=settings.seed)
+    current = torch.from_numpy(np.ascontiguousarray(albedo, dtype=np.float32)).permute(3, 0, 1, 2).to(device)
+
+    def reporter(stage):
+        return None if progress is None else (lambda step, steps, loss: progress(stage, step, steps, loss))
+
+    if settings.layer_steps:
+        layer = LayerViews(prepared, settings.layer_res, steps=settings.layer_steps_per_ray, radiance=radiance)
+        current = fit_albedo(layer, target, objective, current, settings.fit_settings(settings.layer_steps, settings.views_per_step),
+                             progress=reporter("layer"), masks=layer.body_masks).albedo
+    if settings.path_steps:
+        masks = LayerViews(prepared, settings.path_res, steps=settings.layer_steps_per_ray, radiance=radiance).body_masks
+        render = PathTracedViews(density, density_scale, res=settings.path_res, spp=settings.spp, radiance=radiance,
+                                 device=device)
+        current = fit_albedo(render, target, objective, current,
+                             settings.fit_settings(settings.path_steps, settings.path_views_per_step),
+                             progress=reporter("path"), masks=masks).albedo
+    return np.ascontiguousarray(current.permute(1, 2, 3, 0).cpu().numpy()), time.perf_counter() - started

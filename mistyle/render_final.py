@@ -10,12 +10,13 @@ network's albedo), ``albedo_refined.vol`` when refined or calibrated (the albedo
 traced), per image ``*.exr`` (linear) and ``*.png`` (the training tone curve) and
 ``*_network_layer.png`` (the fast layer's image of the network's albedo from the same view, under
 the training light: what the network was trained to produce), ``turntable.mp4``/``.gif`` or
-``sequence.mp4``/``.gif``, and ``report.json`` with timings and style metrics: ``swd_final`` (the
-path-traced images against the style), ``swd_layer`` (the ``*_network_layer`` images), ``swd_plain``
-(path traced without the correction) when a correction or refinement is applied, and
-``temporal_flicker`` for sequences. By default single frames are
-refined for a few steps with the path tracer in the loop (``--refine``), which brought the final
-renders closest to unseen styles; ``--refine 0`` renders the network's albedo as predicted.
+``sequence.mp4``/``.gif``, and ``report.json`` with timings and style metrics of the path-traced
+images against the style: ``rgb_swd``, ``patch_swd`` and ``hue_coverage`` (the fidelity benchmark's,
+``objective.metrics.style_fidelity``), ``swd_final`` (sliced W2 of colours), ``swd_layer`` (the
+``*_network_layer`` images), and ``temporal_flicker`` for sequences. By default a single frame's albedo
+is refined against the style (``--refine``: fast-layer steps, ``--refine-path``: path-traced steps;
+``fit.refine_albedo``), which is what makes the medium take on the style's hues and patterns
+(``docs/style_fidelity.md``); ``--refine 0`` renders the network's albedo as predicted.
 A run writes into a hidden staging folder beside ``--out`` that replaces ``--out`` only when the
 run is complete, so a failed or interrupted run leaves nothing half-written, and a second run
 into the same ``--out`` is refused while one is in progress.
@@ -34,14 +35,23 @@ import numpy as np
 
 from .conventions import CORRECTIONS, DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
 
-# Measured on 3 unseen styles (experiments/final_appearance.py): SWD to the style 0.126 fast layer,
-# 0.098 plain volpath, 0.105 calibrated, 0.080 after 16 refinement steps from the plain albedo
-# (about 7 s per 64^3 frame on 2 cores). Sequences are not refined by default: refining frames
-# independently against random views would bring back the flicker the network avoids.
-DEFAULT_REFINE_STEPS = 16
-# Each refinement step path-traces REFINE_VIEWS random orbit views at REFINE_RES^2 (or --res if
-# smaller) with REFINE_SPP paths per pixel, and takes one Adam step of REFINE_LR on the logits.
-REFINE_VIEWS, REFINE_RES, REFINE_SPP, REFINE_LR = 2, 64, 8, 0.05
+# The default refinement of single frames (``fit.RefineSettings``): the albedo is fitted to the style with
+# the sliced-Wasserstein objective on the medium's body and log-albedo, chosen by
+# experiments/objective_study.py; what it achieves on held-out styles and densities is in
+# docs/style_fidelity.md. Sequences are not refined by default: refining frames independently against
+# random views would bring back the flicker the network avoids.
+DEFAULT_REFINE_STEPS = 150
+DEFAULT_REFINE_PATH_STEPS = 0
+
+
+def refinement_settings(config, layer_steps: int = DEFAULT_REFINE_STEPS, path_steps: int = DEFAULT_REFINE_PATH_STEPS,
+                        camera_distance: float | None = None):
+    """The ``fit.RefineSettings`` of ``--refine``/``--refine-path`` for a checkpoint's ``config``."""
+    from .fit import RefineSettings
+
+    distance = config.render.camera_distance if camera_distance is None else camera_distance
+    return RefineSettings(layer_steps=layer_steps, path_steps=path_steps, tv_weight=config.loss.tv_weight,
+                          camera_distance=distance)
 
 
 def _coat(text: str) -> float:
@@ -78,8 +88,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--correct", choices=CORRECTIONS, default="none",
                    help="calibrate: map the albedo so its multiply-scattered brightness matches single scattering")
     p.add_argument("--refine", type=int, default=None, metavar="STEPS",
-                   help=f"refine the albedo for STEPS steps against the style with the path tracer in the loop "
+                   help=f"refine the albedo for STEPS steps against the style through the fast layer "
                         f"(default: {DEFAULT_REFINE_STEPS} for a single frame, 0 for sequences)")
+    p.add_argument("--refine-path", type=int, default=None, metavar="STEPS",
+                   help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
+                        f"{DEFAULT_REFINE_PATH_STEPS} for a single frame, 0 for sequences)")
     p.add_argument("--fps", type=int, default=12)
     p.add_argument("--device", choices=DEVICES, default="cpu")
     return p
@@ -120,6 +133,7 @@ class Job:
     density_scale: float
     camera_distance: float
     refine_steps: int
+    refine_path_steps: int
     coat_mesh: tuple | None = None  # (vertices, faces) placed in the medium box, for --mesh with --coat
     coat_mesh_path: Path | None = None
     notes: list[str] = field(default_factory=list)
@@ -189,6 +203,8 @@ def check_options(args) -> None:
         (0 <= args.turntable <= 3600, f"--turntable must lie in [0, 3600] frames, got {args.turntable}"),
         (1 <= args.fps <= 240, f"--fps must lie in [1, 240], got {args.fps}"),
         (args.refine is None or 0 <= args.refine <= 10000, f"--refine must lie in [0, 10000] steps, got {args.refine}"),
+        (args.refine_path is None or 0 <= args.refine_path <= 10000,
+         f"--refine-path must lie in [0, 10000] steps, got {args.refine_path}"),
         (8 <= args.mesh_res <= 512, f"--mesh-res must lie in [8, 512], got {args.mesh_res}"),
     ]
     for ok, message in checks:
@@ -229,12 +245,13 @@ def load(args) -> Job:
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
     sequence = len(densities) > 1
     refine_steps = args.refine if args.refine is not None else (0 if sequence else DEFAULT_REFINE_STEPS)
+    refine_path_steps = args.refine_path if args.refine_path is not None else (0 if sequence else DEFAULT_REFINE_PATH_STEPS)
     camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
     orbit = CameraPath(distance=camera_distance)
     views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
     return Job(args=args, stylizer=stylizer, style=style, densities=densities, velocities=velocities, names=names,
                views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
-               refine_steps=refine_steps, coat_mesh=coat_mesh, notes=notes)
+               refine_steps=refine_steps, refine_path_steps=refine_path_steps, coat_mesh=coat_mesh, notes=notes)
 
 
 def write_coat_mesh(job: Job) -> None:
@@ -259,7 +276,7 @@ def _inputs_record(job: Job) -> dict:
             "shape_zyx": list(job.densities[0].shape), "checkpoint": str(job.stylizer.path), "light": args.light,
             "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": job.density_scale,
             "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct,
-            "refine_steps": job.refine_steps, "views": len(job.views)}
+            "refine_steps": job.refine_steps, "refine_path_steps": job.refine_path_steps, "views": len(job.views)}
 
 
 def _albedo_stem(job: Job, kind: str, index: int) -> str:
@@ -304,7 +321,7 @@ def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np
         rendered = [calibration.apply(a) for a in rendered]
         report["calibration"] = calibration.as_dict()
         log(f"multiple-scattering calibration in {calibration.seconds:.1f} s")
-    if job.refine_steps:
+    if job.refine_steps or job.refine_path_steps:
         rendered, report["refine_seconds"] = refine_frames(job, rendered)
     check_finite("The corrected albedo of frame", rendered)
     if rendered is not albedos:
@@ -314,31 +331,24 @@ def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np
 
 
 def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray], float]:
-    """``job.refine_steps`` steps of ``fit.fit_albedo`` per frame with the path tracer in the loop."""
+    """``fit.refine_albedo`` of every frame: ``job.refine_steps`` fast-layer steps, then
+    ``job.refine_path_steps`` path-traced ones, against the style."""
     from .fit import refine_albedo
-    from .objective.style import StyleObjective
 
     config = job.stylizer.config
-    objective = StyleObjective(job.stylizer.extractor, config.loss.style, config.loss.rgb_weight)
-    style = job.stylizer.style_tensor(job.style)
-    settings = refine_settings(config, job.refine_steps, job.camera_distance)
+    settings = refinement_settings(config, job.refine_steps, job.refine_path_steps, job.camera_distance)
     refined, seconds = [], 0.0
     for index, (grid, albedo) in enumerate(zip(job.densities, albedos)):
-        result, took = refine_albedo(
-            grid, job.density_scale, albedo, style, objective, settings, res=min(job.args.res, REFINE_RES), spp=REFINE_SPP,
-            radiance=config.render.radiance, device=job.args.device,
-            progress=lambda done, count, loss: log(f"refining frame {index}: step {done}/{count}, loss {loss:.4g}"))
+        def progress(stage, done, count, loss, index=index):
+            if done == count or done % 25 == 0:
+                log(f"refining frame {index} ({stage}): step {done}/{count}, loss {loss:.4g}")
+
+        result, took = refine_albedo(grid, job.density_scale, albedo, job.style, settings,
+                                     radiance=config.render.radiance, device=job.args.device,
+                                     prepared=job.prepared_frame(index), progress=progress)
         refined.append(result)
         seconds += took
     return refined, seconds
-
-
-def refine_settings(config, steps: int, camera_distance: float):
-    """The ``fit.FitSettings`` of ``--refine``: the REFINE_* constants and the network's TV weight."""
-    from .fit import FitSettings
-
-    return FitSettings(steps=steps, lr=REFINE_LR, views_per_step=REFINE_VIEWS, tv_weight=config.loss.tv_weight,
-                       camera_distance=camera_distance)
 
 
 # ---------------------------------------------------------------------------- stage 4: path trace
@@ -406,21 +416,17 @@ def _layer_images(job: Job, frame: int, albedo: np.ndarray, views) -> list[np.nd
 # ---------------------------------------------------------------------------- stage 5: report
 def write_report(job: Job, albedos, images, layer_images, report: dict) -> None:
     """Style metrics of every image against the style, ``report.json``, and a summary line."""
-    from .api import path_trace
     from .io import atomic_write_bytes
-    from .objective.metrics import style_distance
+    from .objective.metrics import style_distance, style_fidelity
 
     final = [style_distance(image, job.style) for image in images]
     report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
     report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
     report["swd_layer"] = float(np.mean([style_distance(image, job.style)["swd"] for image in layer_images]))
-    if job.args.correct != "none" or job.refine_steps:
-        # The same views and settings without the correction: how much the correction moved the metric.
-        plain = [image for frame, frame_views in job.render_jobs()
-                 for image in path_trace(job.densities[frame], albedos[frame], frame_views, **_trace_options(job))[0]]
-        report["swd_plain"] = float(np.mean([style_distance(image, job.style)["swd"] for image in plain]))
+    report.update(style_fidelity(images, job.style))
     atomic_write_bytes(job.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
-    print(json.dumps({k: report[k] for k in ("stylize_seconds", "render_seconds", "swd_layer", "swd_final") if k in report}))
+    print(json.dumps({k: report[k] for k in ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd",
+                                             "hue_coverage") if k in report}))
 
 
 if __name__ == "__main__":

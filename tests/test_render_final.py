@@ -103,7 +103,8 @@ def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_pa
     assert {"albedo.vol", "albedo.npy", "report.json", "turntable.mp4", "turntable.gif", "turntable_0000.exr",
             "turntable_0002.png", "turntable_0001_network_layer.png"} <= names
     report = json.loads((out / "report.json").read_text())
-    for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "swd_plain", "calibration", "refine_seconds"):
+    for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "rgb_swd", "patch_swd", "hue_coverage",
+                "calibration", "refine_seconds"):
         assert key in report, key
     assert (out / "turntable.mp4").stat().st_size > 1000 and (out / "turntable.mp4").read_bytes()[4:8] == b"ftyp"
     assert np.load(out / "albedo.npy").shape == (16, 18, 20, 3)
@@ -138,13 +139,13 @@ def test_mesh_is_voxelized_and_coated(mi, checkpoint, inputs, tmp_path):
     assert json.loads((out / "report.json").read_text())["inputs"]["coat_ior"] == 1.5
 
 
-def test_refine_with_the_path_tracer_in_the_loop(mi, checkpoint, inputs, tmp_path):
+def test_refine_through_the_layer_then_the_path_tracer(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--refine", "2"])
+                 "--out", str(out), "--res", "16", "--spp", "2", "--refine", "2", "--refine-path", "1"])
     assert code == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["refine_seconds"] > 0 and "swd_plain" in report
+    assert report["refine_seconds"] > 0 and report["inputs"]["refine_path_steps"] == 1
     refined = read_vol(out / "albedo_refined.vol")
     assert refined.shape == (16, 18, 20, 3) and not np.allclose(refined, np.load(out / "albedo.npy"))
 

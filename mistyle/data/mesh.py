@@ -49,6 +49,20 @@ def icosphere(subdivisions: int = 3) -> tuple[np.ndarray, np.ndarray]:
     return np.array(vertices), np.array(faces, dtype=np.int64)
 
 
+def displaced_icosphere(seed: int = 0, subdivisions: int = 4, amplitude: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+    """A rock-like closed mesh: an icosphere whose vertices move along their normals by a random
+    sum of low-order waves (up to ``amplitude`` of the radius), squashed to 1 x 0.8 x 0.7."""
+    vertices, faces = icosphere(subdivisions)
+    rng = np.random.default_rng(seed)
+    offset = np.zeros(len(vertices))
+    for frequency in (1.5, 3.0, 6.0):
+        directions = rng.normal(size=(3, 3))
+        for direction, phase in zip(directions, rng.uniform(0, 2 * np.pi, 3)):
+            offset += np.sin(frequency * vertices @ direction + phase) / frequency
+    offset *= amplitude / np.abs(offset).max()
+    return vertices * (1.0 + offset)[:, None] * np.array([1.0, 0.8, 0.7]), faces
+
+
 def write_ply(path, vertices: np.ndarray, faces: np.ndarray) -> Path:
     """Write a binary little-endian PLY triangle mesh, atomically."""
     vertices = np.asarray(vertices, dtype="<f4")

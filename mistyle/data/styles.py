@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import STYLE_SUFFIXES, load_style
+from .heldout import check_training_styles
 
 PHOTOS = {
     "astronaut": "astronaut.png", "chelsea": "chelsea.png", "coffee": "coffee.png",
@@ -51,6 +52,8 @@ def random_crop(image: np.ndarray, size: int, rng: np.random.Generator) -> np.nd
 class ImageFolder:
     """Every style picture under ``root`` (``io.STYLE_SUFFIXES``; DTD's ``images/<class>/*.jpg`` included).
 
+    A folder holding any of the fidelity benchmark's held-out styles is refused (``data.heldout``).
+
     Unreadable files are skipped when first read and counted in ``skipped``. ``split()`` assigns
     each file to train or held-out by a hash of its relative path, so the split is stable when
     files are added.
@@ -67,6 +70,7 @@ class ImageFolder:
         self.paths = sorted(p for p in self.root.rglob("*") if p.suffix.lower() in STYLE_SUFFIXES and p.is_file())
         if not self.paths:
             raise ValueError(f"No images ({', '.join(STYLE_SUFFIXES)}) under {self.root}.")
+        check_training_styles(self.paths)  # the fidelity benchmark's styles must stay unseen
 
     def split(self, holdout_fraction: float = 0.1) -> tuple[list[Path], list[Path]]:
         def held_out(path: Path) -> bool:

@@ -7,6 +7,7 @@ Feature maps are ``(B, C, H, W)`` with a foreground mask ``(B, 1, H, W)`` in {0,
 from __future__ import annotations
 
 import torch
+import torch.nn.functional as F
 
 from ..warp import semi_lagrangian_warp
 
@@ -76,6 +77,41 @@ def _per_item(features, mask, loss_of_values):
         if values.shape[1]:
             total = total + loss_of_values(values)
     return total / batch
+
+
+def sliced_wasserstein_loss(points: torch.Tensor, target: torch.Tensor, projections: int = 64,
+                            generator: torch.Generator | None = None) -> torch.Tensor:
+    """Squared sliced 2-Wasserstein distance between point sets ``(N, D)`` and ``(M, D)`` (Heitz et al. 2021).
+
+    Both sets are projected on ``projections`` random unit directions; each sorted projection of
+    ``points`` is compared with the target's quantiles at the same ranks (the target carries no
+    gradient, so the sets need not have equal sizes). Unlike a per-channel histogram loss, random
+    directions couple the channels: a render with the style's red and blue but not its purple
+    pixels is penalised.
+    """
+    if points.shape[1] != target.shape[1]:
+        raise ValueError(f"Point sets of dimension {points.shape[1]} and {target.shape[1]}.")
+    if points.shape[0] == 0:
+        return points.new_zeros(())
+    directions = torch.randn(points.shape[1], projections, generator=generator).to(points)
+    directions = directions / directions.norm(dim=0, keepdim=True)
+    ours = torch.sort(points @ directions, dim=0).values
+    with torch.no_grad():
+        theirs = torch.sort(target.to(points) @ directions, dim=0).values
+        theirs = _quantiles(theirs.T.contiguous(), ours.shape[0]).T
+    return ((ours - theirs) ** 2).mean() * points.shape[1]
+
+
+def masked_patches(images: torch.Tensor, mask: torch.Tensor | None, size: int) -> torch.Tensor:
+    """``size x size`` patches ``(N, C*size*size)`` of ``images (B, C, H, W)``; with ``mask (B, 1, H, W)``,
+    only the patches wholly inside it. Images smaller than a patch give none."""
+    if min(images.shape[-2:]) < size:
+        return images.new_zeros((0, images.shape[1] * size * size))
+    patches = F.unfold(images, size).transpose(1, 2).reshape(-1, images.shape[1] * size * size)
+    if mask is None:
+        return patches
+    inside = F.unfold(mask, size).amin(dim=1).reshape(-1) > 0.5
+    return patches[inside]
 
 
 def tv_loss(volume: torch.Tensor) -> torch.Tensor:

@@ -10,6 +10,7 @@ import torch
 import torch.nn.functional as F
 
 from ..conventions import FOREGROUND_THRESHOLD
+from ..display import tone_map
 
 
 def render_mask(images: torch.Tensor, threshold: float = FOREGROUND_THRESHOLD) -> torch.Tensor:
@@ -22,3 +23,17 @@ def pool_mask(mask: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
     if tuple(mask.shape[-2:]) == tuple(size):
         return mask
     return F.adaptive_max_pool2d(mask, size)
+
+
+BODY_THRESHOLD = 0.5
+
+
+def body_mask(white_render: torch.Tensor, threshold: float = BODY_THRESHOLD) -> torch.Tensor:
+    """The medium's body ``(B, 1, H, W)``: pixels where a render of the same view with a white albedo
+    ``(B, 3, H, W)`` (linear) is brighter than ``threshold`` on display.
+
+    Matching a style's colours only there keeps the thin, dark fringes of a medium (which no albedo
+    can make bright) from soaking up the style's dark colours while the body stays pale
+    (measured: ``docs/style_fidelity.md``).
+    """
+    return (tone_map(white_render.detach()).mean(dim=1, keepdim=True) > threshold).to(white_render.dtype)

@@ -28,32 +28,40 @@ in float64 is 256 MB. Measured on a 1000x1000 photograph against a 64^2 render, 
 distance differs from the exact one by under 0.5% (``tests/test_losses.py``)."""
 
 
-def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, seed: int = 0) -> float:
-    """Sliced 2-Wasserstein distance between two RGB point sets ``(N, 3)`` and ``(M, 3)``.
+def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, seed: int = 0, order: int = 2) -> float:
+    """Sliced Wasserstein-``order`` distance between point sets ``(N, D)`` and ``(M, D)`` (RGB: D = 3).
 
-    ``sqrt(mean over random unit directions of W2^2 between the 1D projections)``; quantiles are
+    ``(mean over random unit directions of W_p^p between the 1D projections)^(1/p)``; quantiles are
     compared at a common count, so the sets need not have equal sizes. Sets of more than
     ``MAX_METRIC_POINTS`` points are subsampled first.
     """
+    if order not in (1, 2):
+        raise ValueError(f"sliced_wasserstein supports order 1 or 2, got {order}.")
     rng = np.random.default_rng(seed)
     a, b = (np.asarray(bounded_points(points, rng), dtype=np.float64) for points in (a, b))
     if len(a) == 0 or len(b) == 0:
         raise ValueError("sliced_wasserstein needs non-empty point sets (did the render see any medium?).")
-    directions = np.random.default_rng(seed).normal(size=(projections, 3))
+    if a.shape[1] != b.shape[1]:
+        raise ValueError(f"sliced_wasserstein needs points of one dimension, got {a.shape[1]} and {b.shape[1]}.")
+    directions = np.random.default_rng(seed).normal(size=(projections, a.shape[1]))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     count = max(len(a), len(b))
     levels = (np.arange(count) + 0.5) / count
     qa = _sorted_quantiles(np.sort(a @ directions.T, axis=0), levels)
     qb = _sorted_quantiles(np.sort(b @ directions.T, axis=0), levels)
+    if order == 1:
+        return float(np.mean(np.abs(qa - qb)))
     return float(np.sqrt(np.mean((qa - qb) ** 2)))
 
 
-def bounded_points(points, rng: np.random.Generator) -> np.ndarray:
-    """``points`` as ``(N, 3)``, subsampled to ``MAX_METRIC_POINTS`` rows when larger (no copy otherwise)."""
-    points = np.asarray(points).reshape(-1, 3)
-    if len(points) <= MAX_METRIC_POINTS:
+def bounded_points(points, rng: np.random.Generator, limit: int = MAX_METRIC_POINTS) -> np.ndarray:
+    """``points`` as ``(N, D)`` (``(N, 3)`` for images), subsampled to ``limit`` rows when larger
+    (no copy otherwise)."""
+    points = np.asarray(points)
+    points = points.reshape(-1, 3) if points.ndim != 2 else points
+    if len(points) <= limit:
         return points
-    return points[np.sort(rng.choice(len(points), MAX_METRIC_POINTS, replace=False))]
+    return points[np.sort(rng.choice(len(points), limit, replace=False))]
 
 
 def _sorted_quantiles(sorted_values: np.ndarray, levels: np.ndarray) -> np.ndarray:
@@ -99,3 +107,125 @@ def multiview_spread(values) -> dict:
     values = np.asarray(list(values), dtype=np.float64)
     mean = float(values.mean())
     return {"mean": mean, "std": float(values.std()), "relative_std": float(values.std() / mean) if mean else 0.0}
+
+
+# ---------------------------------------------------------------------------- style fidelity
+# The three numbers of the fidelity benchmark (DESIGN.md, "Measuring style fidelity"): how much of
+# a style's colours, local patterns and hues reach the render. Renders are linear radiance; only
+# their foreground pixels (any channel above FOREGROUND_THRESHOLD) count, in display space.
+
+PATCH_SIZE = 5
+PATCH_SCALES = (1, 2, 4)
+MAX_PATCHES = 1 << 14
+"""Patch sets are subsampled to this many patches per scale: 75-D points x 128 projections stay cheap
+(about 0.1 s), and the distance moves by under 2% against 4x as many (``tests/test_fidelity.py``)."""
+HUE_CLUSTERS = 5
+
+
+def foreground_mask(render: np.ndarray, threshold: float = FOREGROUND_THRESHOLD) -> np.ndarray:
+    """``(H, W)`` bool: the pixels of a linear render ``(H, W, 3)`` that see the medium."""
+    return np.asarray(render).max(axis=-1) > threshold
+
+
+def image_patches(image: np.ndarray, mask: np.ndarray | None, scale: int, size: int = PATCH_SIZE) -> np.ndarray:
+    """``size x size`` colour patches ``(N, size*size*3)`` of ``image (H, W, 3)`` downsampled by ``scale``
+    (box filter); with ``mask (H, W)``, only patches whose every downsampled pixel is wholly inside it."""
+    tensor = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None]
+    if scale > 1:
+        tensor = torch.nn.functional.avg_pool2d(tensor, scale)
+    if min(tensor.shape[-2:]) < size:
+        return np.zeros((0, size * size * 3), np.float32)
+    patches = torch.nn.functional.unfold(tensor, size)[0].T  # (N, 3*size*size)
+    if mask is not None:
+        inside = torch.from_numpy(np.ascontiguousarray(mask, dtype=np.float32))[None, None]
+        if scale > 1:
+            inside = -torch.nn.functional.max_pool2d(-inside, scale)  # all covered pixels inside
+        inside = torch.nn.functional.unfold(inside, size)[0].amin(dim=0) > 0.5
+        patches = patches[inside]
+    return patches.numpy()
+
+
+def patch_swd(images: list[np.ndarray], masks: list[np.ndarray] | None, style: np.ndarray,
+              scales=PATCH_SCALES, seed: int = 0) -> float:
+    """Sliced Wasserstein-1 between the 5x5 patches of display ``images`` (inside ``masks``) and the
+    style's, averaged over ``scales``. ``nan`` when no scale has a patch wholly inside the foreground."""
+    rng = np.random.default_rng(seed)
+    distances = []
+    for scale in scales:
+        ours = [image_patches(image, None if masks is None else mask, scale)
+                for image, mask in zip(images, masks if masks is not None else [None] * len(images))]
+        ours = np.concatenate(ours)
+        theirs = image_patches(style, None, scale)
+        if len(ours) == 0 or len(theirs) == 0:
+            continue
+        distances.append(sliced_wasserstein(bounded_points(ours, rng, MAX_PATCHES), bounded_points(theirs, rng, MAX_PATCHES),
+                                            seed=seed, order=1))
+    return float(np.mean(distances)) if distances else float("nan")
+
+
+def srgb_to_lab(rgb: np.ndarray) -> np.ndarray:
+    """CIELab (D65) of sRGB-encoded colours ``(..., 3)`` in [0, 1]."""
+    rgb = np.clip(np.asarray(rgb, dtype=np.float64), 0, 1)
+    linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    to_xyz = np.array([[0.4124564, 0.3575761, 0.1804375], [0.2126729, 0.7151522, 0.0721750],
+                       [0.0193339, 0.1191920, 0.9503041]])
+    xyz = linear @ to_xyz.T / np.array([0.95047, 1.0, 1.08883])
+    delta = 6 / 29
+    f = np.where(xyz > delta**3, np.cbrt(xyz), xyz / (3 * delta**2) + 4 / 29)
+    return np.stack([116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]), 200 * (f[..., 1] - f[..., 2])], axis=-1)
+
+
+def kmeans(points: np.ndarray, clusters: int, seed: int = 0, iterations: int = 50) -> np.ndarray:
+    """Lloyd's k-means with k-means++ seeding: centres ``(clusters, D)`` of ``points (N, D)``."""
+    rng = np.random.default_rng(seed)
+    points = np.asarray(points, dtype=np.float64)
+    centres = [points[rng.integers(len(points))]]
+    for _ in range(1, clusters):
+        nearest = np.min(((points[:, None] - np.array(centres)[None]) ** 2).sum(-1), axis=1)
+        total = nearest.sum()
+        centres.append(points[rng.choice(len(points), p=nearest / total)] if total > 0 else points[rng.integers(len(points))])
+    centres = np.array(centres)
+    for _ in range(iterations):
+        labels = np.argmin(((points[:, None] - centres[None]) ** 2).sum(-1), axis=1)
+        moved = np.array([points[labels == k].mean(0) if np.any(labels == k) else centres[k] for k in range(clusters)])
+        if np.allclose(moved, centres):
+            break
+        centres = moved
+    return centres
+
+
+def hue_coverage(pixels: np.ndarray, style: np.ndarray, clusters: int = HUE_CLUSTERS, seed: int = 0) -> float:
+    """How much of the style's hue distribution display ``pixels (N, 3)`` cover, in [0, 1].
+
+    k-means of the style's CIELab (a*, b*) into ``clusters`` hue clusters; the render's pixels go to
+    the nearest centre; the sum over clusters of min(style share, render share). 1 when the render
+    uses the style's hues in the style's proportions; a render of one hue scores that hue's share.
+    """
+    rng = np.random.default_rng(seed)
+    style_ab = srgb_to_lab(bounded_points(np.asarray(style).reshape(-1, 3), rng, 1 << 16))[:, 1:]
+    ours_ab = srgb_to_lab(bounded_points(np.asarray(pixels).reshape(-1, 3), rng, 1 << 16))[:, 1:]
+    if len(ours_ab) == 0:
+        return 0.0
+    centres = kmeans(style_ab, clusters, seed)
+
+    def shares(points):
+        labels = np.argmin(((points[:, None] - centres[None]) ** 2).sum(-1), axis=1)
+        return np.bincount(labels, minlength=clusters) / len(points)
+
+    return float(np.minimum(shares(style_ab), shares(ours_ab)).sum())
+
+
+def style_fidelity(renders: list[np.ndarray], style: np.ndarray) -> dict:
+    """The benchmark's metrics of linear ``renders`` (views of one volume, ``(H, W, 3)`` each) against a
+    display-space ``style (H, W, 3)``: ``rgb_swd`` (sliced W1 of foreground pixel colours),
+    ``patch_swd`` (sliced W1 of 5x5 foreground patches at scales 1, 1/2, 1/4, averaged) and
+    ``hue_coverage``. Pixels of all views are pooled."""
+    masks = [foreground_mask(render) for render in renders]
+    if not any(mask.any() for mask in masks):
+        raise ValueError("style_fidelity: no render sees the medium (every pixel is background).")
+    shown = [display(render) for render in renders]
+    pixels = np.concatenate([image[mask] for image, mask in zip(shown, masks)])
+    style = np.asarray(style, dtype=np.float32)
+    return {"rgb_swd": sliced_wasserstein(pixels, style.reshape(-1, 3), order=1),
+            "patch_swd": patch_swd(shown, masks, style),
+            "hue_coverage": hue_coverage(pixels, style)}

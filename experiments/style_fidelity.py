@@ -1,0 +1,184 @@
+"""The style-fidelity benchmark: how much of a style reaches the path-traced medium (DESIGN.md,
+"Measuring style fidelity"), on styles and densities that training never saw (``mistyle.data.heldout``).
+
+For every (held-out density, held-out style) pair, four methods, each through the path a user takes:
+
+* ``network``: ``api.Stylizer`` alone (``render_final --refine 0``);
+* ``final``: ``python -m mistyle.render_final`` at its defaults (run in-process; its refined albedo);
+* ``uniform``: the must-beat baseline, one colour whose path-traced mean matches the style's
+  (``correct.matched_uniform_albedo``);
+* ``optimised``: the upper reference, direct optimisation of the albedo grid from the baseline's
+  with render_final's refinement at ``--optimise-factor`` times its steps.
+
+Each albedo is path traced from 3 views around the orbit and scored with
+``objective.metrics.style_fidelity`` (RGB SWD, patch SWD, hue coverage). ``final_seconds`` is
+render_final's time for the frame (stylize + refine + one --res^2 path-traced view at 64 spp).
+
+    python experiments/style_fidelity.py                           # every pair: about 80 min on 2 cores
+    python experiments/style_fidelity.py --densities smoke64 --styles hokusai_great_wave,munch_the_scream
+    python experiments/style_fidelity.py --quick                   # 1 pair, small renders, few steps
+Writes ``docs/style_fidelity.jsonl`` (a line per density, style, method), ``docs/style_fidelity.md``
+(medians per method) and ``docs/style_fidelity_sheet.png`` (style | network | final | uniform | optimised).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+METHODS = ("network", "final", "uniform", "optimised")
+DEFAULT_DENSITIES = "smoke64,smoke128,pyroclastic64"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--densities", default=DEFAULT_DENSITIES, help="names in mistyle.data.heldout (rock64 too)")
+    parser.add_argument("--styles", default="all", help="comma-separated held-out style names, or all")
+    parser.add_argument("--res", type=int, default=256, help="render_final --res and the metric renders")
+    parser.add_argument("--spp", type=int, default=16, help="paths per pixel of the metric renders")
+    parser.add_argument("--optimise-factor", type=int, default=4)
+    parser.add_argument("--out", default="docs/style_fidelity")
+    parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+    parser.add_argument("--resume", action="store_true", help="skip pairs already in <out>.jsonl")
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    if args.quick:
+        args.densities, args.styles, args.res, args.spp, args.optimise_factor = "pyroclastic64", "hokusai_great_wave", 32, 4, 1
+        args.out = str(Path(tempfile.mkdtemp()) / "style_fidelity")
+
+    import torch
+
+    from fidelity_core import metric_views, score, uniform_baseline
+    from mistyle.api import Stylizer
+    from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
+    from mistyle.io import load_style, read_vol, write_npy
+    from mistyle.fit import refine_albedo
+    from mistyle.render_final import refinement_settings
+
+    torch.manual_seed(0)
+    stylizer = Stylizer()
+    config = stylizer.config
+    scale, radiance = stylizer.density_scale, config.render.radiance
+    views = metric_views(config.render.camera_distance)
+    specs = {spec.name: spec for spec in HELD_OUT_DENSITIES}
+    all_styles = held_out_styles()
+    style_names = list(all_styles) if args.styles == "all" else args.styles.split(",")
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    jsonl = out.with_suffix(".jsonl")
+    rows = [json.loads(line) for line in jsonl.read_text().splitlines()] if args.resume and jsonl.exists() else []
+    done = {(r["density"], r["style"]) for r in rows if r["method"] == METHODS[-1]}
+    rows = [r for r in rows if (r["density"], r["style"]) in done]
+    jsonl.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    sheet = {}
+    for density_name in args.densities.split(","):
+        density = held_out_density(specs[density_name], args.cache)
+        density_path = Path(args.cache) / f"{density_name}.npy"
+        if not density_path.exists():
+            write_npy(density_path, density)
+        for style_name in style_names:
+            if (density_name, style_name) in done:
+                continue
+            style_path = all_styles[style_name]["path"]
+            style = load_style(style_path)
+            albedos, extra = {}, {}
+            started = time.perf_counter()
+            albedos["network"] = stylizer(density, style)
+            extra["network"] = {"seconds": time.perf_counter() - started}
+            with tempfile.TemporaryDirectory() as folder:
+                from mistyle import render_final
+
+                run_out = Path(folder) / "run"
+                started = time.perf_counter()
+                argv = ["--density", str(density_path), "--style", str(style_path), "--out", str(run_out), "--res", str(args.res)]
+                if args.quick:
+                    argv += ["--spp", "4", "--refine", "4"]
+                if render_final.main(argv) != 0:
+                    raise SystemExit(f"render_final failed on {density_name} / {style_name}")
+                report = json.loads((run_out / "report.json").read_text())
+                refined = run_out / "albedo_refined.vol"
+                albedos["final"] = read_vol(refined) if refined.exists() else np.load(run_out / "albedo.npy")
+                extra["final"] = {"seconds": report["stylize_seconds"] + report.get("refine_seconds", 0.0)
+                                  + report["render_seconds_per_image"], "wall_seconds": time.perf_counter() - started}
+            started = time.perf_counter()
+            albedos["uniform"] = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
+            extra["uniform"] = {"seconds": time.perf_counter() - started}
+            started = time.perf_counter()
+            settings = refinement_settings(config).scaled(args.optimise_factor / (37.5 if args.quick else 1))
+            albedos["optimised"], _ = refine_albedo(density, scale, albedos["uniform"], style, settings, radiance=radiance)
+            extra["optimised"] = {"seconds": time.perf_counter() - started}
+            for method in METHODS:
+                metrics, images = score(density, albedos[method], style, views, res=args.res, spp=args.spp,
+                                        density_scale=scale, radiance=radiance)
+                row = {"density": density_name, "style": style_name, "method": method, **metrics, **extra[method]}
+                print(json.dumps(row), flush=True)
+                with jsonl.open("a") as handle:
+                    handle.write(json.dumps(row) + "\n")
+                rows.append(row)
+                sheet[(density_name, style_name, method)] = images[0]
+    write_table(rows, out.with_suffix(".md"))
+    write_sheet(sheet, all_styles, out.parent / f"{out.name}_sheet.png", args)
+
+
+def medians(rows) -> dict:
+    """Per method: medians of the metrics and of each metric's ratio to the uniform baseline's."""
+    baseline = {(r["density"], r["style"]): r for r in rows if r["method"] == "uniform"}
+    result = {}
+    for method in METHODS:
+        mine = [r for r in rows if r["method"] == method and (r["density"], r["style"]) in baseline]
+        if not mine:
+            continue
+        entry = {key: float(np.median([r[key] for r in mine])) for key in ("rgb_swd", "patch_swd", "hue_coverage", "seconds")}
+        for key in ("rgb_swd", "patch_swd"):
+            entry[f"{key}_ratio"] = float(np.median([r[key] / baseline[(r["density"], r["style"])][key] for r in mine]))
+        entry["pairs"] = len(mine)
+        result[method] = entry
+    return result
+
+
+def write_table(rows, path: Path) -> None:
+    lines = ["| method | RGB SWD | x uniform | patch SWD | x uniform | hue coverage | seconds | pairs |",
+             "|---|---|---|---|---|---|---|---|"]
+    for method, m in medians(rows).items():
+        lines.append(f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_ratio']:.2f} | {m['patch_swd']:.4f} | "
+                     f"{m['patch_swd_ratio']:.2f} | {m['hue_coverage']:.2f} | {m['seconds']:.1f} | {m['pairs']} |")
+    path.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def write_sheet(sheet: dict, styles: dict, path: Path, args) -> None:
+    """One row per (density, style): the style, then each method's first metric view (display)."""
+    from PIL import Image, ImageDraw
+
+    from mistyle.display import display
+    from mistyle.io import load_style, write_png
+    from mistyle.model.features import square_style
+
+    pairs = list(dict.fromkeys((d, s) for d, s, _ in sheet))
+    if not pairs:
+        return
+    tile = min(args.res, 160)
+    canvas = np.ones((len(pairs) * tile + 16, (len(METHODS) + 1) * tile, 3), np.float32)
+    for row, (density_name, style_name) in enumerate(pairs):
+        tiles = [square_style(load_style(styles[style_name]["path"]), tile).permute(1, 2, 0).numpy()]
+        for method in METHODS:
+            image = display(sheet[(density_name, style_name, method)])
+            tiles.append(np.asarray(Image.fromarray((image * 255).astype(np.uint8)).resize((tile, tile), Image.LANCZOS)) / 255.0)
+        canvas[16 + row * tile:16 + (row + 1) * tile] = np.concatenate(tiles, axis=1)
+    image = Image.fromarray((canvas * 255).astype(np.uint8))
+    draw = ImageDraw.Draw(image)
+    for column, name in enumerate(("style",) + METHODS):
+        draw.text((column * tile + 4, 2), name, fill="black")
+    write_png(path, np.asarray(image, dtype=np.float32) / 255.0, srgb=False)
+
+
+if __name__ == "__main__":
+    main()

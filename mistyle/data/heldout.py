@@ -1,0 +1,110 @@
+"""The held-out split of the style-fidelity benchmark: styles and densities that training never sees.
+
+This module is the one place the split is recorded. Training draws its styles from scikit-image's
+photographs and textures, procedural materials and users' folders, and its densities from the smoke
+solver with the dataset seeds of ``configs/`` (0 and up); the benchmark uses
+
+* styles: the images under ``experiments/heldout_styles/`` (paintings, photographs and material
+  textures from other sources; each file's source and licence in ``SOURCES.toml`` there), and
+* densities: ``HELD_OUT_DENSITIES``, made by ``held_out_density`` from seeds no training set uses
+  (smoke at 64^3 and 128^3, and densities from other generators: a pyroclastic cloud and a
+  voxelized mesh).
+
+``check_training_styles`` refuses a training style folder holding a held-out image (compared by
+content, so a renamed copy is caught too); ``tests/test_heldout.py`` checks the offline set and the
+configs' seeds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+HELD_OUT_STYLE_DIR = Path(__file__).resolve().parents[2] / "experiments" / "heldout_styles"
+HELD_OUT_SEED_BASE = 7000
+"""Seeds of held-out densities start here; training datasets use small seeds (``tests/test_heldout.py``)."""
+
+
+@dataclass(frozen=True)
+class HeldOutDensity:
+    name: str
+    kind: str  # "smoke" | "pyroclastic" | "mesh"
+    resolution: int
+    seed: int
+    frame: int = 0  # smoke: the simulated frame kept (0-based)
+
+    def describe(self) -> str:
+        what = {"smoke": "smoke from mistyle's solver", "pyroclastic": "procedural pyroclastic cloud",
+                "mesh": "voxelized noise-displaced mesh"}[self.kind]
+        return f"{what}, {self.resolution}^3, seed {self.seed}" + (f", frame {self.frame}" if self.kind == "smoke" else "")
+
+
+HELD_OUT_DENSITIES = (
+    HeldOutDensity("smoke64", "smoke", 64, HELD_OUT_SEED_BASE + 1, frame=69),
+    HeldOutDensity("smoke128", "smoke", 128, HELD_OUT_SEED_BASE + 2, frame=89),
+    HeldOutDensity("pyroclastic64", "pyroclastic", 64, HELD_OUT_SEED_BASE + 3),
+    HeldOutDensity("rock64", "mesh", 64, HELD_OUT_SEED_BASE + 4),
+)
+
+
+def held_out_density(spec: HeldOutDensity, cache: Path | None = None) -> np.ndarray:
+    """The density ``(Z, Y, X)`` float32 of ``spec``; cached as ``<cache>/<name>.npy`` when ``cache`` is given."""
+    from ..io import write_npy
+
+    path = None if cache is None else Path(cache) / f"{spec.name}.npy"
+    if path is not None and path.exists():
+        return np.load(path)
+    if spec.kind == "smoke":
+        from .smoke import PlumeConfig, simulate
+
+        config = PlumeConfig.random((spec.resolution,) * 3, np.random.default_rng([spec.seed, 0]))
+        for frame, density, _ in simulate(config, spec.frame + 1, seed=spec.seed):
+            pass
+        grid = density
+    elif spec.kind == "pyroclastic":
+        from .procedural import pyroclastic_sphere
+
+        grid = pyroclastic_sphere((spec.resolution,) * 3, radius=0.3, amplitude=0.16, falloff=0.06, seed=spec.seed)
+    elif spec.kind == "mesh":
+        from .mesh import displaced_icosphere, voxelize
+
+        grid = voxelize(*displaced_icosphere(spec.seed), spec.resolution, supersample=2) * 0.5
+    else:
+        raise ValueError(f"Unknown held-out density kind {spec.kind!r}.")
+    grid = np.ascontiguousarray(grid, dtype=np.float32)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_npy(path, grid)
+    return grid
+
+
+def held_out_styles(root: Path = HELD_OUT_STYLE_DIR) -> dict[str, dict]:
+    """``name -> record`` of the held-out styles (``SOURCES.toml``), each with its ``path``."""
+    sources = root / "SOURCES.toml"
+    if not sources.exists():
+        raise ValueError(f"The held-out style list {sources} is missing.")
+    records = tomllib.loads(sources.read_text())
+    for name, record in records.items():
+        record["path"] = root / record["file"]
+        if not record["path"].exists():
+            raise ValueError(f"Held-out style {name}: {record['path']} is missing.")
+    return records
+
+
+def file_digest(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def check_training_styles(paths) -> None:
+    """``ValueError`` when any of ``paths`` is a held-out benchmark style (by content)."""
+    if not (HELD_OUT_STYLE_DIR / "SOURCES.toml").exists():
+        return
+    held = {file_digest(record["path"]): name for name, record in held_out_styles().items()}
+    for path in paths:
+        if file_digest(path) in held:
+            raise ValueError(f"{path} is the held-out benchmark style {held[file_digest(path)]!r}; training must "
+                             f"never see it. Remove it from the training style folder.")

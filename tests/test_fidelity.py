@@ -1,0 +1,165 @@
+"""The fidelity metrics and the sliced-Wasserstein objective, against analytic and independent references."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from mistyle.objective.losses import masked_patches, sliced_wasserstein_loss
+from mistyle.objective.masks import body_mask
+from mistyle.objective.metrics import (
+    hue_coverage,
+    image_patches,
+    kmeans,
+    patch_swd,
+    sliced_wasserstein,
+    srgb_to_lab,
+    style_fidelity,
+)
+from mistyle.objective.style import SlicedObjective
+
+
+def two_colour_style(size=32):
+    style = np.zeros((size, size, 3), np.float32)
+    style[: size // 2] = (0.9, 0.2, 0.1)
+    style[size // 2 :] = (0.1, 0.2, 0.9)
+    return style
+
+
+def test_sliced_w1_of_a_translation_is_half_its_length():
+    # Projections of a set shifted by t along x move by t*u_x; E|u_x| over unit vectors in 3D is 1/2.
+    points = np.random.default_rng(1).uniform(size=(4000, 3))
+    shift = np.float64([0.3, 0, 0])
+    assert sliced_wasserstein(points, points + shift, projections=4096, order=1) == pytest.approx(0.15, rel=0.03)
+    assert sliced_wasserstein(points, points, order=1) == 0.0
+
+
+def test_lab_of_reference_colours():
+    lab = srgb_to_lab(np.array([[1.0, 1.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(lab[0], [100, 0, 0], atol=1e-3)
+    np.testing.assert_allclose(lab[1], [0, 0, 0], atol=1e-3)
+    np.testing.assert_allclose(lab[2], [53.24, 80.09, 67.20], atol=0.05)  # sRGB red, D65 (Lindbloom)
+
+
+def test_kmeans_finds_separated_clusters():
+    rng = np.random.default_rng(0)
+    centres = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
+    points = np.concatenate([c + rng.normal(0, 0.3, (200, 2)) for c in centres])
+    found = kmeans(points, 3)
+    assert np.sort(np.linalg.norm(found[:, None] - centres[None], axis=-1).min(axis=0)).max() < 0.2
+
+
+def test_hue_coverage_counts_shared_hue_mass():
+    style = two_colour_style()
+    pixels = style.reshape(-1, 3)
+    assert hue_coverage(pixels, style) == pytest.approx(1.0)
+    assert hue_coverage(pixels[: len(pixels) // 2], style) == pytest.approx(0.5, abs=0.01)  # all red: half the mass
+    assert hue_coverage(np.full((100, 3), 0.5), style) <= 0.5
+
+
+def test_patches_are_only_taken_wholly_inside_the_mask():
+    image = np.random.default_rng(0).uniform(size=(20, 20, 3)).astype(np.float32)
+    mask = np.zeros((20, 20), bool)
+    mask[2:9, 2:9] = True  # 7x7: three by three 5x5 patches fit
+    assert image_patches(image, mask, 1).shape == (9, 75)
+    assert image_patches(image, None, 1).shape == (16 * 16, 75)
+    assert image_patches(image, mask, 2).shape[0] == 0  # a 3x3 inside at half resolution
+    torch_patches = masked_patches(torch.from_numpy(image).permute(2, 0, 1)[None], torch.from_numpy(mask)[None, None].float(), 5)
+    np.testing.assert_allclose(torch_patches.numpy(), image_patches(image, mask, 1))
+    assert patch_swd([image], [np.ones((20, 20), bool)], image) == 0.0
+
+
+def linear_from_display(display_values):
+    """Invert the tone curve, so a render shows exactly ``display_values``."""
+    from mistyle.display import TONE_EPSILON
+
+    compressed = (np.asarray(display_values, np.float64) + TONE_EPSILON ** (1 / 2.2)) ** 2.2 - TONE_EPSILON
+    return (compressed / (1 - compressed)).astype(np.float32)
+
+
+def test_style_fidelity_of_the_style_itself_and_of_a_mean_colour_fill():
+    style = two_colour_style(48)
+    perfect = style_fidelity([linear_from_display(style)], style)
+    assert perfect["rgb_swd"] < 2e-3 and perfect["patch_swd"] < 2e-3 and perfect["hue_coverage"] > 0.99
+    grey = style_fidelity([linear_from_display(np.broadcast_to(style.reshape(-1, 3).mean(0), style.shape))], style)
+    assert grey["rgb_swd"] > 0.1 and grey["patch_swd"] > 0.1 and grey["hue_coverage"] <= 0.5
+    with pytest.raises(ValueError, match="no render sees the medium"):
+        style_fidelity([np.zeros((8, 8, 3), np.float32)], style)
+
+
+def test_sliced_wasserstein_loss_is_zero_on_equal_sets_and_pulls_points_to_the_target():
+    generator = torch.Generator().manual_seed(0)
+    target = torch.rand(500, 3, generator=generator)
+    assert float(sliced_wasserstein_loss(target, target, generator=generator)) < 1e-10
+    points = (target * 0.2).requires_grad_(True)
+    optimizer = torch.optim.Adam([points], lr=0.02)
+    first = None
+    for _ in range(150):
+        loss = sliced_wasserstein_loss(points, target, generator=generator)
+        first = float(loss.detach()) if first is None else first
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    assert float(loss.detach()) < 0.05 * first
+
+
+def test_sliced_objective_prefers_the_style_and_ignores_pixels_outside_the_mask():
+    style = two_colour_style(32)
+    objective = SlicedObjective(patch_scales=(1, 2))
+    targets = objective.targets(torch.from_numpy(style).permute(2, 0, 1)[None])
+    as_render = lambda image: torch.from_numpy(linear_from_display(image)).permute(2, 0, 1)[None, None]  # noqa: E731
+    grey = np.broadcast_to(style.reshape(-1, 3).mean(0), style.shape).copy()
+    assert float(objective.loss(as_render(style), targets)) < 0.1 * float(objective.loss(as_render(grey), targets))
+    masked = style.copy()
+    masked[:, :4] = 0.0  # outside the mask: any colour
+    mask = torch.ones(1, 1, 32, 32)
+    mask[..., :4] = 0
+    assert float(objective.loss(as_render(masked), targets, mask)) < 0.1 * float(objective.loss(as_render(grey), targets))
+
+
+def test_body_mask_keeps_pixels_a_white_albedo_makes_bright():
+    white = torch.zeros(1, 3, 4, 4)
+    white[..., :2] = 5.0  # bright body
+    white[..., 2] = 0.01  # dim fringe
+    mask = body_mask(white)
+    assert mask[..., :2].eq(1).all() and mask[..., 2:].eq(0).all()
+
+
+def test_refinement_brings_a_path_traced_render_closer_to_the_style(mi, blob_density):
+    from mistyle.api import path_trace
+    from mistyle.fit import MIN_ALBEDO, RefineSettings, refine_albedo
+    from mistyle.scenes import CameraPath
+
+    style = two_colour_style(32)
+    start = np.full(blob_density.shape + (3,), 0.3, np.float32)
+    settings = RefineSettings(layer_steps=40, path_steps=2, layer_res=24, path_res=16, spp=2, camera_distance=2.0)
+    refined, seconds = refine_albedo(blob_density, 20.0, start, style, settings, radiance=8.0)
+    assert refined.shape == start.shape and seconds > 0
+    assert refined.min() >= MIN_ALBEDO * 0.999 and refined.max() <= 1.0
+    views = CameraPath(distance=2.0).turntable(2)
+
+    def scored(albedo):
+        images, _ = path_trace(blob_density, albedo, views, res=24, spp=16, density_scale=20.0, light="constant:8")
+        return style_fidelity(images, style)
+
+    before, after = scored(start), scored(refined)
+    assert after["rgb_swd"] < 0.7 * before["rgb_swd"]
+    assert after["hue_coverage"] > before["hue_coverage"] + 0.2
+
+
+def test_matched_uniform_albedo_reproduces_the_style_mean(mi, blob_density):
+    from mistyle.correct import matched_uniform_albedo
+    from mistyle.display import display
+    from mistyle.api import path_trace
+    from mistyle.objective.metrics import foreground_mask
+    from mistyle.scenes import CameraPath
+
+    style = np.broadcast_to(np.float32([0.7, 0.45, 0.2]), (16, 16, 3))
+    views = CameraPath(distance=2.0).turntable(2)
+    colour = matched_uniform_albedo(blob_density, 20.0, 8.0, style, views, res=24, spp=32)
+    assert colour[0] > colour[1] > colour[2]
+    images, _ = path_trace(blob_density, np.broadcast_to(colour, blob_density.shape + (3,)).copy(), views, res=24, spp=64,
+                           density_scale=20.0, light="constant:8")
+    shown = np.concatenate([display(image)[foreground_mask(image)] for image in images])
+    np.testing.assert_allclose(shown.mean(0), style[0, 0], atol=0.04)

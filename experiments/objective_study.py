@@ -43,6 +43,7 @@ SCHEDULES = {
     "layer150-patch0.05": dict(layer_steps=150, path_steps=0, patch_weight=0.05),
     "layer150-patch0.2": dict(layer_steps=150, path_steps=0, patch_weight=0.2),
     "layer120+path16-patch0.2": dict(layer_steps=120, path_steps=16, patch_weight=0.2),
+    "layer120+path16-patch0.05": dict(layer_steps=120, path_steps=16, patch_weight=0.05),
     "path48-patch0.2": dict(layer_steps=0, path_steps=48, patch_weight=0.2),
 }
 PAIRS = [("smoke64", "hokusai_great_wave"), ("smoke64", "kandinsky_composition_vii"),

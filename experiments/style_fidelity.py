@@ -8,7 +8,8 @@ For every (held-out density, held-out style) pair, four methods, each through th
 * ``uniform``: the must-beat baseline, one colour whose path-traced mean matches the style's
   (``correct.matched_uniform_albedo``);
 * ``optimised``: the upper reference, direct optimisation of the albedo grid from the baseline's
-  with render_final's refinement at ``--optimise-factor`` times its steps.
+  with render_final's refinement at ``--optimise-factor`` times its steps (``--methods`` can leave it
+  out where it is too slow, e.g. at 128^3).
 
 Each albedo is path traced from 3 views around the orbit and scored with
 ``objective.metrics.style_fidelity`` (RGB SWD, patch SWD, hue coverage). ``final_seconds`` is
@@ -17,8 +18,8 @@ render_final's time for the frame (stylize + refine + one --res^2 path-traced vi
     python experiments/style_fidelity.py                           # every pair: about 80 min on 2 cores
     python experiments/style_fidelity.py --densities smoke64 --styles hokusai_great_wave,munch_the_scream
     python experiments/style_fidelity.py --quick                   # 1 pair, small renders, few steps
-Writes ``docs/style_fidelity.jsonl`` (a line per density, style, method), ``docs/style_fidelity.md``
-(medians per method) and ``docs/style_fidelity_sheet.png`` (style | network | final | uniform | optimised).
+Writes ``docs/style_fidelity.jsonl`` (a line per density, style, method), ``docs/style_fidelity_table.md``
+(medians per method) and ``docs/style_fidelity_sheet.jpg`` (style | network | final | uniform | optimised).
 """
 
 from __future__ import annotations
@@ -44,10 +45,12 @@ def main() -> None:
     parser.add_argument("--styles", default="all", help="comma-separated held-out style names, or all")
     parser.add_argument("--res", type=int, default=256, help="render_final --res and the metric renders")
     parser.add_argument("--spp", type=int, default=16, help="paths per pixel of the metric renders")
-    parser.add_argument("--optimise-factor", type=int, default=4)
+    parser.add_argument("--methods", default=",".join(METHODS), help="a subset of " + ", ".join(METHODS))
+    parser.add_argument("--optimise-factor", type=float, default=2)
     parser.add_argument("--out", default="docs/style_fidelity")
     parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
     parser.add_argument("--resume", action="store_true", help="skip pairs already in <out>.jsonl")
+    parser.add_argument("--report-only", action="store_true", help="rewrite the table and sheet from <out>.jsonl")
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
     if args.quick:
@@ -75,10 +78,19 @@ def main() -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     jsonl = out.with_suffix(".jsonl")
     rows = [json.loads(line) for line in jsonl.read_text().splitlines()] if args.resume and jsonl.exists() else []
-    done = {(r["density"], r["style"]) for r in rows if r["method"] == METHODS[-1]}
+    methods = [m for m in METHODS if m in args.methods.split(",")]
+    found: dict = {}
+    for r in rows:
+        found.setdefault((r["density"], r["style"]), set()).add(r["method"])
+    done = {pair for pair, have in found.items() if have >= set(methods)}
     rows = [r for r in rows if (r["density"], r["style"]) in done]
+    tiles = Path(args.cache) / "tiles"  # the contact sheet's images, kept across --resume
+    if args.report_only:
+        rows = [json.loads(line) for line in jsonl.read_text().splitlines()]
+        write_table(rows, out.parent / f"{out.name}_table.md")
+        write_sheet(rows, tiles, all_styles, out.parent / f"{out.name}_sheet.jpg")
+        return
     jsonl.write_text("".join(json.dumps(r) + "\n" for r in rows))
-    sheet = {}
     for density_name in args.densities.split(","):
         density = held_out_density(specs[density_name], args.cache)
         density_path = Path(args.cache) / f"{density_name}.npy"
@@ -100,7 +112,7 @@ def main() -> None:
                 started = time.perf_counter()
                 argv = ["--density", str(density_path), "--style", str(style_path), "--out", str(run_out), "--res", str(args.res)]
                 if args.quick:
-                    argv += ["--spp", "4", "--refine", "4"]
+                    argv += ["--spp", "4", "--refine", "4", "--refine-path", "1"]
                 if render_final.main(argv) != 0:
                     raise SystemExit(f"render_final failed on {density_name} / {style_name}")
                 report = json.loads((run_out / "report.json").read_text())
@@ -111,11 +123,12 @@ def main() -> None:
             started = time.perf_counter()
             albedos["uniform"] = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
             extra["uniform"] = {"seconds": time.perf_counter() - started}
-            started = time.perf_counter()
-            settings = refinement_settings(config).scaled(args.optimise_factor / (37.5 if args.quick else 1))
-            albedos["optimised"], _ = refine_albedo(density, scale, albedos["uniform"], style, settings, radiance=radiance)
-            extra["optimised"] = {"seconds": time.perf_counter() - started}
-            for method in METHODS:
+            if "optimised" in methods:
+                started = time.perf_counter()
+                settings = refinement_settings(config).scaled(args.optimise_factor / (37.5 if args.quick else 1))
+                albedos["optimised"], _ = refine_albedo(density, scale, albedos["uniform"], style, settings, radiance=radiance)
+                extra["optimised"] = {"seconds": time.perf_counter() - started}
+            for method in methods:
                 metrics, images = score(density, albedos[method], style, views, res=args.res, spp=args.spp,
                                         density_scale=scale, radiance=radiance)
                 row = {"density": density_name, "style": style_name, "method": method, **metrics, **extra[method]}
@@ -123,9 +136,9 @@ def main() -> None:
                 with jsonl.open("a") as handle:
                     handle.write(json.dumps(row) + "\n")
                 rows.append(row)
-                sheet[(density_name, style_name, method)] = images[0]
-    write_table(rows, out.with_suffix(".md"))
-    write_sheet(sheet, all_styles, out.parent / f"{out.name}_sheet.png", args)
+                save_tile(tiles, density_name, style_name, method, images[0])
+    write_table(rows, out.parent / f"{out.name}_table.md")
+    write_sheet(rows, tiles, all_styles, out.parent / f"{out.name}_sheet.jpg")
 
 
 def medians(rows) -> dict:
@@ -154,30 +167,46 @@ def write_table(rows, path: Path) -> None:
     print("\n".join(lines))
 
 
-def write_sheet(sheet: dict, styles: dict, path: Path, args) -> None:
-    """One row per (density, style): the style, then each method's first metric view (display)."""
-    from PIL import Image, ImageDraw
+TILE = 128
+
+
+def save_tile(folder: Path, density_name: str, style_name: str, method: str, image: np.ndarray) -> None:
+    """The first metric view of one result, on display, as a ``TILE``^2 PNG for the contact sheet."""
+    from PIL import Image
 
     from mistyle.display import display
-    from mistyle.io import load_style, write_png
+    from mistyle.io import write_png
+
+    shown = Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8)).resize((TILE, TILE), Image.LANCZOS)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_png(folder / f"{density_name}__{style_name}__{method}.png", np.asarray(shown, np.float32) / 255, srgb=False)
+
+
+def write_sheet(rows, folder: Path, styles: dict, path: Path) -> None:
+    """One row per (density, style) in ``rows``: the style, then each method's tile (grey when missing)."""
+    from PIL import Image, ImageDraw
+
+    from mistyle.io import atomic_output, load_style
     from mistyle.model.features import square_style
 
-    pairs = list(dict.fromkeys((d, s) for d, s, _ in sheet))
+    pairs = list(dict.fromkeys((r["density"], r["style"]) for r in rows))
     if not pairs:
         return
-    tile = min(args.res, 160)
-    canvas = np.ones((len(pairs) * tile + 16, (len(METHODS) + 1) * tile, 3), np.float32)
+    canvas = np.full((len(pairs) * TILE + 16, (len(METHODS) + 1) * TILE, 3), 1.0, np.float32)
     for row, (density_name, style_name) in enumerate(pairs):
-        tiles = [square_style(load_style(styles[style_name]["path"]), tile).permute(1, 2, 0).numpy()]
+        tiles = [square_style(load_style(styles[style_name]["path"]), TILE).permute(1, 2, 0).numpy()]
         for method in METHODS:
-            image = display(sheet[(density_name, style_name, method)])
-            tiles.append(np.asarray(Image.fromarray((image * 255).astype(np.uint8)).resize((tile, tile), Image.LANCZOS)) / 255.0)
-        canvas[16 + row * tile:16 + (row + 1) * tile] = np.concatenate(tiles, axis=1)
-    image = Image.fromarray((canvas * 255).astype(np.uint8))
+            tile = folder / f"{density_name}__{style_name}__{method}.png"
+            tiles.append(load_style(tile) if tile.exists() else np.full((TILE, TILE, 3), 0.5, np.float32))
+        canvas[16 + row * TILE:16 + (row + 1) * TILE] = np.concatenate(tiles, axis=1)
+    image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
     draw = ImageDraw.Draw(image)
     for column, name in enumerate(("style",) + METHODS):
-        draw.text((column * tile + 4, 2), name, fill="black")
-    write_png(path, np.asarray(image, dtype=np.float32) / 255.0, srgb=False)
+        draw.text((column * TILE + 4, 2), name, fill="black")
+    for row, (density_name, _) in enumerate(pairs):
+        draw.text((4, 16 + row * TILE + 4), density_name, fill="white")
+    with atomic_output(path) as temporary:  # JPEG: a 30-row sheet is 2 MB as PNG, 0.4 MB here
+        image.save(temporary, format="JPEG", quality=88)
 
 
 if __name__ == "__main__":

@@ -43,6 +43,12 @@ OFFLINE_EXTRACTOR = "filterbank"
 """What ``auto`` falls back to when no VGG16 ImageNet weights are found."""
 
 STYLE_LOSSES = ("histogram", "gram", "meanstd")
+"""Losses on the extractor's feature levels (the paper's objective and its ablations)."""
+OBJECTIVES = ("features", "sliced")
+"""``features``: tone map -> extractor -> ``STYLE_LOSSES`` per level; ``sliced``: RGB and pixel-patch sliced
+Wasserstein (``objective.style.SlicedObjective``, the fidelity study's choice)."""
+LOSS_MASKS = ("foreground", "body")
+"""Which pixels the style term compares: any that sees the medium, or the medium's body."""
 LIGHT_KINDS = ("constant", "envmap", "point", "area")
 CORRECTIONS = ("none", "calibrate")
 DEVICES = ("cpu", "cuda")

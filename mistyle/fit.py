@@ -86,11 +86,13 @@ class _Albedo:
 
 
 def fit_albedo(render: Renderer, style: torch.Tensor, objective, initial: torch.Tensor,
-               settings: FitSettings = FitSettings(), progress=None, masks: MaskMaker | None = None) -> AlbedoFit:
+               settings: FitSettings = FitSettings(), progress=None, masks: MaskMaker | None = None,
+               penalty: Callable[[torch.Tensor], torch.Tensor] | None = None) -> AlbedoFit:
     """Fit an albedo grid to ``style (3, S, S)`` starting from ``initial (3, Z, Y, X)`` in [0, 1].
 
-    ``objective``: ``objective.style.StyleObjective`` or ``SlicedObjective``. ``progress(step, steps,
-    loss)`` is called after every step when given.
+    ``objective``: ``objective.style.StyleObjective`` or ``SlicedObjective``. ``penalty(albedo)``, when
+    given, is added to every step's loss (e.g. the temporal term of a sequence). ``progress(step,
+    steps, loss)`` is called after every step when given.
     """
     variable = _Albedo(initial, settings.parametrisation)
     optimizer = torch.optim.Adam([variable.free], lr=settings.lr)
@@ -104,6 +106,8 @@ def fit_albedo(render: Renderer, style: torch.Tensor, objective, initial: torch.
         images = render(albedo, views, step * settings.views_per_step)
         loss = (objective.loss(images[None], targets, None if masks is None else masks(views))
                 + settings.tv_weight * tv_loss(albedo[None]))
+        if penalty is not None:
+            loss = loss + penalty(albedo)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
@@ -147,11 +151,13 @@ class RefineSettings:
 
     The objective is ``objective.style.SlicedObjective`` (RGB and patch sliced Wasserstein, weights
     ``rgb_weight`` and ``patch_weight``) on the medium's body (``LayerViews.body_masks``), with the
-    log-albedo parametrisation; chosen by ``experiments/objective_study.py``.
+    log-albedo parametrisation. These defaults are ``render_final``'s, chosen by
+    ``experiments/objective_study.py`` (``docs/style_fidelity.md``): the layer steps find the style's
+    hues and patterns, the path-traced steps then absorb what multiple scattering changes.
     """
 
-    layer_steps: int = 150
-    path_steps: int = 0
+    layer_steps: int = 120
+    path_steps: int = 16
     layer_res: int = 64
     path_res: int = 64
     spp: int = 8
@@ -160,9 +166,10 @@ class RefineSettings:
     lr: float = 0.05
     tv_weight: float = 10.0
     rgb_weight: float = 1.0
-    patch_weight: float = 0.2
+    patch_weight: float = 0.05
     camera_distance: float = ORBIT_DISTANCE
     layer_steps_per_ray: int = 48
+    temporal_weight: float = 10.0
     seed: int = 0
 
     def scaled(self, factor: float) -> "RefineSettings":
@@ -178,12 +185,15 @@ class RefineSettings:
 
 def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray, style: np.ndarray,
                   settings: RefineSettings, *, radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu",
-                  prepared=None, progress=None) -> tuple[np.ndarray, float]:
+                  prepared=None, anchor: np.ndarray | None = None, progress=None) -> tuple[np.ndarray, float]:
     """Refine ``albedo (Z, Y, X, 3)`` towards the display-space ``style (H, W, 3)``: returns
     ``(refined albedo (Z, Y, X, 3), seconds)``.
 
-    ``prepared``: the density's ``PreparedDensity`` when the caller has it. ``progress(stage, step,
-    steps, loss)`` is called after every step when given, ``stage`` being ``"layer"`` or ``"path"``.
+    ``prepared``: the density's ``PreparedDensity`` when the caller has it. ``anchor (Z, Y, X, 3)``: for a
+    sequence, the previous frame's refined albedo warped to this frame; ``settings.temporal_weight *
+    mean |albedo - anchor|^2`` (the paper's temporal loss, Eq. 16) keeps consecutive frames coherent.
+    ``progress(stage, step, steps, loss)`` is called after every step when given, ``stage`` being
+    ``"layer"`` or ``"path"``.
     """
     from .bridge_torch import PathTracedViews
     from .integrators import prepare_density
@@ -199,15 +209,20 @@ def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray,
     def reporter(stage):
         return None if progress is None else (lambda step, steps, loss: progress(stage, step, steps, loss))
 
+    penalty = None
+    if anchor is not None:
+        target_albedo = torch.from_numpy(np.ascontiguousarray(anchor, dtype=np.float32)).permute(3, 0, 1, 2).to(device)
+        penalty = lambda grid: settings.temporal_weight * ((grid - target_albedo) ** 2).mean()  # noqa: E731
+
     if settings.layer_steps:
         layer = LayerViews(prepared, settings.layer_res, steps=settings.layer_steps_per_ray, radiance=radiance)
         current = fit_albedo(layer, target, objective, current, settings.fit_settings(settings.layer_steps, settings.views_per_step),
-                             progress=reporter("layer"), masks=layer.body_masks).albedo
+                             progress=reporter("layer"), masks=layer.body_masks, penalty=penalty).albedo
     if settings.path_steps:
         masks = LayerViews(prepared, settings.path_res, steps=settings.layer_steps_per_ray, radiance=radiance).body_masks
         render = PathTracedViews(density, density_scale, res=settings.path_res, spp=settings.spp, radiance=radiance,
                                  device=device)
         current = fit_albedo(render, target, objective, current,
                              settings.fit_settings(settings.path_steps, settings.path_views_per_step),
-                             progress=reporter("path"), masks=masks).albedo
+                             progress=reporter("path"), masks=masks, penalty=penalty).albedo
     return np.ascontiguousarray(current.permute(1, 2, 3, 0).cpu().numpy()), time.perf_counter() - started

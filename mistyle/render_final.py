@@ -35,23 +35,17 @@ import numpy as np
 
 from .conventions import CORRECTIONS, DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
 
-# The default refinement of single frames (``fit.RefineSettings``): the albedo is fitted to the style with
-# the sliced-Wasserstein objective on the medium's body and log-albedo, chosen by
-# experiments/objective_study.py; what it achieves on held-out styles and densities is in
-# docs/style_fidelity.md. Sequences are not refined by default: refining frames independently against
-# random views would bring back the flicker the network avoids.
-DEFAULT_REFINE_STEPS = 150
-DEFAULT_REFINE_PATH_STEPS = 0
-
-
-def refinement_settings(config, layer_steps: int = DEFAULT_REFINE_STEPS, path_steps: int = DEFAULT_REFINE_PATH_STEPS,
+def refinement_settings(config, layer_steps: int | None = None, path_steps: int | None = None,
                         camera_distance: float | None = None):
-    """The ``fit.RefineSettings`` of ``--refine``/``--refine-path`` for a checkpoint's ``config``."""
+    """The ``fit.RefineSettings`` of ``--refine``/``--refine-path`` for a checkpoint's ``config``
+    (``None``: the defaults, chosen by experiments/objective_study.py)."""
+    from dataclasses import replace
+
     from .fit import RefineSettings
 
-    distance = config.render.camera_distance if camera_distance is None else camera_distance
-    return RefineSettings(layer_steps=layer_steps, path_steps=path_steps, tv_weight=config.loss.tv_weight,
-                          camera_distance=distance)
+    settings = RefineSettings(tv_weight=config.loss.tv_weight, camera_distance=config.render.camera_distance)
+    changes = {"layer_steps": layer_steps, "path_steps": path_steps, "camera_distance": camera_distance}
+    return replace(settings, **{key: value for key, value in changes.items() if value is not None})
 
 
 def _coat(text: str) -> float:
@@ -65,6 +59,8 @@ def _coat(text: str) -> float:
 
 
 def parser() -> argparse.ArgumentParser:
+    from .fit import RefineSettings
+
     p = argparse.ArgumentParser(prog="python -m mistyle.render_final", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     source = p.add_mutually_exclusive_group(required=True)
@@ -89,10 +85,10 @@ def parser() -> argparse.ArgumentParser:
                    help="calibrate: map the albedo so its multiply-scattered brightness matches single scattering")
     p.add_argument("--refine", type=int, default=None, metavar="STEPS",
                    help=f"refine the albedo for STEPS steps against the style through the fast layer "
-                        f"(default: {DEFAULT_REFINE_STEPS} for a single frame, 0 for sequences)")
+                        f"(default: {RefineSettings.layer_steps} for a single frame, 0 for sequences)")
     p.add_argument("--refine-path", type=int, default=None, metavar="STEPS",
                    help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
-                        f"{DEFAULT_REFINE_PATH_STEPS} for a single frame, 0 for sequences)")
+                        f"{RefineSettings.path_steps} for a single frame, 0 for sequences and with --refine 0)")
     p.add_argument("--fps", type=int, default=12)
     p.add_argument("--device", choices=DEVICES, default="cpu")
     return p
@@ -244,8 +240,12 @@ def load(args) -> Job:
         if not grid.any():
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
     sequence = len(densities) > 1
-    refine_steps = args.refine if args.refine is not None else (0 if sequence else DEFAULT_REFINE_STEPS)
-    refine_path_steps = args.refine_path if args.refine_path is not None else (0 if sequence else DEFAULT_REFINE_PATH_STEPS)
+    # Sequences are not refined by default: refining frames independently against random views
+    # would bring back the flicker the network avoids.
+    defaults = refinement_settings(config)
+    refine_steps = args.refine if args.refine is not None else (0 if sequence else defaults.layer_steps)
+    refine_path_steps = (args.refine_path if args.refine_path is not None
+                         else 0 if sequence or args.refine == 0 else defaults.path_steps)
     camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
     orbit = CameraPath(distance=camera_distance)
     views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
@@ -323,6 +323,10 @@ def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np
         log(f"multiple-scattering calibration in {calibration.seconds:.1f} s")
     if job.refine_steps or job.refine_path_steps:
         rendered, report["refine_seconds"] = refine_frames(job, rendered)
+        if job.sequence and job.velocities is not None:
+            from .objective.metrics import temporal_flicker
+
+            report["temporal_flicker_refined"] = temporal_flicker(np.stack(rendered), np.stack(job.velocities))
     check_finite("The corrected albedo of frame", rendered)
     if rendered is not albedos:
         for index, albedo in enumerate(rendered):
@@ -332,8 +336,13 @@ def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np
 
 def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray], float]:
     """``fit.refine_albedo`` of every frame: ``job.refine_steps`` fast-layer steps, then
-    ``job.refine_path_steps`` path-traced ones, against the style."""
+    ``job.refine_path_steps`` path-traced ones, against the style.
+
+    In a sequence, each frame after the first starts from the previous frame's refined albedo warped
+    by its velocity (unwarped when the frames carry none) and is held near it by the temporal term,
+    so refinement does not bring back flicker."""
     from .fit import refine_albedo
+    from .warp import warp_grid
 
     config = job.stylizer.config
     settings = refinement_settings(config, job.refine_steps, job.refine_path_steps, job.camera_distance)
@@ -343,9 +352,14 @@ def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray]
             if done == count or done % 25 == 0:
                 log(f"refining frame {index} ({stage}): step {done}/{count}, loss {loss:.4g}")
 
+        anchor = None
+        if index > 0:
+            previous = refined[-1]
+            anchor = warp_grid(previous, job.velocities[index - 1]) if job.velocities is not None else previous
+            albedo = anchor
         result, took = refine_albedo(grid, job.density_scale, albedo, job.style, settings,
                                      radiance=config.render.radiance, device=job.args.device,
-                                     prepared=job.prepared_frame(index), progress=progress)
+                                     prepared=job.prepared_frame(index), anchor=anchor, progress=progress)
         refined.append(result)
         seconds += took
     return refined, seconds

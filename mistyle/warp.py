@@ -7,6 +7,7 @@ components in ``(x, y, z)`` order; warping frame t by its velocity predicts fram
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -34,3 +35,16 @@ def semi_lagrangian_warp(volume: torch.Tensor, velocity: torch.Tensor) -> torch.
 
     grid = torch.stack([normalise(back_x, width), normalise(back_y, height), normalise(back_z, depth)], dim=-1)
     return F.grid_sample(volume, grid, mode="bilinear", padding_mode="border", align_corners=True)
+
+
+def warp_grid(field: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """``semi_lagrangian_warp`` on numpy grids: ``field(x - velocity(x))``.
+
+    ``field`` is ``(Z, Y, X)`` or ``(Z, Y, X, C)``; ``velocity`` ``(Z, Y, X, 3)`` in voxels, ``(x, y, z)``.
+    """
+    values = torch.as_tensor(np.asarray(field, dtype=np.float32))
+    channels_last = values.dim() == 4
+    volume = values.permute(3, 0, 1, 2)[None] if channels_last else values[None, None]
+    flow = torch.as_tensor(np.asarray(velocity, dtype=np.float32)).permute(3, 0, 1, 2)[None]
+    warped = semi_lagrangian_warp(volume, flow)[0]
+    return (warped.permute(1, 2, 3, 0) if channels_last else warped[0]).numpy()

@@ -163,3 +163,17 @@ def test_matched_uniform_albedo_reproduces_the_style_mean(mi, blob_density):
                            density_scale=20.0, light="constant:8")
     shown = np.concatenate([display(image)[foreground_mask(image)] for image in images])
     np.testing.assert_allclose(shown.mean(0), style[0, 0], atol=0.04)
+
+
+def test_the_temporal_anchor_holds_a_refined_frame_near_the_previous_one(mi, blob_density):
+    from dataclasses import replace
+
+    from mistyle.fit import RefineSettings, refine_albedo
+
+    style = two_colour_style(32)
+    start = np.full(blob_density.shape + (3,), 0.3, np.float32)
+    settings = RefineSettings(layer_steps=12, path_steps=0, layer_res=16, patch_weight=0.0, camera_distance=2.0)
+    free, _ = refine_albedo(blob_density, 20.0, start, style, settings, radiance=8.0)
+    held, _ = refine_albedo(blob_density, 20.0, start, style, replace(settings, temporal_weight=1e4), radiance=8.0,
+                            anchor=start)
+    assert np.abs(held - start).mean() < 0.5 * np.abs(free - start).mean()

@@ -124,7 +124,7 @@ def test_temporal_flicker_is_zero_for_advected_frames():
     first = rng.random((6, 6, 6, 3)).astype(np.float32)
     velocity = np.zeros((6, 6, 6, 3), np.float32)
     velocity[..., 0] = 1.0
-    from mistyle.data.smoke import warp
+    from mistyle.warp import warp_grid as warp
 
     second = warp(first, velocity)
     assert temporal_flicker(np.stack([first, second]), np.stack([velocity, velocity])) == pytest.approx(0.0, abs=1e-7)

@@ -127,6 +127,21 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
     assert (out / "albedo_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
 
 
+def test_refined_sequence_frames_start_from_the_warped_previous_frame(mi, checkpoint, inputs, tmp_path, blob_density):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for index in range(2):
+        np.savez(frames / f"frame{index:04d}.npz", density=np.roll(blob_density, index, axis=2),
+                 velocity=np.tile(np.float32([1, 0, 0]), blob_density.shape + (1,)))
+    out = tmp_path / "out"
+    code = main(["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "16", "--spp", "2", "--refine", "2", "--refine-path", "0"])
+    assert code == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["inputs"]["refine_steps"] == 2 and report["temporal_flicker_refined"] >= 0
+    assert all(np.isfinite(read_vol(out / f"albedo_refined_frame{index:04d}.vol")).all() for index in range(2))
+
+
 def test_mesh_is_voxelized_and_coated(mi, checkpoint, inputs, tmp_path):
     from mistyle.data.mesh import icosphere, write_ply
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from mistyle.data.smoke import PlumeConfig, SmokeSolver, _NeumannPoisson, simulate, warp
+from mistyle.data.smoke import PlumeConfig, SmokeSolver, _NeumannPoisson, simulate
+from mistyle.warp import warp_grid as warp
 
 RES = (20, 24, 16)
 

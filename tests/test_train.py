@@ -78,6 +78,18 @@ def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
     load_model(exported)
 
 
+def test_the_sliced_objective_on_the_body_trains(tmp_path, tiny_smoke):
+    out = tmp_path / "run"
+    run(out, tiny_smoke, "--set", "optim.steps=30", "--set", "run.eval_every=30", "--set", 'loss.objective="sliced"',
+        "--set", 'loss.mask="body"')
+    rows = records(out)
+    steps = [r for r in rows if "loss_hist" in r]
+    assert len(steps) == 30 and all(np.isfinite(r["loss_hist"]) for r in steps)
+    evals = [r["val_swd"] for r in rows if "val_swd" in r]  # held-out styles and densities, steps 0 and 30
+    assert len(evals) == 2 and evals[1] < evals[0]
+    assert torch.load(out / "final.pt", weights_only=True)["config"]["loss"]["objective"] == "sliced"
+
+
 def _kill_after(out, smoke, step, sig, *extra):
     """Start a run, wait for its progress line of ``step``, send ``sig``; returns the process result."""
     process = subprocess.Popen(command(out, smoke, *extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
@@ -122,6 +134,7 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_cleanly(tmp_path, tiny_smoke):
     (("--set", "optim.nonsense=1"), "unknown key 'nonsense'"),
     (("--set", "optim.batch=\"two\""), "batch must be int"),
     (("--set", 'data.styles="/nonexistent/styles"'), "does not exist"),
+    (("--set", 'loss.objective="pixels"'), "loss.objective must be one of features, sliced"),
 ])
 def test_bad_configs_fail_before_any_work(tmp_path, tiny_smoke, extra, message):
     result = run(tmp_path / "run", tiny_smoke, *extra, check=False)

@@ -16,7 +16,7 @@ One frame (``dt = 1``, lengths in voxels) does, in this order:
    face velocities by the projected velocity.
 
 So a recorded frame ``(density_t, velocity_t)`` satisfies ``density_{t+1} ~ warp(density_t,
-velocity_t)`` away from the source: the temporal loss can warp with ``velocity_t``.
+velocity_t)`` away from the source (``mistyle.warp.warp_grid``): the temporal loss can warp with ``velocity_t``.
 
 Velocities are stored at cell centres, ``(Z, Y, X, 3)``, components in ``(x, y, z)`` order, in
 voxels per frame.
@@ -339,18 +339,3 @@ def simulate(config: PlumeConfig, frames: int, seed: int = 0):
     for frame in range(frames):
         density, velocity = solver.step()
         yield frame, density, velocity
-
-
-def warp(field: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """``mistyle.warp.semi_lagrangian_warp`` on numpy grids: ``field(x - velocity(x))``.
-
-    ``field`` is ``(Z, Y, X)`` or ``(Z, Y, X, C)``; ``velocity`` ``(Z, Y, X, 3)`` in voxels, ``(x, y, z)``.
-    """
-    from ..warp import semi_lagrangian_warp
-
-    values = torch.as_tensor(np.asarray(field, dtype=np.float32))
-    channels_last = values.dim() == 4
-    volume = values.permute(3, 0, 1, 2)[None] if channels_last else values[None, None]
-    flow = torch.as_tensor(np.asarray(velocity, dtype=np.float32)).permute(3, 0, 1, 2)[None]
-    warped = semi_lagrangian_warp(volume, flow)[0]
-    return (warped.permute(1, 2, 3, 0) if channels_last else warped[0]).numpy()

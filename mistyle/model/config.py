@@ -31,6 +31,8 @@ from ..conventions import (
     EXTRACTOR_KINDS,
     LAYER_SCHEMES,
     ORBIT_DISTANCE,
+    LOSS_MASKS,
+    OBJECTIVES,
     STYLE_LOSSES,
 )
 from ..scenes.cameras import validate_camera_distance
@@ -62,7 +64,10 @@ class RenderConfig:
 
 @dataclass
 class LossConfig:
-    style: str = "histogram"  # "histogram" | "gram" | "meanstd" (ablations)
+    objective: str = "features"  # "features" (the paper's) | "sliced" (RGB + patch sliced Wasserstein)
+    mask: str = "foreground"  # "foreground": every pixel that sees the medium | "body" (docs/style_fidelity.md)
+    style: str = "histogram"  # objective "features": "histogram" | "gram" | "meanstd" (ablations)
+    patch_weight: float = 0.05  # objective "sliced": weight of the patch term
     style_weight: float = 1.0
     rgb_weight: float = 1.0  # the histogram loss in RGB, beside the feature levels
     tv_weight: float = 10.0
@@ -113,6 +118,9 @@ class TrainConfig:
             (self.render.scheme in LAYER_SCHEMES, f"render.scheme must be one of {', '.join(LAYER_SCHEMES)}"),
             (math.isfinite(self.render.radiance) and self.render.radiance > 0, "render.radiance must be a finite number > 0"),
             (self.loss.style in STYLE_LOSSES, f"loss.style must be one of {', '.join(STYLE_LOSSES)}"),
+            (self.loss.objective in OBJECTIVES, f"loss.objective must be one of {', '.join(OBJECTIVES)}"),
+            (self.loss.mask in LOSS_MASKS, f"loss.mask must be one of {', '.join(LOSS_MASKS)}"),
+            (self.loss.patch_weight >= 0, "loss.patch_weight must be >= 0"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),
             (self.run.device in DEVICES, f"run.device must be one of {', '.join(DEVICES)}"),

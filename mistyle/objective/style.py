@@ -98,8 +98,9 @@ class SlicedObjective:
         return points[torch.randperm(len(points), generator=self.generator)[:limit]]
 
     @torch.no_grad()
-    def targets(self, styles: torch.Tensor) -> list[list[torch.Tensor]]:
-        """Per style of ``styles (B, 3, S, S)``: ``[pixels (N, 3), patches at each scale (N_s, 75)]``."""
+    def targets(self, styles: torch.Tensor, levels=None) -> list[list[torch.Tensor]]:
+        """Per style of ``styles (B, 3, S, S)``: ``[pixels (N, 3), patches at each scale (N_s, 75)]``
+        (``levels``, the extractor's output, is not used: the same call as ``StyleObjective``'s)."""
         result = []
         for style in styles:
             entry = [self._subsample(style.reshape(3, -1).T)]
@@ -135,3 +136,10 @@ class SlicedObjective:
                 if patch_terms:
                     total = total + self.patch_weight * torch.stack(patch_terms).mean()
         return total / batch
+
+
+def make_objective(loss_config, extractor: nn.Module):
+    """The training objective a ``model.config.LossConfig`` names (``objective``, ``style``, weights)."""
+    if loss_config.objective == "sliced":
+        return SlicedObjective(rgb_weight=loss_config.rgb_weight, patch_weight=loss_config.patch_weight)
+    return StyleObjective(extractor, loss_config.style, loss_config.rgb_weight)

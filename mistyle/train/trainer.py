@@ -41,9 +41,9 @@ from ..model.config import TrainConfig, config_from_dict, config_to_dict, to_tom
 from ..model.features import make_extractor
 from ..model.skpn import parameter_count
 from ..objective.losses import temporal_loss, tv_loss
-from ..objective.masks import render_mask
+from ..objective.masks import body_mask, render_mask
 from ..objective.metrics import multiview_spread, style_distance
-from ..objective.style import StyleObjective
+from ..objective.style import make_objective
 from ..scenes import CameraPath
 from .dataset import SmokePairs, StyleSet
 
@@ -108,7 +108,7 @@ class Trainer:
         steps_per_epoch = max(1, len(self.data.train) // config.optim.batch)
         self.scheduler = torch.optim.lr_scheduler.StepLR(
             self.optimizer, step_size=max(1, round(config.optim.decay_every_epochs * steps_per_epoch)), gamma=config.optim.lr_decay)
-        self.objective = StyleObjective(self.extractor, config.loss.style, config.loss.rgb_weight)
+        self.objective = make_objective(config.loss, self.extractor)
         self.path = CameraPath(distance=config.render.camera_distance)
         self.rng = np.random.default_rng([config.run.seed, self.rank])
         self.step, self.seconds = 0, 0.0
@@ -142,12 +142,20 @@ class Trainer:
         current, following = albedo[: len(frames)], albedo[len(frames):]
         prepared = [prepare_density(f["density0"], self.data.density_scale, ls=f["ls0"]) for f in frames]
         images = self._render(current, prepared, batch["views"])
-        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"], style_levels))
+        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"], style_levels),
+                                        self._body_masks(prepared, batch["views"]) if config.loss.mask == "body" else None)
         loss_tv = tv_loss(current)
         loss_temp = temporal_loss(following, current, stack("velocity0"))
         loss = config.loss.style_weight * loss_hist + config.loss.tv_weight * loss_tv + config.loss.temporal_weight * loss_temp
         terms = {"loss": loss, "loss_hist": loss_hist, "loss_tv": loss_tv, "loss_temp": loss_temp}
         return terms, images
+
+    def _body_masks(self, prepared, views) -> torch.Tensor:
+        """``(B*V, 1, H, W)``: the medium's body in each view (a white albedo rendered, no gradient)."""
+        shape = (len(prepared), 3) + tuple(prepared[0].density.shape)
+        with torch.no_grad():
+            white = self._render(torch.ones(shape, device=self.device), prepared, views)
+        return body_mask(white.flatten(0, 1))
 
     def _style_levels(self, styles: torch.Tensor) -> list[torch.Tensor]:
         with torch.no_grad():

@@ -32,6 +32,8 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=4)
     parser.add_argument("--styles", default="hokusai_great_wave,gauguin_te_fare")
     parser.add_argument("--res", type=int, default=128)
+    parser.add_argument("--arms", default="network,independent,coherent")
+    parser.add_argument("--temporal-weights", default=None, help="coherent arm: comma-separated weights (default: render_final's)")
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
     if args.quick:
@@ -63,13 +65,19 @@ def main() -> None:
     for name in args.styles.split(","):
         style = load_style(styles[name]["path"])
         network = [stylizer(d, style) for d in densities]
-        independent = [refine_albedo(d, scale, a, style, settings, radiance=radiance)[0] for d, a in zip(densities, network)]
-        coherent = []
-        for index, (density, albedo) in enumerate(zip(densities, network)):
-            anchor = None if index == 0 else warp_grid(coherent[-1], velocities[index - 1])
-            coherent.append(refine_albedo(density, scale, albedo if anchor is None else anchor, style, settings,
-                                          radiance=radiance, anchor=anchor)[0])
-        for arm, albedos in (("network", network), ("independent", independent), ("coherent", coherent)):
+        arms = {"network": network} if "network" in args.arms else {}
+        if "independent" in args.arms:
+            arms["independent"] = [refine_albedo(d, scale, a, style, settings, radiance=radiance)[0]
+                                   for d, a in zip(densities, network)]
+        weights = [settings.temporal_weight] if args.temporal_weights is None else map(float, args.temporal_weights.split(","))
+        for weight in weights if "coherent" in args.arms else ():
+            coherent, weighted = [], replace(settings, temporal_weight=weight)
+            for index, (density, albedo) in enumerate(zip(densities, network)):
+                anchor = None if index == 0 else warp_grid(coherent[-1], velocities[index - 1])
+                coherent.append(refine_albedo(density, scale, albedo if anchor is None else anchor, style, weighted,
+                                              radiance=radiance, anchor=anchor)[0])
+            arms[f"coherent (temporal weight {weight:g})"] = coherent
+        for arm, albedos in arms.items():
             metrics = [score(d, a, style, views, res=args.res, spp=16, density_scale=scale, radiance=radiance)[0]
                        for d, a in zip(densities, albedos)]
             print(json.dumps({"style": name, "arm": arm, "frames": args.frames,

@@ -126,8 +126,9 @@ class LayerViews:
     (``objective.masks.body_mask``), for this renderer or any other with the same cameras.
     """
 
-    def __init__(self, prepared, res: int, steps: int = 48, radiance: float = DEFAULT_ENV_RADIANCE):
+    def __init__(self, prepared, res: int, steps: int = 48, radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu"):
         self.prepared, self.res, self.steps, self.radiance = prepared, int(res), int(steps), float(radiance)
+        self.device = device
 
     def __call__(self, albedo: torch.Tensor, views: Sequence[View], seed: int = 0) -> torch.Tensor:
         from .bridge_torch import render_views
@@ -137,7 +138,7 @@ class LayerViews:
     def body_masks(self, views: Sequence[View], res: int | None = None) -> torch.Tensor:
         from .bridge_torch import render_views
 
-        white = torch.ones((3,) + tuple(self.prepared.density.shape), dtype=torch.float32)
+        white = torch.ones((3,) + tuple(self.prepared.density.shape), dtype=torch.float32, device=self.device)
         with torch.no_grad():
             images = render_views(white, self.prepared, list(views), res or self.res, steps=self.steps,
                                   radiance=self.radiance)
@@ -169,7 +170,7 @@ class RefineSettings:
     patch_weight: float = 0.05
     camera_distance: float = ORBIT_DISTANCE
     layer_steps_per_ray: int = 48
-    temporal_weight: float = 10.0
+    temporal_weight: float = 100.0  # sequences: 10 / 100 / 1000 gave flicker 0.0089 / 0.0056 / 0.0067 (docs/style_fidelity.md)
     seed: int = 0
 
     def scaled(self, factor: float) -> "RefineSettings":
@@ -215,11 +216,12 @@ def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray,
         penalty = lambda grid: settings.temporal_weight * ((grid - target_albedo) ** 2).mean()  # noqa: E731
 
     if settings.layer_steps:
-        layer = LayerViews(prepared, settings.layer_res, steps=settings.layer_steps_per_ray, radiance=radiance)
+        layer = LayerViews(prepared, settings.layer_res, steps=settings.layer_steps_per_ray, radiance=radiance, device=device)
         current = fit_albedo(layer, target, objective, current, settings.fit_settings(settings.layer_steps, settings.views_per_step),
                              progress=reporter("layer"), masks=layer.body_masks, penalty=penalty).albedo
     if settings.path_steps:
-        masks = LayerViews(prepared, settings.path_res, steps=settings.layer_steps_per_ray, radiance=radiance).body_masks
+        masks = LayerViews(prepared, settings.path_res, steps=settings.layer_steps_per_ray, radiance=radiance,
+                           device=device).body_masks
         render = PathTracedViews(density, density_scale, res=settings.path_res, spp=settings.spp, radiance=radiance,
                                  device=device)
         current = fit_albedo(render, target, objective, current,

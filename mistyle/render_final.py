@@ -240,8 +240,8 @@ def load(args) -> Job:
         if not grid.any():
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
     sequence = len(densities) > 1
-    # Sequences are not refined by default: refining frames independently against random views
-    # would bring back the flicker the network avoids.
+    # Sequences are not refined by default: even warm-started and anchored (refine_frames), refined
+    # frames flicker about twice as much as the network's, and each frame costs the refinement's time.
     defaults = refinement_settings(config)
     refine_steps = args.refine if args.refine is not None else (0 if sequence else defaults.layer_steps)
     refine_path_steps = (args.refine_path if args.refine_path is not None
@@ -339,8 +339,9 @@ def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray]
     ``job.refine_path_steps`` path-traced ones, against the style.
 
     In a sequence, each frame after the first starts from the previous frame's refined albedo warped
-    by its velocity (unwarped when the frames carry none) and is held near it by the temporal term,
-    so refinement does not bring back flicker."""
+    by its velocity (unwarped when the frames carry none) and is held near it by the temporal term:
+    measured on 3 held-out smoke frames, albedo flicker 0.0056 against 0.0148 for frames refined
+    independently and 0.0029 for the network's (experiments/sequence_refine.py)."""
     from .fit import refine_albedo
     from .warp import warp_grid
 

@@ -66,7 +66,7 @@ class StyleObjective:
 
 
 SLICED_STYLE_SIZE = 128
-"""The side of the square style image ``SlicedObjective`` compares with (its 1/4 scale still has 600 patches)."""
+"""The side of the square style image ``SlicedObjective`` compares with (its 1/4 scale still has 784 patches)."""
 
 
 class SlicedObjective:
@@ -129,7 +129,7 @@ class SlicedObjective:
                 for scale, target in zip(self.patch_scales, targets[item][1:]):
                     scaled = F.avg_pool2d(image, scale) if scale > 1 else image
                     inside = -F.max_pool2d(-mask, scale) if scale > 1 else mask
-                    # A fresh random subset each step: an unbiased estimate at a fraction of the cost.
+                    # A fresh random subset each step: over the steps every patch is matched, at a fraction of the cost.
                     patches = self._subsample(masked_patches(scaled, inside, self.patch_size), self.max_render_patches)
                     if len(patches):
                         patch_terms.append(sliced_wasserstein_loss(patches, target, self.projections, self.generator))

@@ -1,4 +1,5 @@
-"""The paper's losses (Sec. 4.4): histogram, Gram and mean-std style losses, 3D TV, temporal.
+"""The paper's losses (Sec. 4.4: histogram, Gram and mean-std style losses, 3D TV, temporal) and the
+sliced-Wasserstein loss on point sets (pixel colours, pixel patches) with its masked patch extraction.
 
 Feature maps are ``(B, C, H, W)`` with a foreground mask ``(B, 1, H, W)`` in {0, 1}
 (``masks.render_mask``, max-pooled to the feature resolution); style features are ``(C, Hs, Ws)``.

@@ -12,10 +12,10 @@ For every (held-out density, held-out style) pair, four methods, each through th
   out where it is too slow, e.g. at 128^3).
 
 Each albedo is path traced from 3 views around the orbit and scored with
-``objective.metrics.style_fidelity`` (RGB SWD, patch SWD, hue coverage). ``final_seconds`` is
-render_final's time for the frame (stylize + refine + one --res^2 path-traced view at 64 spp).
+``objective.metrics.style_fidelity`` (RGB SWD, patch SWD, hue coverage). The ``seconds`` of ``final``
+are render_final's for the frame (stylize + refine + one --res^2 path-traced view at 64 spp).
 
-    python experiments/style_fidelity.py                           # every pair: about 80 min on 2 cores
+    python experiments/style_fidelity.py                           # 14 styles x 3 densities: about 2 h on 2 cores
     python experiments/style_fidelity.py --densities smoke64 --styles hokusai_great_wave,munch_the_scream
     python experiments/style_fidelity.py --quick                   # 1 pair, small renders, few steps
 Writes ``docs/style_fidelity.jsonl`` (a line per density, style, method), ``docs/style_fidelity_table.md``
@@ -84,7 +84,8 @@ def main() -> None:
         found.setdefault((r["density"], r["style"]), set()).add(r["method"])
     done = {pair for pair, have in found.items() if have >= set(methods)}
     rows = [r for r in rows if (r["density"], r["style"]) in done]
-    tiles = Path(args.cache) / "tiles"  # the contact sheet's images, kept across --resume
+    # The contact sheet's images, kept across --resume (a --quick run keeps its own).
+    tiles = (out.parent if args.quick else Path(args.cache)) / "tiles"
     if args.report_only:
         rows = [json.loads(line) for line in jsonl.read_text().splitlines()]
         write_table(rows, out.parent / f"{out.name}_table.md")

@@ -67,3 +67,22 @@ def test_held_out_densities_use_seeds_and_generators_training_does_not():
     assert all(spec.seed > HELD_OUT_SEED_BASE for spec in HELD_OUT_DENSITIES)
     assert all(spec.seed < HELD_OUT_SEED_BASE for spec in list(DATASET_SPECS.values()) + [TINY_SMOKE])
     assert len({spec.name for spec in HELD_OUT_DENSITIES}) == len(HELD_OUT_DENSITIES)
+
+
+def test_training_paintings_are_recorded_and_kept_apart_from_the_held_out_set():
+    import tomllib
+
+    from mistyle.data.styles import PAINTINGS_DIR
+
+    records = tomllib.loads((PAINTINGS_DIR / "SOURCES.toml").read_text())
+    files = {path.name for path in PAINTINGS_DIR.glob("*.jpg")}
+    assert files and files == {record["file"] for record in records.values()}
+    held = held_out_styles()
+    held_repos = {record["source"].split()[0] for record in held.values()}
+    held_digests = {file_digest(record["path"]) for record in held.values()}
+    for name, record in records.items():
+        for key in ("title", "author", "source", "licence"):
+            assert record.get(key), f"{name} lacks {key}"
+        assert record["source"].split()[0] not in held_repos, f"{name} comes from a held-out style's repository"
+        assert file_digest(PAINTINGS_DIR / record["file"]) not in held_digests
+    check_training_styles(sorted(PAINTINGS_DIR.glob("*.jpg")))

@@ -30,6 +30,11 @@ PHOTOS = {
 }
 TEXTURES = {"brick": "brick.png", "grass": "grass.png", "gravel": "gravel.png"}
 MATERIALS = ("marble", "jade", "fire", "wood", "cells", "clouds", "lava")
+PAINTINGS_DIR = Path(__file__).resolve().parent / "paintings"
+"""Public-domain paintings shipped for training (source and licence per file in ``SOURCES.toml``), taken
+from other repositories than the fidelity benchmark's held-out styles (``tests/test_heldout.py``).
+Not yet part of ``offline_style_set``: adding them is measured with the benchmark (issue: style
+fidelity II)."""
 
 
 def random_crop(image: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:

@@ -64,6 +64,7 @@ def main() -> None:
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
     from mistyle.io import load_style, read_vol, write_npy
     from mistyle.fit import refine_albedo
+    from mistyle.integrators import prepare_density
     from mistyle.render_final import refinement_settings
 
     torch.manual_seed(0)
@@ -94,6 +95,7 @@ def main() -> None:
     jsonl.write_text("".join(json.dumps(r) + "\n" for r in rows))
     for density_name in args.densities.split(","):
         density = held_out_density(specs[density_name], args.cache)
+        prepared = prepare_density(density, scale) if "optimised" in methods else None  # Ls once per density
         density_path = Path(args.cache) / f"{density_name}.npy"
         if not density_path.exists():
             write_npy(density_path, density)
@@ -127,7 +129,8 @@ def main() -> None:
             if "optimised" in methods:
                 started = time.perf_counter()
                 settings = refinement_settings(config).scaled(args.optimise_factor / (37.5 if args.quick else 1))
-                albedos["optimised"], _ = refine_albedo(density, scale, albedos["uniform"], style, settings, radiance=radiance)
+                albedos["optimised"], _ = refine_albedo(density, scale, albedos["uniform"], style, settings, radiance=radiance,
+                                                        prepared=prepared)
                 extra["optimised"] = {"seconds": time.perf_counter() - started}
             for method in methods:
                 metrics, images = score(density, albedos[method], style, views, res=args.res, spp=args.spp,

@@ -111,12 +111,18 @@ def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_pa
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
 
 
-def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inputs, tmp_path, blob_density):
+def two_moving_frames(tmp_path, blob_density):
+    """A folder of two frames: the density moved one voxel along x, with that velocity."""
     frames = tmp_path / "frames"
     frames.mkdir()
     for index in range(2):
         np.savez(frames / f"frame{index:04d}.npz", density=np.roll(blob_density, index, axis=2),
                  velocity=np.tile(np.float32([1, 0, 0]), blob_density.shape + (1,)))
+    return frames
+
+
+def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inputs, tmp_path, blob_density):
+    frames = two_moving_frames(tmp_path, blob_density)
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png"),
                  "--out", str(out), "--res", "16", "--spp", "2", "--coat", "dielectric:1.4"])
@@ -128,11 +134,7 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
 
 
 def test_refined_sequence_frames_start_from_the_warped_previous_frame(mi, checkpoint, inputs, tmp_path, blob_density):
-    frames = tmp_path / "frames"
-    frames.mkdir()
-    for index in range(2):
-        np.savez(frames / f"frame{index:04d}.npz", density=np.roll(blob_density, index, axis=2),
-                 velocity=np.tile(np.float32([1, 0, 0]), blob_density.shape + (1,)))
+    frames = two_moving_frames(tmp_path, blob_density)
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png"),
                  "--out", str(out), "--res", "16", "--spp", "2", "--refine", "2", "--refine-path", "0"])

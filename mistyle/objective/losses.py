@@ -115,6 +115,15 @@ def masked_patches(images: torch.Tensor, mask: torch.Tensor | None, size: int) -
     return patches[inside]
 
 
+def scaled_patches(images: torch.Tensor, mask: torch.Tensor | None, scale: int, size: int) -> torch.Tensor:
+    """``masked_patches`` of ``images (B, C, H, W)`` box-downsampled by ``scale``; the mask is min-pooled, so
+    a patch counts only when every pixel under it lies inside the mask."""
+    if scale > 1:
+        images = F.avg_pool2d(images, scale)
+        mask = None if mask is None else -F.max_pool2d(-mask, scale)
+    return masked_patches(images, mask, size)
+
+
 def tv_loss(volume: torch.Tensor) -> torch.Tensor:
     """3D total variation (paper Eq. 15): mean squared finite differences along x, y and z.
 

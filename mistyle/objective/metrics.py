@@ -11,6 +11,7 @@ import torch
 
 from ..conventions import FOREGROUND_THRESHOLD
 from ..display import display
+from .losses import scaled_patches
 from ..warp import semi_lagrangian_warp
 
 
@@ -131,18 +132,8 @@ def image_patches(image: np.ndarray, mask: np.ndarray | None, scale: int, size: 
     """``size x size`` colour patches ``(N, size*size*3)`` of ``image (H, W, 3)`` downsampled by ``scale``
     (box filter); with ``mask (H, W)``, only patches whose every downsampled pixel is wholly inside it."""
     tensor = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None]
-    if scale > 1:
-        tensor = torch.nn.functional.avg_pool2d(tensor, scale)
-    if min(tensor.shape[-2:]) < size:
-        return np.zeros((0, size * size * 3), np.float32)
-    patches = torch.nn.functional.unfold(tensor, size)[0].T  # (N, 3*size*size)
-    if mask is not None:
-        inside = torch.from_numpy(np.ascontiguousarray(mask, dtype=np.float32))[None, None]
-        if scale > 1:
-            inside = -torch.nn.functional.max_pool2d(-inside, scale)  # all covered pixels inside
-        inside = torch.nn.functional.unfold(inside, size)[0].amin(dim=0) > 0.5
-        patches = patches[inside]
-    return patches.numpy()
+    inside = None if mask is None else torch.from_numpy(np.ascontiguousarray(mask, dtype=np.float32))[None, None]
+    return scaled_patches(tensor, inside, scale, size).numpy()
 
 
 def patch_swd(images: list[np.ndarray], masks: list[np.ndarray] | None, style: np.ndarray,

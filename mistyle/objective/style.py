@@ -10,14 +10,24 @@ from __future__ import annotations
 
 import torch
 import torch.nn as nn
-import torch.nn.functional as F
 
 from ..conventions import STYLE_LOSSES
 from ..display import tone_map
-from .losses import gram_loss, histogram_loss, masked_patches, mean_std_loss, sliced_wasserstein_loss
+from .losses import gram_loss, histogram_loss, mean_std_loss, scaled_patches, sliced_wasserstein_loss
 from .masks import pool_mask, render_mask
 
 FEATURE_LOSSES = dict(zip(STYLE_LOSSES, (histogram_loss, gram_loss, mean_std_loss)))
+
+
+def _shown(images: torch.Tensor, targets: list, masks: torch.Tensor | None):
+    """``(B, V, display images (B*V, 3, H, W), masks (B*V, 1, H, W))`` of renders ``(B, V, 3, H, W)``;
+    ``masks`` defaults to ``render_mask``."""
+    batch, views = images.shape[:2]
+    if len(targets) != batch:
+        raise ValueError(f"{batch} render batches but {len(targets)} style targets.")
+    flat = images.flatten(0, 1)
+    shown = tone_map(flat)
+    return batch, views, shown, render_mask(flat) if masks is None else masks.to(shown)
 
 
 class StyleObjective:
@@ -46,12 +56,7 @@ class StyleObjective:
     def loss(self, images: torch.Tensor, targets: list[list[torch.Tensor]], masks: torch.Tensor | None = None) -> torch.Tensor:
         """Style loss averaged over the batch; ``images (B, V, 3, H, W)`` linear radiance, views of item b
         compared with ``targets[b]``; ``masks (B*V, 1, H, W)``: the pixels to match (default ``render_mask``)."""
-        batch, views = images.shape[:2]
-        if len(targets) != batch:
-            raise ValueError(f"{batch} render batches but {len(targets)} style targets.")
-        flat = images.flatten(0, 1)
-        display = tone_map(flat)
-        mask = render_mask(flat) if masks is None else masks.to(display)
+        batch, views, display, mask = _shown(images, targets, masks)
         levels = [display] + list(self.extractor(display))
         total = images.new_zeros(())
         for item in range(batch):
@@ -105,18 +110,12 @@ class SlicedObjective:
         for style in styles:
             entry = [self._subsample(style.reshape(3, -1).T)]
             for scale in self.patch_scales if self.patch_weight else ():
-                image = F.avg_pool2d(style[None], scale) if scale > 1 else style[None]
-                entry.append(self._subsample(masked_patches(image, None, self.patch_size)))
+                entry.append(self._subsample(scaled_patches(style[None], None, scale, self.patch_size)))
             result.append(entry)
         return result
 
     def loss(self, images: torch.Tensor, targets: list[list[torch.Tensor]], masks: torch.Tensor | None = None) -> torch.Tensor:
-        batch, views = images.shape[:2]
-        if len(targets) != batch:
-            raise ValueError(f"{batch} render batches but {len(targets)} style targets.")
-        flat = images.flatten(0, 1)
-        shown = tone_map(flat)
-        masks = render_mask(flat) if masks is None else masks.to(shown)
+        batch, views, shown, masks = _shown(images, targets, masks)
         total = images.new_zeros(())
         for item in range(batch):
             rows = slice(item * views, (item + 1) * views)
@@ -127,10 +126,8 @@ class SlicedObjective:
             if self.patch_weight:
                 patch_terms = []
                 for scale, target in zip(self.patch_scales, targets[item][1:]):
-                    scaled = F.avg_pool2d(image, scale) if scale > 1 else image
-                    inside = -F.max_pool2d(-mask, scale) if scale > 1 else mask
                     # A fresh random subset each step: over the steps every patch is matched, at a fraction of the cost.
-                    patches = self._subsample(masked_patches(scaled, inside, self.patch_size), self.max_render_patches)
+                    patches = self._subsample(scaled_patches(image, mask, scale, self.patch_size), self.max_render_patches)
                     if len(patches):
                         patch_terms.append(sliced_wasserstein_loss(patches, target, self.projections, self.generator))
                 if patch_terms:

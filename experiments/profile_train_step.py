@@ -22,7 +22,7 @@ from pathlib import Path
 
 PARTS = {  # part -> (file suffix, function name) of the profiled function, inclusive time
     "data (sample_batch)": ("train/trainer.py", "sample_batch"),
-    "style extractor": ("train/trainer.py", "_style_levels"),
+    "style encoder": ("train/trainer.py", "_style_inputs"),
     "SKPN forward": ("model/skpn.py", "forward"),
     "Ls preparation": ("integrators/prepared.py", "prepare_density"),
     "layer forward": ("bridge_torch.py", "render_views"),

@@ -86,12 +86,9 @@ class Stylizer:
 
         return square_style(style, self.config.data.style_size)
 
-    def style_levels(self, style: np.ndarray):
-        import torch
-
-        image = self.style_tensor(style)[None].to(self.device)
-        with torch.no_grad():
-            return list(self.extractor(image))
+    def style_inputs(self, style: np.ndarray):
+        """What the network reads of ``style`` (``model.skpn.StyleInputs``)."""
+        return self.trained.model.encode_style(self.style_tensor(style)[None].to(self.device), self.extractor)
 
     def __call__(self, density, style, scale_structures: float = 1.0, notes: list | None = None) -> np.ndarray:
         from .volume import validate_density
@@ -101,17 +98,17 @@ class Stylizer:
         sequence = array.ndim == 4 and array.shape[-1] != 1
         frames = array if sequence else array[None]
         validate_scale_structures(scale_structures)
-        levels = self.style_levels(style)
+        inputs = self.style_inputs(style)
         albedos = []
         for index, frame in enumerate(frames):
             grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
             if not grid.any():
                 raise ValueError(f"{'Frame ' + str(index) + ' of the density' if sequence else 'The density'} is all zero; "
                                  "there is no medium to stylize.")
-            albedos.append(self._one(grid, levels, scale_structures))
+            albedos.append(self._one(grid, inputs, scale_structures))
         return np.stack(albedos) if sequence else albedos[0]
 
-    def _one(self, grid: np.ndarray, levels, scale_structures: float) -> np.ndarray:
+    def _one(self, grid: np.ndarray, inputs, scale_structures: float) -> np.ndarray:
         import torch
         import torch.nn.functional as F
 
@@ -121,7 +118,7 @@ class Stylizer:
             size = tuple(max(4, round(n * scale_structures)) for n in shape)
             density = F.interpolate(density, size=size, mode="trilinear", align_corners=False)
         with torch.no_grad():
-            albedo = self.trained.model(density, levels)
+            albedo = self.trained.model(density, inputs)
             if tuple(albedo.shape[2:]) != shape:
                 albedo = F.interpolate(albedo, size=shape, mode="trilinear", align_corners=False)
         return np.ascontiguousarray(albedo[0].permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)

@@ -52,3 +52,8 @@ LOSS_MASKS = ("foreground", "body")
 LIGHT_KINDS = ("constant", "envmap", "point", "area")
 CORRECTIONS = ("none", "calibrate")
 DEVICES = ("cpu", "cuda")
+TEMPORAL_GRADIENTS = ("both", "current")
+"""Which frames the temporal term's gradient reaches: t and t+1, or t only (frame t+1 as a fixed target,
+which spares the network's backward pass for it)."""
+PRECISIONS = ("fp32", "bf16")
+"""The network's training precision: float32, or bfloat16 autocast (``run.precision``)."""

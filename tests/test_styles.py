@@ -5,6 +5,7 @@ import pytest
 from PIL import Image
 
 from mistyle.data.styles import (
+    PAINTINGS_DIR,
     ImageFolder,
     material_texture,
     offline_style_set,
@@ -74,14 +75,14 @@ def test_random_crop_scales_small_images_up():
 
 
 def test_offline_style_set_is_deterministic_and_diverse():
-    styles = offline_style_set(size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1)
-    again = offline_style_set(size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1)
+    styles = offline_style_set(size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=1)
+    again = offline_style_set(size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=1)
     assert [n for n, _ in styles] == [n for n, _ in again]
     for (_, a), (_, b) in zip(styles, again):
         np.testing.assert_array_equal(a, b)
     assert all(image.shape == (32, 32, 3) and 0 <= image.min() and image.max() <= 1 for _, image in styles)
     summary = style_set_diversity(styles)
-    assert summary["by_source"] == {"photo": 7, "texture": 3, "material": 7}
+    assert summary["by_source"] == {"photo": 7, "texture": 3, "material": 7, "painting": len(list(PAINTINGS_DIR.glob("*.jpg")))}
     assert summary["hue_coverage"] >= 0.5
 
 
@@ -96,9 +97,13 @@ def test_no_held_out_style_is_a_training_style(tmp_path):
 
     styles = StyleSet("offline", size=32)
     assert styles.val_names and not set(styles.val_names) & set(styles.train_names)
-    # Held out by source variant: the last variant of every source, and no pixel-identical copies.
-    sources = {name.rpartition("_")[0] for name in styles.train_names}
-    assert {name.rpartition("_")[0] for name in styles.val_names} == sources
+    # Photos, textures, materials: the last variant of every source; paintings: whole pictures, every crop.
+    sources = {name.rpartition("_")[0] for name in styles.train_names if not name.startswith("painting/")}
+    assert {name.rpartition("_")[0] for name in styles.val_names if not name.startswith("painting/")} == sources
+    train_paintings = {name.rpartition("_")[0] for name in styles.train_names if name.startswith("painting/")}
+    val_paintings = {name.rpartition("_")[0] for name in styles.val_names if name.startswith("painting/")}
+    assert val_paintings and train_paintings and not val_paintings & train_paintings
+    assert len(val_paintings) < 0.25 * len(train_paintings)
     train = styles.train.flatten(1)
     for image in styles.val.flatten(1):
         assert not (train == image).all(dim=1).any()

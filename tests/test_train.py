@@ -78,16 +78,19 @@ def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
     load_model(exported)
 
 
-def test_the_sliced_objective_on_the_body_trains(tmp_path, tiny_smoke):
+def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
+    """configs/cpu_sliced.toml's choices: sliced objective on the body, quantile code, bf16, frame t only."""
     out = tmp_path / "run"
     run(out, tiny_smoke, "--set", "optim.steps=30", "--set", "run.eval_every=30", "--set", 'loss.objective="sliced"',
-        "--set", 'loss.mask="body"')
+        "--set", 'loss.mask="body"', "--set", 'model.style_code="quantiles"', "--set", 'run.precision="bf16"',
+        "--set", 'loss.temporal_gradient="current"', "--set", "data.hue_augment=0.5")
     rows = records(out)
     steps = [r for r in rows if "loss_hist" in r]
     assert len(steps) == 30 and all(np.isfinite(r["loss_hist"]) for r in steps)
     evals = [r["val_swd"] for r in rows if "val_swd" in r]  # held-out styles and densities, steps 0 and 30
     assert len(evals) == 2 and evals[1] < evals[0]
     assert torch.load(out / "final.pt", weights_only=True)["config"]["loss"]["objective"] == "sliced"
+    assert {"val_rgb_swd", "val_patch_swd", "val_hue_coverage"} <= rows[-1].keys()
 
 
 def _kill_after(out, smoke, step, sig, *extra):
@@ -135,6 +138,8 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_cleanly(tmp_path, tiny_smoke):
     (("--set", "optim.batch=\"two\""), "batch must be int"),
     (("--set", 'data.styles="/nonexistent/styles"'), "does not exist"),
     (("--set", 'loss.objective="pixels"'), "loss.objective must be one of features, sliced"),
+    (("--set", 'run.precision="fp16"'), "run.precision must be one of fp32, bf16"),
+    (("--set", 'model.style_code="vgg"'), "style_code must be moments or quantiles"),
 ])
 def test_bad_configs_fail_before_any_work(tmp_path, tiny_smoke, extra, message):
     result = run(tmp_path / "run", tiny_smoke, *extra, check=False)

@@ -8,7 +8,7 @@ from mistyle.model.config import (
     to_toml,
 )
 
-CONFIGS = ("configs/tiny.toml", "configs/cpu.toml", "configs/paper.toml")
+CONFIGS = ("configs/tiny.toml", "configs/cpu.toml", "configs/cpu_sliced.toml", "configs/paper.toml")
 
 
 @pytest.mark.parametrize("path", CONFIGS)

@@ -8,7 +8,10 @@ The offline default set needs no download. It combines
     several crops each;
   * its CC0 textures brick, grass and gravel (from CC0Textures), colourised with random palettes;
   * procedural material textures made with FastNoise Lite: marble, jade, fire, wood, cells, clouds,
-    lava, each with random palettes and seeds (about 2 ms per 128^2 image).
+    lava, each with random palettes and seeds (about 2 ms per 128^2 image);
+  * the public-domain and CC0 paintings, prints and textures shipped in ``PAINTINGS_DIR`` (source and
+    licence of each in its ``SOURCES.toml``): the whole picture and random crops of a half to a
+    quarter of its side, so brush strokes show at more than one scale.
 """
 
 from __future__ import annotations
@@ -32,9 +35,7 @@ TEXTURES = {"brick": "brick.png", "grass": "grass.png", "gravel": "gravel.png"}
 MATERIALS = ("marble", "jade", "fire", "wood", "cells", "clouds", "lava")
 PAINTINGS_DIR = Path(__file__).resolve().parent / "paintings"
 """Public-domain paintings shipped for training (source and licence per file in ``SOURCES.toml``), taken
-from other repositories than the fidelity benchmark's held-out styles (``tests/test_heldout.py``).
-Not yet part of ``offline_style_set``: adding them is measured with the benchmark (issue: style
-fidelity II)."""
+from other repositories than the fidelity benchmark's held-out styles (``tests/test_heldout.py``)."""
 
 
 def random_crop(image: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:
@@ -178,9 +179,23 @@ def material_texture(kind: str, size: int = 128, seed: int = 0) -> np.ndarray:
     return apply_palette(gray, np.asarray(colours, dtype=np.float32))
 
 
+def painting_crops(image: np.ndarray, size: int, count: int, rng: np.random.Generator) -> list[np.ndarray]:
+    """The whole (square-cropped) picture, then ``count - 1`` random square crops of 1/4 to 1/2 of its
+    side, each resized to ``size x size``."""
+    from ..model.features import square_style
+
+    side = min(image.shape[:2])
+    crops = [image]
+    for _ in range(count - 1):
+        crop = max(16, int(side * rng.uniform(0.25, 0.5)))
+        top, left = int(rng.integers(0, image.shape[0] - crop + 1)), int(rng.integers(0, image.shape[1] - crop + 1))
+        crops.append(image[top : top + crop, left : left + crop])
+    return [square_style(crop, size).permute(1, 2, 0).numpy() for crop in crops]
+
+
 def offline_style_set(size: int = 128, crops_per_photo: int = 6, palettes_per_texture: int = 4,
-                      materials_each: int = 6, seed: int = 0) -> list[tuple[str, np.ndarray]]:
-    """The offline default style set: ``(name, image (size, size, 3))`` pairs."""
+                      materials_each: int = 6, crops_per_painting: int = 3, seed: int = 0) -> list[tuple[str, np.ndarray]]:
+    """The offline default style set: ``(name, image (size, size, 3))`` pairs; names are ``source/stem_index``."""
     rng = np.random.default_rng(seed)
     styles = []
     data = skimage_data_dir()
@@ -196,6 +211,9 @@ def offline_style_set(size: int = 128, crops_per_photo: int = 6, palettes_per_te
     for kind in MATERIALS:
         for index in range(materials_each):
             styles.append((f"material/{kind}_{index}", material_texture(kind, size, seed=seed * 1000 + index)))
+    for path in sorted(PAINTINGS_DIR.glob("*.jpg")) if crops_per_painting else ():
+        for index, crop in enumerate(painting_crops(load_style(path), size, crops_per_painting, rng)):
+            styles.append((f"painting/{path.stem}_{index}", crop))
     return styles
 
 

@@ -33,7 +33,9 @@ from ..conventions import (
     ORBIT_DISTANCE,
     LOSS_MASKS,
     OBJECTIVES,
+    PRECISIONS,
     STYLE_LOSSES,
+    TEMPORAL_GRADIENTS,
 )
 from ..scenes.cameras import validate_camera_distance
 from .skpn import SKPNConfig
@@ -50,6 +52,7 @@ class DataConfig:
     styles: str = "offline"  # "offline" (the built-in style set) or a folder of images
     style_size: int = 128  # styles are centre-cropped/resized to this square size
     val_plumes: int = 1  # the last plumes of the manifest are held out for validation
+    hue_augment: float = 0.0  # probability of a random hue rotation of each training style; > 0 also mirrors half
 
 
 @dataclass
@@ -72,6 +75,7 @@ class LossConfig:
     rgb_weight: float = 1.0  # the histogram loss in RGB, beside the feature levels
     tv_weight: float = 10.0
     temporal_weight: float = 300.0
+    temporal_gradient: str = "both"  # "both" frames of the temporal term | "current": frame t only (t+1 is a fixed target)
 
 
 @dataclass
@@ -97,6 +101,7 @@ class RunConfig:
     eval_densities: int = 2
     eval_views: int = 2
     threads: int = 0  # torch CPU threads; 0 keeps torch's default
+    precision: str = "fp32"  # the network's training forward pass: "fp32" | "bf16" (autocast; DAIN statistics stay fp32)
 
 
 @dataclass
@@ -112,6 +117,7 @@ class TrainConfig:
         checks = [
             (self.data.make in ("", "tiny", "cpu"), "data.make must be '', 'tiny' or 'cpu'"),
             (self.data.style_size >= 16, "data.style_size must be >= 16"),
+            (0.0 <= self.data.hue_augment <= 1.0, "data.hue_augment must be a probability in [0, 1]"),
             (self.data.val_plumes >= 1, "data.val_plumes must be >= 1 (validation needs unseen densities)"),
             (self.render.image_size >= 16, "render.image_size must be >= 16 (the extractor pools three times)"),
             (self.render.views >= 1 and self.render.steps >= 1, "render.views and render.steps must be >= 1"),
@@ -120,10 +126,13 @@ class TrainConfig:
             (self.loss.style in STYLE_LOSSES, f"loss.style must be one of {', '.join(STYLE_LOSSES)}"),
             (self.loss.objective in OBJECTIVES, f"loss.objective must be one of {', '.join(OBJECTIVES)}"),
             (self.loss.mask in LOSS_MASKS, f"loss.mask must be one of {', '.join(LOSS_MASKS)}"),
+            (self.loss.temporal_gradient in TEMPORAL_GRADIENTS,
+             f"loss.temporal_gradient must be one of {', '.join(TEMPORAL_GRADIENTS)}"),
             (self.loss.patch_weight >= 0, "loss.patch_weight must be >= 0"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),
             (self.run.device in DEVICES, f"run.device must be one of {', '.join(DEVICES)}"),
+            (self.run.precision in PRECISIONS, f"run.precision must be one of {', '.join(PRECISIONS)}"),
             (self.run.extractor in EXTRACTOR_KINDS, f"run.extractor must be one of {', '.join(EXTRACTOR_KINDS)}"),
             (min(self.run.log_every, self.run.eval_every, self.run.checkpoint_every) >= 1,
              "run.log_every, run.eval_every and run.checkpoint_every must be >= 1"),

@@ -28,23 +28,40 @@ def density_mask(density: torch.Tensor, size: tuple[int, int, int] | None = None
 
 
 def masked_statistics(features: torch.Tensor, mask: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
-    """Per-instance, per-channel mean and variance ``(B, C, 1, 1, 1)`` weighted by ``mask (B, 1, D, H, W)``."""
-    if mask is None:
-        return features.mean(dim=(2, 3, 4), keepdim=True), features.var(dim=(2, 3, 4), keepdim=True, unbiased=False)
-    weight = mask.expand(-1, 1, *features.shape[2:])
-    total = weight.sum(dim=(2, 3, 4), keepdim=True)
-    safe_total = total.clamp_min(1e-12)
-    mean = (features * weight).sum(dim=(2, 3, 4), keepdim=True) / safe_total
-    variance = (weight * (features - mean) ** 2).sum(dim=(2, 3, 4), keepdim=True) / safe_total
-    empty = total <= 1e-12
-    return torch.where(empty, torch.zeros_like(mean), mean), torch.where(empty, torch.ones_like(variance), variance)
+    """Per-instance, per-channel mean and variance ``(B, C, 1, 1, 1)`` weighted by ``mask (B, 1, D, H, W)``.
+
+    Computed in float32 whatever the autocast precision: the weighted sums are two matrix products
+    (``bmm``) of the features, shifted by their plain mean (no gradient) so that ``E[x^2] - E[x]^2``
+    does not cancel when a channel's mean is large against its spread.
+    """
+    with torch.autocast(features.device.type, enabled=False):
+        features = features.float()
+        batch, channels = features.shape[:2]
+        flat = features.flatten(2)
+        if mask is None:
+            variance, mean = torch.var_mean(flat, dim=2, keepdim=True, correction=0)
+            return mean[..., None, None], variance[..., None, None]
+        shift = flat.mean(2, keepdim=True).detach()
+        centred = flat - shift
+        weight = mask.float().expand(-1, 1, *features.shape[2:]).reshape(batch, -1, 1)
+        total = weight.sum(1, keepdim=True)
+        safe_total = total.clamp_min(1e-12)
+        first = torch.bmm(centred, weight) / safe_total
+        second = torch.bmm(centred * centred, weight) / safe_total
+        mean, variance = first + shift, (second - first * first).clamp_min(0.0)
+        empty = total <= 1e-12
+        mean = torch.where(empty, torch.zeros_like(mean), mean)
+        variance = torch.where(empty, torch.ones_like(variance), variance)
+        return mean[..., None, None], variance[..., None, None]
 
 
 def dain(features: torch.Tensor, mask: torch.Tensor | None, gamma: torch.Tensor, beta: torch.Tensor) -> torch.Tensor:
     """Normalise ``features (B, C, D, H, W)`` with masked statistics, then ``gamma, beta (B, C)``.
 
-    ``mask=None`` is plain instance normalisation (for the paper's DAIN-vs-IN ablation).
+    ``mask=None`` is plain instance normalisation (for the paper's DAIN-vs-IN ablation). The
+    normalisation and the affine map are folded into one ``x * scale + shift`` per channel.
     """
     mean, variance = masked_statistics(features, mask)
-    normalised = (features - mean) / torch.sqrt(variance + EPSILON)
-    return gamma[..., None, None, None] * normalised + beta[..., None, None, None]
+    scale = gamma.float()[..., None, None, None] * torch.rsqrt(variance + EPSILON)
+    shift = beta.float()[..., None, None, None] - mean * scale
+    return torch.addcmul(shift.to(features.dtype), features, scale.to(features.dtype))

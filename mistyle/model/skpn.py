@@ -11,19 +11,25 @@ albedo in [0, 1]. Stylizing kernels act at the bottleneck and before the decoder
 convolutions: ``x <- DAIN(K * x + b; m) * gamma + beta``, with the density mask ``m`` at that
 resolution. Any ``D, H, W`` is accepted: the volume is padded to a multiple of 4 and cropped back.
 
-Shapes: density ``(B, 1, D, H, W)``; style levels ``[(B, C_l, H_l, W_l)]`` (4 levels); output albedo
-``(B, 3, D, H, W)``.
+Style code: with ``style_code="moments"`` (the paper's) each predictor reads its level's moments
+only; with ``"quantiles"`` also the style's quantile code (``model.style_code``), the same vector for
+every site. ``SKPN.encode_style`` turns style images into what ``forward`` takes (``StyleInputs``).
+
+Shapes: density ``(B, 1, D, H, W)``; style levels ``[(B, C_l, H_l, W_l)]`` (4 levels) and code
+``(B, CODE_SIZE)`` or None; output albedo ``(B, 3, D, H, W)``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
 from .dain import dain, density_mask
+from .style_code import CODE_SIZE, style_code
 
 
 @dataclass
@@ -36,6 +42,7 @@ class SKPNConfig:
     kernel_size: int = 1
     norm: str = "dain"  # or "in"
     stylize: str = "kernel"  # or "adain"
+    style_code: str = "moments"  # or "quantiles": feature moments plus the style's quantile code
 
     def __post_init__(self):
         if self.kernels not in (1, 2, 4):
@@ -44,25 +51,45 @@ class SKPNConfig:
             raise ValueError(f"kernel_size must be 1 or 3, got {self.kernel_size}.")
         if self.norm not in ("dain", "in") or self.stylize not in ("kernel", "adain"):
             raise ValueError(f"norm must be dain|in and stylize kernel|adain, got {self.norm}, {self.stylize}.")
+        if self.style_code not in ("moments", "quantiles"):
+            raise ValueError(f"style_code must be moments or quantiles, got {self.style_code}.")
+
+    @property
+    def code_size(self) -> int:
+        return CODE_SIZE if self.style_code == "quantiles" else 0
+
+
+class StyleInputs(NamedTuple):
+    """What the SKPN reads of a batch of styles: the extractor's levels ``[(B, C_l, H_l, W_l)]`` and the
+    quantile code ``(B, CODE_SIZE)`` (None for ``style_code="moments"``)."""
+
+    levels: list
+    code: torch.Tensor | None = None
+
+    def repeat(self, times: int) -> "StyleInputs":
+        """Each style ``times`` times in a row, batch-wise (``[s0, s1, s0, s1]`` for two styles twice)."""
+        return StyleInputs([torch.cat([level] * times) for level in self.levels],
+                           None if self.code is None else torch.cat([self.code] * times))
 
 
 class StylizingKernelPredictor(nn.Module):
-    """Three FC layers from one level's (mean, std) to one stylizing kernel."""
+    """Three FC layers from one level's (mean, std), and the style code if any, to one stylizing kernel."""
 
-    def __init__(self, style_channels: int, channels: int, hidden: int, kernel_size: int, with_kernel: bool):
+    def __init__(self, style_channels: int, channels: int, hidden: int, kernel_size: int, with_kernel: bool,
+                 code_size: int = 0):
         super().__init__()
         self.channels, self.kernel_size, self.with_kernel = channels, kernel_size, with_kernel
         outputs = (channels * channels * kernel_size**3 + channels if with_kernel else 0) + 2 * channels
         self.mlp = nn.Sequential(
-            nn.Linear(2 * style_channels, hidden), nn.LeakyReLU(0.2),
+            nn.Linear(2 * style_channels + code_size, hidden), nn.LeakyReLU(0.2),
             nn.Linear(hidden, hidden), nn.LeakyReLU(0.2),
             nn.Linear(hidden, outputs),
         )
 
-    def forward(self, style_level: torch.Tensor) -> dict:
+    def forward(self, style_level: torch.Tensor, code: torch.Tensor | None = None) -> dict:
         flat = style_level.flatten(2)
-        statistics = torch.cat([flat.mean(2), flat.std(2, unbiased=False)], dim=1)
-        out = self.mlp(statistics)
+        statistics = [flat.mean(2), flat.std(2, unbiased=False)] + ([] if code is None else [code])
+        out = self.mlp(torch.cat(statistics, dim=1))
         c, k = self.channels, self.kernel_size
         result = {"gamma": 1.0 + out[:, :c], "beta": out[:, c : 2 * c]}
         if self.with_kernel:
@@ -75,7 +102,7 @@ class StylizingKernelPredictor(nn.Module):
         return result
 
 
-def _apply_kernel(x: torch.Tensor, kernel: dict) -> torch.Tensor:
+def _apply_kernel(x: torch.Tensor, kernel: dict, bias: bool = True) -> torch.Tensor:
     """Per-sample convolution: ``x (B, C, D, H, W)`` with ``weight (B, C, C, k, k, k)`` and ``bias (B, C)``."""
     if "weight" not in kernel:
         return x
@@ -87,7 +114,7 @@ def _apply_kernel(x: torch.Tensor, kernel: dict) -> torch.Tensor:
     else:
         y = F.conv3d(x.reshape(1, batch * channels, *x.shape[2:]), weight.reshape(batch * channels, channels, k, k, k),
                      padding=k // 2, groups=batch).reshape(x.shape)
-    return y + kernel["bias"][..., None, None, None]
+    return y + kernel["bias"][..., None, None, None] if bias else y
 
 
 class _ResidualBlock(nn.Module):
@@ -122,25 +149,42 @@ class SKPN(nn.Module):
         self.sites = active_sites
         self.predictors = nn.ModuleDict({
             str(site): StylizingKernelPredictor(config.style_channels[style_for_site[site]], site_channels[site],
-                                                config.style_hidden, config.kernel_size, with_kernel)
+                                                config.style_hidden, config.kernel_size, with_kernel, config.code_size)
             for site in active_sites
         })
         self.style_for_site = style_for_site
 
-    def forward(self, density: torch.Tensor, style_levels: list[torch.Tensor]) -> torch.Tensor:
+    @torch.no_grad()
+    def encode_style(self, images: torch.Tensor, extractor: nn.Module) -> StyleInputs:
+        """``StyleInputs`` of style images ``(B, 3, S, S)`` in display [0, 1], with ``extractor``'s levels."""
+        levels = list(extractor(images))
+        return StyleInputs(levels, style_code(images) if self.config.style_code == "quantiles" else None)
+
+    def forward(self, density: torch.Tensor, style: StyleInputs | list[torch.Tensor]) -> torch.Tensor:
+        """Albedo ``(B, 3, D, H, W)`` of ``density (B, 1, D, H, W)``; ``style``: ``encode_style``'s output
+        (or, for ``style_code="moments"``, the bare list of levels)."""
         if density.dim() != 5 or density.shape[1] != 1:
             raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
+        if not isinstance(style, StyleInputs):
+            style = StyleInputs(list(style))
+        if (style.code is None) != (self.config.style_code == "moments"):
+            raise ValueError(f"this SKPN has style_code={self.config.style_code!r}; build its style input with encode_style.")
         size = density.shape[2:]
         padded = F.pad(density, [p for n in reversed(size) for p in (0, (-n) % 4)])
-        kernels = {site: self.predictors[str(site)](style_levels[self.style_for_site[site]]) for site in self.sites}
-        use_mask = self.config.norm == "dain"
+        kernels = {site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code) for site in self.sites}
+        masks = {}
 
         def stylize(x, site):
             if site not in kernels:
                 return x
             kernel = kernels[site]
-            mask = density_mask(padded, x.shape[2:]) if use_mask else None
-            return dain(_apply_kernel(x, kernel), mask, kernel["gamma"], kernel["beta"])
+            mask = None
+            if self.config.norm == "dain":
+                if x.shape[2:] not in masks:
+                    masks[x.shape[2:]] = density_mask(padded, x.shape[2:])
+                mask = masks[x.shape[2:]]
+            # The kernel's bias is a per-channel constant, which the normalisation removes: skip adding it.
+            return dain(_apply_kernel(x, kernel, bias=False), mask, kernel["gamma"], kernel["beta"])
 
         e0 = self.encoder[0](padded)
         e1 = self.encoder[1](e0)
@@ -151,7 +195,7 @@ class SKPN(nn.Module):
         x = stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 2)
         x = F.relu(self.decoder[1](torch.cat([x, e0], dim=1)))
         x = stylize(x, 3)
-        albedo = 0.5 * (torch.tanh(self.decoder[2](x)) + 1.0)
+        albedo = 0.5 * (torch.tanh(self.decoder[2](x).float()) + 1.0)
         return albedo[..., : size[0], : size[1], : size[2]]
 
 

@@ -72,7 +72,7 @@ def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | N
         if network is not None:
             started = time.perf_counter()
             with torch.no_grad():
-                albedo = network(density, list(extractor(style[None])))[0]
+                albedo = network(density, network.encode_style(style[None], extractor))[0]
             row.update(network_seconds=time.perf_counter() - started, swd_network=quality(albedo, style_np))
         fit = fit_albedo(layer, style, objective, grey, settings)
         row.update(optimize_seconds=fit.seconds, optimize_steps=steps, swd_optimized=quality(fit.albedo, style_np))

@@ -3,14 +3,17 @@
 * ``SmokePairs`` reads a manifest written by ``python -m mistyle.data smoke``; the last
   ``val_plumes`` plumes are held out, so validation densities come from simulations never trained on.
 * ``StyleSet`` holds styles as ``(N, 3, S, S)`` float32 in [0, 1]. For the built-in offline set the
-  last variant of every source (crop, palette or material seed) is held out; for a folder of images
-  the split is the folder's stable hash split (``ImageFolder.split``).
+  last variant of every photo, texture and material (crop, palette or seed) is held out, and whole
+  paintings (every crop of one picture) by a stable hash of their name; for a folder of images the
+  split is the folder's stable hash split (``ImageFolder.split``). ``augment_styles`` rotates hues
+  and mirrors a batch, so a few hundred pictures give many palettes.
 
 Both check their inputs when built, so an empty or foreign dataset fails before training starts.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +31,9 @@ DATASET_SPECS = {
     "cpu": SmokeDatasetSpec(resolution=32, plumes=24, frames=60, keep_first=41, keep_last=60, seed=0, directions=64),
 }
 
+
+PAINTING_VAL_FRACTION = 0.12
+"""The share of the offline set's paintings held out (whole pictures) for validation."""
 
 # Three held-out offline styles of different kinds (photo, tinted texture, procedural material) used
 # by the comparisons that report "3 unseen styles"; other style sources use evenly spaced picks.
@@ -98,7 +104,7 @@ class StyleSet:
             for name, _ in named:
                 stem, _, index = name.rpartition("_")
                 last[stem] = max(last.get(stem, -1), int(index))
-            is_held = [int(name.rpartition("_")[2]) == last[name.rpartition("_")[0]] for name, _ in named]
+            is_held = [_held_out_offline(name, last) for name, _ in named]
             train = [(n, im) for (n, im), held in zip(named, is_held) if not held]
             val = [(n, im) for (n, im), held in zip(named, is_held) if held]
         else:
@@ -121,6 +127,38 @@ class StyleSet:
             spaced = np.linspace(0, len(self.val_names) - 1, count).round().astype(int).tolist()
             chosen += [i for i in spaced if i not in chosen][: count - len(chosen)]
         return chosen
+
+
+def _held_out_offline(name: str, last: dict) -> bool:
+    stem, _, index = name.rpartition("_")
+    if name.startswith("painting/"):  # every crop of a held-out picture, so validation never sees it
+        digest = hashlib.sha1(stem.encode()).digest()
+        return int.from_bytes(digest[:8], "little") / 2**64 < PAINTING_VAL_FRACTION
+    return int(index) == last[stem]
+
+
+def augment_styles(styles: torch.Tensor, rng: np.random.Generator, hue_probability: float) -> torch.Tensor:
+    """Styles ``(B, 3, S, S)`` with, each, probability ``hue_probability`` of a random rotation of its hues
+    about the grey axis (luminance kept, values clipped to [0, 1]) and an even chance of a mirror image.
+    ``hue_probability = 0`` turns augmentation off (the styles come back as they are, no mirrors)."""
+    if hue_probability <= 0:
+        return styles
+    out = []
+    for style in styles:
+        if rng.random() < hue_probability:
+            style = (hue_rotation(float(rng.uniform(0, 2 * np.pi))).to(style) @ style.flatten(1)).view_as(style).clamp(0, 1)
+        if rng.random() < 0.5:
+            style = style.flip(-1)
+        out.append(style)
+    return torch.stack(out)
+
+
+def hue_rotation(angle: float) -> torch.Tensor:
+    """``(3, 3)`` RGB matrix rotating hues by ``angle`` radians about the grey axis (YIQ chroma rotation)."""
+    to_yiq = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
+    c, s = np.cos(angle), np.sin(angle)
+    rotate = torch.tensor([[1.0, 0, 0], [0, c, -s], [0, s, c]], dtype=torch.float32)
+    return torch.linalg.inv(to_yiq) @ rotate @ to_yiq
 
 
 def _as_batch(images: list[np.ndarray], size: int) -> torch.Tensor:

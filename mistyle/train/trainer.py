@@ -42,10 +42,10 @@ from ..model.features import make_extractor
 from ..model.skpn import parameter_count
 from ..objective.losses import temporal_loss, tv_loss
 from ..objective.masks import body_mask, render_mask
-from ..objective.metrics import multiview_spread, style_distance
+from ..objective.metrics import multiview_spread, style_distance, style_fidelity
 from ..objective.style import make_objective
 from ..scenes import CameraPath
-from .dataset import SmokePairs, StyleSet
+from .dataset import SmokePairs, StyleSet, augment_styles
 
 
 class Interrupted(Exception):
@@ -127,7 +127,8 @@ class Trainer:
         style_ids = self.rng.integers(len(self.styles.train), size=per_rank)
         views = self.path.sample(self.config.render.views, self.rng)
         frames = [self.data.load(pair) for pair in pairs]
-        return {"frames": frames, "styles": self.styles.train[style_ids].to(self.device), "views": views}
+        styles = augment_styles(self.styles.train[style_ids], self.rng, self.config.data.hue_augment)
+        return {"frames": frames, "styles": styles.to(self.device), "views": views}
 
     def losses(self, batch: dict) -> tuple[dict, torch.Tensor]:
         config, device = self.config, self.device
@@ -136,13 +137,20 @@ class Trainer:
         def stack(key):
             return torch.from_numpy(np.stack([frame[key] for frame in frames])).to(device)
 
-        density = torch.cat([stack("density0"), stack("density1")])[:, None]
-        style_levels = self._style_levels(batch["styles"])
-        albedo = self.network(density, [torch.cat([level, level]) for level in style_levels])
-        current, following = albedo[: len(frames)], albedo[len(frames):]
+        style = self._style_inputs(batch["styles"])
+        with self._autocast():
+            if config.loss.temporal_gradient == "current":
+                # Frame t+1 is only the temporal term's target: no gradient, so no backward pass through it.
+                current = self.network(stack("density0")[:, None], style).float()
+                with torch.no_grad():
+                    following = self.model(stack("density1")[:, None], style).float()
+            else:
+                density = torch.cat([stack("density0"), stack("density1")])[:, None]
+                albedo = self.network(density, style.repeat(2)).float()
+                current, following = albedo[: len(frames)], albedo[len(frames):]
         prepared = [prepare_density(f["density0"], self.data.density_scale, ls=f["ls0"]) for f in frames]
         images = self._render(current, prepared, batch["views"])
-        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"], style_levels),
+        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"], style.levels),
                                         self._body_masks(prepared, batch["views"]) if config.loss.mask == "body" else None)
         loss_tv = tv_loss(current)
         loss_temp = temporal_loss(following, current, stack("velocity0"))
@@ -157,9 +165,12 @@ class Trainer:
             white = self._render(torch.ones(shape, device=self.device), prepared, views)
         return body_mask(white.flatten(0, 1))
 
-    def _style_levels(self, styles: torch.Tensor) -> list[torch.Tensor]:
-        with torch.no_grad():
-            return list(self.extractor(styles))
+    def _style_inputs(self, styles: torch.Tensor):
+        return self.model.encode_style(styles, self.extractor)
+
+    def _autocast(self):
+        """The network's forward pass in ``run.precision`` (bfloat16 autocast, or plain float32)."""
+        return torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.config.run.precision == "bf16")
 
     def _render(self, albedo, prepared, views):
         from ..bridge_torch import render_views
@@ -243,7 +254,10 @@ class Trainer:
     # ------------------------------------------------------------------ evaluation
     @torch.no_grad()
     def evaluate(self) -> dict:
-        """Style metrics of held-out styles on held-out densities from fixed views (rank 0 only)."""
+        """Style metrics of held-out styles on held-out densities from fixed views (rank 0 only): the mean
+        ``style_distance`` per view, and the medians of the fidelity benchmark's metrics
+        (``val_rgb_swd``, ``val_patch_swd``, ``val_hue_coverage``) over (density, style) pairs, on the
+        fast layer's renders."""
         if self.rank != 0:
             return {}
         config = self.config
@@ -252,17 +266,19 @@ class Trainer:
         style_ids = np.linspace(0, len(self.styles.val) - 1, min(config.run.eval_styles, len(self.styles.val))).round().astype(int)
         views = self.path.held_out(config.run.eval_views)
         self.model.eval()
-        swd, hist, spreads, rows = [], [], [], []
+        swd, hist, spreads, rows, fidelity = [], [], [], [], []
         for pair in pairs:
             frame = self.data.load(pair)
             density = torch.from_numpy(frame["density0"])[None, None].to(self.device)
             prepared = prepare_density(frame["density0"], self.data.density_scale, ls=frame["ls0"])
             for index in style_ids:
                 style = self.styles.val[index : index + 1].to(self.device)
-                albedo = self.model(density, self._style_levels(style))
+                albedo = self.model(density, self._style_inputs(style))
                 images = self._render(albedo, [prepared], views)[0]
-                per_view = [style_distance(image.permute(1, 2, 0).cpu().numpy(), style[0].permute(1, 2, 0).cpu().numpy())
-                            for image in images]
+                style_np = style[0].permute(1, 2, 0).cpu().numpy()
+                renders = [image.permute(1, 2, 0).cpu().numpy() for image in images]
+                per_view = [style_distance(render, style_np) for render in renders]
+                fidelity.append(style_fidelity(renders, style_np))
                 swd += [d["swd"] for d in per_view]
                 hist += [d["hist"] for d in per_view]
                 spreads.append(multiview_spread([d["swd"] for d in per_view])["relative_std"])
@@ -272,7 +288,8 @@ class Trainer:
             preview = torch.cat(rows, dim=-2).permute(1, 2, 0).clamp(0, 1).cpu().numpy()
             write_png(self.out / "previews" / f"step_{self.step:06d}.png", preview, srgb=False)
             self._tb().add_image("val/preview", preview, self.step, dataformats="HWC")
-        return {"val_swd": float(np.mean(swd)), "val_hist": float(np.mean(hist)), "val_view_spread": float(np.mean(spreads))}
+        return {"val_swd": float(np.mean(swd)), "val_hist": float(np.mean(hist)), "val_view_spread": float(np.mean(spreads)),
+                **{f"val_{key}": float(np.median([row[key] for row in fidelity])) for key in fidelity[0]}}
 
     # ------------------------------------------------------------------ logging
     def _log_record(self, record: dict) -> None:

@@ -18,6 +18,8 @@ are render_final's for the frame (stylize + refine + one --res^2 path-traced vie
     python experiments/style_fidelity.py                           # 14 styles x 3 densities: about 2 h on 2 cores
     python experiments/style_fidelity.py --densities smoke64 --styles hokusai_great_wave,munch_the_scream
     python experiments/style_fidelity.py --quick                   # 1 pair, small renders, few steps
+    python experiments/style_fidelity.py --methods network,final --checkpoint runs/x/final.pt --label x --resume
+        # another network beside the rows already there: its methods are named network@x, final@x
 Writes ``docs/style_fidelity.jsonl`` (a line per density, style, method), ``docs/style_fidelity_table.md``
 (medians per method) and ``docs/style_fidelity_sheet.jpg`` (style | network | final | uniform | optimised).
 """
@@ -47,6 +49,8 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=16, help="paths per pixel of the metric renders")
     parser.add_argument("--methods", default=",".join(METHODS), help="a subset of " + ", ".join(METHODS))
     parser.add_argument("--optimise-factor", type=float, default=2)
+    parser.add_argument("--checkpoint", default=None, help="SKPN checkpoint for network and final (default: the bundled one)")
+    parser.add_argument("--label", default="", help="suffix of the method names of this checkpoint's rows (network@LABEL)")
     parser.add_argument("--out", default="docs/style_fidelity")
     parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
     parser.add_argument("--resume", action="store_true", help="skip pairs already in <out>.jsonl")
@@ -62,13 +66,13 @@ def main() -> None:
     from fidelity_core import metric_views, score, uniform_baseline
     from mistyle.api import Stylizer
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
-    from mistyle.io import load_style, read_vol, write_npy
+    from mistyle.io import load_style, write_npy
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
     from mistyle.render_final import refinement_settings
 
     torch.manual_seed(0)
-    stylizer = Stylizer()
+    stylizer = Stylizer(args.checkpoint)
     config = stylizer.config
     scale, radiance = stylizer.density_scale, config.render.radiance
     views = metric_views(config.render.camera_distance)
@@ -80,11 +84,12 @@ def main() -> None:
     jsonl = out.with_suffix(".jsonl")
     rows = [json.loads(line) for line in jsonl.read_text().splitlines()] if args.resume and jsonl.exists() else []
     methods = [m for m in METHODS if m in args.methods.split(",")]
+    named = {m: labelled(m, args.label) for m in methods}
     found: dict = {}
     for r in rows:
         found.setdefault((r["density"], r["style"]), set()).add(r["method"])
-    done = {pair for pair, have in found.items() if have >= set(methods)}
-    rows = [r for r in rows if (r["density"], r["style"]) in done]
+    done = {pair for pair, have in found.items() if have >= set(named.values())}
+    rows = [r for r in rows if (r["density"], r["style"]) in done or r["method"] not in named.values()]
     # The contact sheet's images, kept across --resume (a --quick run keeps its own).
     tiles = (out.parent if args.quick else Path(args.cache)) / "tiles"
     if args.report_only:
@@ -108,24 +113,12 @@ def main() -> None:
             started = time.perf_counter()
             albedos["network"] = stylizer(density, style)
             extra["network"] = {"seconds": time.perf_counter() - started}
-            with tempfile.TemporaryDirectory() as folder:
-                from mistyle import render_final
-
-                run_out = Path(folder) / "run"
+            if "final" in methods:
+                albedos["final"], extra["final"] = final_albedo(density_path, style_path, args)
+            if "uniform" in methods or "optimised" in methods:
                 started = time.perf_counter()
-                argv = ["--density", str(density_path), "--style", str(style_path), "--out", str(run_out), "--res", str(args.res)]
-                if args.quick:
-                    argv += ["--spp", "4", "--refine", "4", "--refine-path", "1"]
-                if render_final.main(argv) != 0:
-                    raise SystemExit(f"render_final failed on {density_name} / {style_name}")
-                report = json.loads((run_out / "report.json").read_text())
-                refined = run_out / "albedo_refined.vol"
-                albedos["final"] = read_vol(refined) if refined.exists() else np.load(run_out / "albedo.npy")
-                extra["final"] = {"seconds": report["stylize_seconds"] + report.get("refine_seconds", 0.0)
-                                  + report["render_seconds_per_image"], "wall_seconds": time.perf_counter() - started}
-            started = time.perf_counter()
-            albedos["uniform"] = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
-            extra["uniform"] = {"seconds": time.perf_counter() - started}
+                albedos["uniform"] = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
+                extra["uniform"] = {"seconds": time.perf_counter() - started}
             if "optimised" in methods:
                 started = time.perf_counter()
                 settings = refinement_settings(config).scaled(args.optimise_factor / (37.5 if args.quick else 1))
@@ -135,21 +128,55 @@ def main() -> None:
             for method in methods:
                 metrics, images = score(density, albedos[method], style, views, res=args.res, spp=args.spp,
                                         density_scale=scale, radiance=radiance)
-                row = {"density": density_name, "style": style_name, "method": method, **metrics, **extra[method]}
+                row = {"density": density_name, "style": style_name, "method": named[method], **metrics, **extra[method]}
                 print(json.dumps(row), flush=True)
                 with jsonl.open("a") as handle:
                     handle.write(json.dumps(row) + "\n")
                 rows.append(row)
-                save_tile(tiles, density_name, style_name, method, images[0])
+                save_tile(tiles, density_name, style_name, named[method], images[0])
     write_table(rows, out.parent / f"{out.name}_table.md")
     write_sheet(rows, tiles, all_styles, out.parent / f"{out.name}_sheet.jpg")
+
+
+def labelled(method: str, label: str) -> str:
+    """A method's name in the rows: ``network``, or ``network@label`` for another checkpoint's."""
+    return f"{method}@{label}" if label else method
+
+
+def final_albedo(density_path: Path, style_path: Path, args) -> tuple[np.ndarray, dict]:
+    """render_final at its defaults (in-process) on one pair: its (refined) albedo and its seconds."""
+    from mistyle import render_final
+    from mistyle.io import read_vol
+
+    with tempfile.TemporaryDirectory() as folder:
+        run_out = Path(folder) / "run"
+        started = time.perf_counter()
+        argv = ["--density", str(density_path), "--style", str(style_path), "--out", str(run_out), "--res", str(args.res)]
+        if args.checkpoint:
+            argv += ["--checkpoint", str(args.checkpoint)]
+        if args.quick:
+            argv += ["--spp", "4", "--refine", "4", "--refine-path", "1"]
+        if render_final.main(argv) != 0:
+            raise SystemExit(f"render_final failed on {density_path.stem} / {style_path.stem}")
+        report = json.loads((run_out / "report.json").read_text())
+        refined = run_out / "albedo_refined.vol"
+        albedo = read_vol(refined) if refined.exists() else np.load(run_out / "albedo.npy")
+        seconds = {"seconds": report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds_per_image"],
+                   "wall_seconds": time.perf_counter() - started}
+    return albedo, seconds
+
+
+def methods_in(rows) -> list[str]:
+    """The method names in ``rows``: the base methods' order, labelled ones after their base."""
+    names = list(dict.fromkeys(r["method"] for r in rows))
+    return sorted(names, key=lambda name: (METHODS.index(name.partition("@")[0]), name))
 
 
 def medians(rows) -> dict:
     """Per method: medians of the metrics and of each metric's ratio to the uniform baseline's."""
     baseline = {(r["density"], r["style"]): r for r in rows if r["method"] == "uniform"}
     result = {}
-    for method in METHODS:
+    for method in methods_in(rows):
         mine = [r for r in rows if r["method"] == method and (r["density"], r["style"]) in baseline]
         if not mine:
             continue
@@ -196,16 +223,17 @@ def write_sheet(rows, folder: Path, styles: dict, path: Path) -> None:
     pairs = list(dict.fromkeys((r["density"], r["style"]) for r in rows))
     if not pairs:
         return
-    canvas = np.full((len(pairs) * TILE + 16, (len(METHODS) + 1) * TILE, 3), 1.0, np.float32)
+    methods = methods_in(rows)
+    canvas = np.full((len(pairs) * TILE + 16, (len(methods) + 1) * TILE, 3), 1.0, np.float32)
     for row, (density_name, style_name) in enumerate(pairs):
         tiles = [square_style(load_style(styles[style_name]["path"]), TILE).permute(1, 2, 0).numpy()]
-        for method in METHODS:
+        for method in methods:
             tile = folder / f"{density_name}__{style_name}__{method}.png"
             tiles.append(load_style(tile) if tile.exists() else np.full((TILE, TILE, 3), 0.5, np.float32))
         canvas[16 + row * TILE:16 + (row + 1) * TILE] = np.concatenate(tiles, axis=1)
     image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
     draw = ImageDraw.Draw(image)
-    for column, name in enumerate(("style",) + METHODS):
+    for column, name in enumerate(["style"] + methods):
         draw.text((column * TILE + 4, 2), name, fill="black")
     for row, (density_name, _) in enumerate(pairs):
         draw.text((4, 16 + row * TILE + 4), density_name, fill="white")

@@ -91,6 +91,16 @@ def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
     assert len(evals) == 2 and evals[1] < evals[0]
     assert torch.load(out / "final.pt", weights_only=True)["config"]["loss"]["objective"] == "sliced"
     assert {"val_rgb_swd", "val_patch_swd", "val_hue_coverage"} <= rows[-1].keys()
+    assert all(np.isfinite(r["grad_norm"]) for r in steps)
+    assert (out / "best.pt").is_file()  # the better of the two evaluations
+    # --init: a new run from those weights starts where the first one's best evaluation was.
+    best = min(r["val_rgb_swd"] for r in rows if "val_rgb_swd" in r)
+    again = tmp_path / "again"
+    run(again, tiny_smoke, "--init", str(out / "best.pt"), "--set", "optim.steps=1", "--set", 'loss.objective="sliced"',
+        "--set", 'loss.mask="body"', "--set", 'model.style_code="quantiles"', "--set", "optim.clip_grad=1.0")
+    assert records(again)[0]["step"] == 0 and abs(records(again)[0]["val_rgb_swd"] - best) < 1e-4
+    clash = run(tmp_path / "clash", tiny_smoke, "--init", str(out / "best.pt"), "--resume", check=False)
+    assert clash.returncode == 2 and "give one of them" in clash.stderr
 
 
 def _kill_after(out, smoke, step, sig, *extra):
@@ -140,6 +150,7 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_cleanly(tmp_path, tiny_smoke):
     (("--set", 'loss.objective="pixels"'), "loss.objective must be one of features, sliced"),
     (("--set", 'run.precision="fp16"'), "run.precision must be one of fp32, bf16"),
     (("--set", 'model.style_code="vgg"'), "style_code must be moments or quantiles"),
+    (("--set", "optim.clip_grad=-1.0"), "optim.clip_grad must be >= 0"),
 ])
 def test_bad_configs_fail_before_any_work(tmp_path, tiny_smoke, extra, message):
     result = run(tmp_path / "run", tiny_smoke, *extra, check=False)

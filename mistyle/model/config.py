@@ -86,6 +86,7 @@ class OptimConfig:
     betas: tuple[float, float] = (0.9, 0.999)
     lr_decay: float = 0.8
     decay_every_epochs: float = 50.0  # an epoch is one pass over the training frame pairs
+    clip_grad: float = 0.0  # clip the gradient's global norm to this; 0: no clipping
 
 
 @dataclass
@@ -130,6 +131,7 @@ class TrainConfig:
              f"loss.temporal_gradient must be one of {', '.join(TEMPORAL_GRADIENTS)}"),
             (self.loss.patch_weight >= 0, "loss.patch_weight must be >= 0"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
+            (self.optim.clip_grad >= 0, "optim.clip_grad must be >= 0 (0 turns clipping off)"),
             (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),
             (self.run.device in DEVICES, f"run.device must be one of {', '.join(DEVICES)}"),
             (self.run.precision in PRECISIONS, f"run.precision must be one of {', '.join(PRECISIONS)}"),

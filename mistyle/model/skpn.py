@@ -102,8 +102,11 @@ class StylizingKernelPredictor(nn.Module):
         return result
 
 
-def _apply_kernel(x: torch.Tensor, kernel: dict, bias: bool = True) -> torch.Tensor:
-    """Per-sample convolution: ``x (B, C, D, H, W)`` with ``weight (B, C, C, k, k, k)`` and ``bias (B, C)``."""
+def _apply_kernel(x: torch.Tensor, kernel: dict) -> torch.Tensor:
+    """Per-sample convolution of ``x (B, C, D, H, W)`` with ``weight (B, C, C, k, k, k)``.
+
+    The predicted ``bias (B, C)`` is not added: it is a per-channel constant, which the (density-aware)
+    instance normalisation that always follows removes exactly."""
     if "weight" not in kernel:
         return x
     batch, channels = x.shape[:2]
@@ -114,7 +117,7 @@ def _apply_kernel(x: torch.Tensor, kernel: dict, bias: bool = True) -> torch.Ten
     else:
         y = F.conv3d(x.reshape(1, batch * channels, *x.shape[2:]), weight.reshape(batch * channels, channels, k, k, k),
                      padding=k // 2, groups=batch).reshape(x.shape)
-    return y + kernel["bias"][..., None, None, None] if bias else y
+    return y
 
 
 class _ResidualBlock(nn.Module):
@@ -183,8 +186,7 @@ class SKPN(nn.Module):
                 if x.shape[2:] not in masks:
                     masks[x.shape[2:]] = density_mask(padded, x.shape[2:])
                 mask = masks[x.shape[2:]]
-            # The kernel's bias is a per-channel constant, which the normalisation removes: skip adding it.
-            return dain(_apply_kernel(x, kernel, bias=False), mask, kernel["gamma"], kernel["beta"])
+            return dain(_apply_kernel(x, kernel), mask, kernel["gamma"], kernel["beta"])
 
         e0 = self.encoder[0](padded)
         e1 = self.encoder[1](e0)

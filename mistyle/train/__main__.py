@@ -2,6 +2,7 @@
 
     python -m mistyle.train --config configs/cpu.toml --out runs/cpu
     python -m mistyle.train --config configs/cpu.toml --out runs/cpu --resume         # continue from last.pt
+    python -m mistyle.train --config configs/cpu.toml --out runs/cpu2 --init mistyle/checkpoints/skpn_cpu.pt
     python -m mistyle.train --config configs/tiny.toml --set optim.steps=50 --out runs/t
     torchrun --nproc_per_node 2 -m mistyle.train --config configs/tiny.toml --out runs/ddp
     python -m mistyle.train --config configs/cpu.toml --optimize --checkpoint runs/cpu/final.pt --out runs/baseline
@@ -28,6 +29,8 @@ def main(argv=None) -> int:
                         help="override one config value (repeatable), e.g. --set optim.lr=1e-4")
     parser.add_argument("--out", type=Path, required=True, help="run directory (checkpoints, metrics, previews)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last.pt")
+    parser.add_argument("--init", type=Path, default=None,
+                        help="start a new run from this checkpoint's weights (training or exported; fresh optimizer)")
     parser.add_argument("--device", choices=("cpu", "cuda"), default=None, help="shorthand for --set run.device=...")
     parser.add_argument("--vgg-weights", default=None, help="torchvision VGG16 state dict (shorthand for run.vgg_weights)")
     parser.add_argument("--optimize", action="store_true", help="run the direct per-volume optimisation baseline")
@@ -55,7 +58,9 @@ def main(argv=None) -> int:
             _init_distributed(config)
         from .trainer import Interrupted, Trainer
 
-        trainer = Trainer(config, args.out, resume=args.resume)
+        if args.init and args.resume:
+            raise ValueError("--init starts a new run from a checkpoint's weights; --resume continues one: give one of them.")
+        trainer = Trainer(config, args.out, resume=args.resume, init=args.init)
         try:
             final = trainer.run()
         except Interrupted:

@@ -67,7 +67,7 @@ def device_for(config: TrainConfig) -> torch.device:
 
 
 class Trainer:
-    def __init__(self, config: TrainConfig, out: Path, resume: bool = False, log=print):
+    def __init__(self, config: TrainConfig, out: Path, resume: bool = False, log=print, init: Path | None = None):
         self.config, self.out = config, Path(out)
         self.rank, self.world = (dist.get_rank(), dist.get_world_size()) if dist.is_initialized() else (0, 1)
         self.log = log if self.rank == 0 else (lambda *a, **k: None)
@@ -114,6 +114,9 @@ class Trainer:
         self.step, self.seconds = 0, 0.0
         if checkpoint is not None:
             self._restore(checkpoint)
+        elif init is not None:
+            self._initialise_from(Path(init))
+        self.best = math.inf
         self.interrupted = False
         self._tensorboard = None
         self.log(f"SKPN: {parameter_count(self.model) / 1e6:.2f} M parameters; {len(self.data.train)} training pairs "
@@ -185,6 +188,8 @@ class Trainer:
         terms, images = self.losses(batch)
         self.optimizer.zero_grad(set_to_none=True)
         terms["loss"].backward()
+        # The gradient's norm before clipping (logged; clipped to optim.clip_grad when that is > 0).
+        terms["grad_norm"] = torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.optim.clip_grad or math.inf)
         self.optimizer.step()
         self.scheduler.step()
         self.step += 1
@@ -203,6 +208,9 @@ class Trainer:
             self.out.mkdir(parents=True, exist_ok=True)
             atomic_write_bytes(self.out / "config.toml", to_toml(config_to_dict(config)).encode())
             self._trim_metrics()
+            if (self.out / "metrics.jsonl").is_file():  # a resumed run's best so far, so best.pt only improves
+                seen = [json.loads(line).get("val_rgb_swd") for line in (self.out / "metrics.jsonl").read_text().splitlines()]
+                self.best = min([value for value in seen if value is not None], default=math.inf)
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         try:
             if self.step == 0:
@@ -227,6 +235,7 @@ class Trainer:
                     if evaluate:
                         record.update(self.evaluate())
                         self._tensorboard_images(visuals)
+                        self._keep_best(record)
                     self._log_record(record)
                     self._progress(record)
                 if self.step % config.run.checkpoint_every == 0 or self.interrupted:
@@ -243,6 +252,26 @@ class Trainer:
         if self.rank == 0:
             sys.stderr.write("\n")
         return final
+
+    def _keep_best(self, record: dict) -> None:
+        """``best.pt``: the weights of the evaluation with the lowest validation RGB SWD so far (model
+        selection on the validation split; the held-out benchmark split is never looked at)."""
+        value = record.get("val_rgb_swd")
+        if self.rank == 0 and value is not None and value < self.best:
+            self.best = value
+            self.save(self.out / "best.pt")
+
+    def _initialise_from(self, path: Path) -> None:
+        """Start from another run's weights (a training or exported checkpoint): same architecture and extractor."""
+        checkpoint = load_checkpoint(path)
+        if checkpoint["extractor"] != self.extractor.name:
+            raise ValueError(f"--init {path} was trained with the {checkpoint['extractor']} extractor, this run has "
+                             f"{self.extractor.name}.")
+        try:
+            self.model.load_state_dict(checkpoint["model"])
+        except RuntimeError as error:
+            raise ValueError(f"--init {path} does not fit this run's [model] config ({str(error).splitlines()[0]}).") from None
+        self.log(f"initialised from the weights of {path} (step {checkpoint.get('step', '?')} of its run)")
 
     def _on_signal(self, signum, frame):
         if self.interrupted:  # a second Ctrl-C: stop at once

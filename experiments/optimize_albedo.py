@@ -61,7 +61,7 @@ def main() -> None:
     prepared = prepare_density(density, 30.0)
     held_out = CameraPath().held_out(4)
     styles = [("material/marble", material_texture("marble", 128, seed=3)), ("material/fire", material_texture("fire", 128, seed=3))]
-    styles += [s for s in offline_style_set(size=128, crops_per_photo=1, palettes_per_texture=1, materials_each=0) if s[0].startswith("photo/coffee") or s[0].startswith("photo/hubble")]
+    styles += [s for s in offline_style_set(size=128, crops_per_photo=1, palettes_per_texture=1, materials_each=0, crops_per_painting=0) if s[0].startswith("photo/coffee") or s[0].startswith("photo/hubble")]
     styles = styles[: args.styles]
 
     # Opacity 1 - T per pixel: with Ls = 1, albedo 1 and Le = 1 the layer's exact segments sum to 1 - T.

@@ -69,3 +69,23 @@ def test_kernel_sites_and_the_style_level_each_reads(kernels, sites):
     for index, level in enumerate(levels):
         used = any(model.style_for_site[site] == index for site in sites)
         assert (level.grad is not None and float(level.grad.abs().sum()) > 0) == used
+
+
+def test_averaged_checkpoints_hold_the_mean_weights_and_refuse_other_architectures(tmp_path):
+    from mistyle.model.checkpoint import CHECKPOINT_FORMAT, average_checkpoints, load_checkpoint, save_checkpoint
+
+    def checkpoint(path, widths, step):
+        model = SKPN(SKPNConfig(**{**TINY, "widths": widths}))
+        save_checkpoint(path, {"format": CHECKPOINT_FORMAT, "step": step, "config": {}, "extractor": "filterbank",
+                               "model": model.state_dict(), "optimizer": {}})
+        return model.state_dict()
+
+    a = checkpoint(tmp_path / "a.pt", (4, 8, 8), 10)
+    b = checkpoint(tmp_path / "b.pt", (4, 8, 8), 20)
+    averaged = load_checkpoint(average_checkpoints([tmp_path / "a.pt", tmp_path / "b.pt"], tmp_path / "mean.pt"))
+    assert averaged["step"] == 20 and "optimizer" not in averaged and len(averaged["averaged_from"]) == 2
+    for key in a:
+        torch.testing.assert_close(averaged["model"][key], (a[key].float() + b[key].float()) / 2)
+    checkpoint(tmp_path / "wide.pt", (4, 8, 16), 30)
+    with pytest.raises(ValueError, match="one run only"):
+        average_checkpoints([tmp_path / "a.pt", tmp_path / "wide.pt"], tmp_path / "bad.pt")

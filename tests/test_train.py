@@ -83,7 +83,7 @@ def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
     out = tmp_path / "run"
     run(out, tiny_smoke, "--set", "optim.steps=30", "--set", "run.eval_every=30", "--set", 'loss.objective="sliced"',
         "--set", 'loss.mask="body"', "--set", 'model.style_code="quantiles"', "--set", 'run.precision="bf16"',
-        "--set", 'loss.temporal_gradient="current"', "--set", "data.hue_augment=0.5")
+        "--set", 'loss.temporal_gradient="current"', "--set", "data.hue_augment=0.5", "--set", "run.keep_checkpoints=true")
     rows = records(out)
     steps = [r for r in rows if "loss_hist" in r]
     assert len(steps) == 30 and all(np.isfinite(r["loss_hist"]) for r in steps)
@@ -93,6 +93,8 @@ def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
     assert {"val_rgb_swd", "val_patch_swd", "val_hue_coverage"} <= rows[-1].keys()
     assert all(np.isfinite(r["grad_norm"]) for r in steps)
     assert (out / "best.pt").is_file()  # the better of the two evaluations
+    assert sorted(p.name for p in (out / "steps").glob("*.pt")) == ["step_000010.pt", "step_000020.pt", "step_000030.pt"]
+    assert "optimizer" not in torch.load(out / "steps" / "step_000030.pt", weights_only=True)
     # --init: a new run from those weights starts where the first one's best evaluation was.
     best = min(r["val_rgb_swd"] for r in rows if "val_rgb_swd" in r)
     again = tmp_path / "again"

@@ -51,6 +51,13 @@ HELD_OUT_DENSITIES = (
 )
 
 
+VALIDATION_DENSITIES = (
+    HeldOutDensity("val_smoke64", "smoke", 64, HELD_OUT_SEED_BASE + 101, frame=69),
+)
+"""Densities for choosing between checkpoints (``experiments/validation_curve.py``): made like the
+benchmark's but from other seeds, so model selection never looks at the benchmark's split."""
+
+
 def held_out_density(spec: HeldOutDensity, cache: Path | None = None) -> np.ndarray:
     """The density ``(Z, Y, X)`` float32 of ``spec``; cached as ``<cache>/<name>.npy`` when ``cache`` is given."""
     from ..io import write_npy

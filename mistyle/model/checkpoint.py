@@ -24,7 +24,7 @@ from .features import extractor_from_name
 from .skpn import SKPN
 
 CHECKPOINT_FORMAT = 1
-INFERENCE_KEYS = ("format", "mistyle_version", "step", "seconds", "config", "extractor", "density_scale", "model")
+INFERENCE_KEYS = ("format", "mistyle_version", "step", "seconds", "config", "extractor", "density_scale", "model", "averaged_from")
 
 
 def load_checkpoint(path) -> dict:
@@ -104,5 +104,24 @@ def export_checkpoint(source, destination) -> Path:
     without the optimizer state (a third of the size). ``load_model`` and ``mistyle.stylize`` read it."""
     checkpoint = load_checkpoint(source)
     payload = {key: checkpoint[key] for key in INFERENCE_KEYS if key in checkpoint}
+    payload.setdefault("density_scale", DEFAULT_DENSITY_SCALE)
+    return save_checkpoint(destination, payload)
+
+
+def average_checkpoints(sources, destination) -> Path:
+    """An inference checkpoint whose weights are the mean of ``sources``' (stochastic weight averaging of
+    checkpoints along one run); config, extractor and step are the last source's. ``ValueError`` when
+    the sources differ in architecture or extractor."""
+    checkpoints = [load_checkpoint(source) for source in sources]
+    last = checkpoints[-1]
+    for source, checkpoint in zip(sources, checkpoints):
+        if checkpoint.get("extractor") != last.get("extractor") or checkpoint["model"].keys() != last["model"].keys() or any(
+                value.shape != last["model"][key].shape for key, value in checkpoint["model"].items()):
+            raise ValueError(f"{source} does not share the architecture and extractor of {sources[-1]}; "
+                             "average checkpoints of one run only.")
+    payload = {key: last[key] for key in INFERENCE_KEYS if key in last}
+    payload["model"] = {key: sum(checkpoint["model"][key].float() for checkpoint in checkpoints) / len(checkpoints)
+                        for key in last["model"]}
+    payload["averaged_from"] = [f"{Path(source).name} (step {checkpoint.get('step')})" for source, checkpoint in zip(sources, checkpoints)]
     payload.setdefault("density_scale", DEFAULT_DENSITY_SCALE)
     return save_checkpoint(destination, payload)

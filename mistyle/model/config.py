@@ -98,6 +98,7 @@ class RunConfig:
     log_every: int = 10
     eval_every: int = 200
     checkpoint_every: int = 200
+    keep_checkpoints: bool = False  # also keep each checkpoint's weights as steps/step_XXXXXX.pt
     eval_styles: int = 6
     eval_densities: int = 2
     eval_views: int = 2

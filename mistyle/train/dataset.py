@@ -137,6 +137,13 @@ def _held_out_offline(name: str, last: dict) -> bool:
     return int(index) == last[stem]
 
 
+def validation_paintings() -> list[Path]:
+    """The paintings the offline set holds out for validation (whole pictures, ``PAINTING_VAL_FRACTION``)."""
+    from ..data.styles import PAINTINGS_DIR
+
+    return [path for path in sorted(PAINTINGS_DIR.glob("*.jpg")) if _held_out_offline(f"painting/{path.stem}_0", {})]
+
+
 def augment_styles(styles: torch.Tensor, rng: np.random.Generator, hue_probability: float) -> torch.Tensor:
     """Styles ``(B, 3, S, S)`` with, each, probability ``hue_probability`` of a random rotation of its hues
     about the grey axis (luminance kept, values clipped to [0, 1]) and an even chance of a mirror image.

@@ -34,6 +34,7 @@ from ..io import atomic_write_bytes, check_writable_dir, write_png
 from ..model.checkpoint import (
     CHECKPOINT_FORMAT,
     build_model,
+    export_checkpoint,
     load_checkpoint,
     save_checkpoint,
 )
@@ -240,6 +241,8 @@ class Trainer:
                     self._progress(record)
                 if self.step % config.run.checkpoint_every == 0 or self.interrupted:
                     self.save(self.out / "last.pt")
+                    if config.run.keep_checkpoints and self.rank == 0:  # weights only, for experiments/validation_curve.py
+                        export_checkpoint(self.out / "last.pt", self.out / "steps" / f"step_{self.step:06d}.pt")
                 if self.interrupted:
                     raise Interrupted()
             self.save(self.out / "last.pt")
@@ -254,12 +257,12 @@ class Trainer:
         return final
 
     def _keep_best(self, record: dict) -> None:
-        """``best.pt``: the weights of the evaluation with the lowest validation RGB SWD so far (model
+        """``best.pt`` (weights only): the evaluation with the lowest fast-layer validation RGB SWD so far (model
         selection on the validation split; the held-out benchmark split is never looked at)."""
-        value = record.get("val_rgb_swd")
+        value = record.get("val_rgb_swd")  # only rank 0 evaluates, so only rank 0 writes (weights only: no gather)
         if self.rank == 0 and value is not None and value < self.best:
             self.best = value
-            self.save(self.out / "best.pt")
+            save_checkpoint(self.out / "best.pt", self._inference_payload())
 
     def _initialise_from(self, path: Path) -> None:
         """Start from another run's weights (a training or exported checkpoint): same architecture and extractor."""
@@ -381,14 +384,14 @@ class Trainer:
         states = self._rng_states()  # every rank joins the gather
         if self.rank != 0:
             return path
-        payload = {
-            "format": CHECKPOINT_FORMAT, "mistyle_version": __version__, "step": self.step, "seconds": self.seconds,
-            "config": config_to_dict(self.config), "extractor": self.extractor.name,
-            "density_scale": self.data.density_scale,
-            "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
-            "scheduler": self.scheduler.state_dict(), "rng": states, "world_size": self.world,
-        }
+        payload = {**self._inference_payload(), "optimizer": self.optimizer.state_dict(),
+                   "scheduler": self.scheduler.state_dict(), "rng": states, "world_size": self.world}
         return save_checkpoint(path, payload)
+
+    def _inference_payload(self) -> dict:
+        return {"format": CHECKPOINT_FORMAT, "mistyle_version": __version__, "step": self.step, "seconds": self.seconds,
+                "config": config_to_dict(self.config), "extractor": self.extractor.name,
+                "density_scale": self.data.density_scale, "model": self.model.state_dict()}
 
     def _restore(self, checkpoint: dict) -> None:
         if checkpoint["extractor"] != self.extractor.name:

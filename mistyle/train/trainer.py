@@ -9,7 +9,9 @@ the training orbit through the fast layer, and minimises
 
 Outputs in ``<out>/``: ``config.toml`` (resolved), ``metrics.jsonl`` (one object per logged step),
 ``last.pt`` (every ``run.checkpoint_every`` steps, on Ctrl-C and at the end), ``final.pt``,
-``previews/step_XXXXXX.png`` and TensorBoard events in ``tb/``.
+``best.pt`` (weights of the lowest fast-layer validation RGB SWD), ``steps/step_XXXXXX.pt`` (weights
+at every checkpoint, with ``run.keep_checkpoints``), ``previews/step_XXXXXX.png`` and TensorBoard
+events in ``tb/``. With ``loss.objective = "sliced"`` the style term is ``objective.style.SlicedObjective``.
 """
 
 from __future__ import annotations

@@ -81,6 +81,8 @@ def main() -> None:
                     env = dict(os.environ, PYTHONPATH=str(tree))
                     result = subprocess.run(command, cwd=ROOT, env=env, check=True, capture_output=True, text=True)
                     record = json.loads(result.stdout.strip().splitlines()[-1])
+                    if Path(record.pop("mistyle")).resolve() != tree.resolve():  # the arm ran the code it names
+                        raise SystemExit(f"arm {name}: imported mistyle from elsewhere than {tree}")
                     seconds[name].append(record["seconds_per_step"])
                     print(json.dumps({"round": round_index, "arm": name, "revision": revision or "working tree",
                                       "overrides": overrides, **record}), flush=True)

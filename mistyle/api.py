@@ -8,7 +8,11 @@
 
 ``stylize`` runs the trained SKPN feed-forward (the bundled checkpoint unless one is named) on
 numpy arrays of any ``D, H, W``, single frames ``(Z, Y, X)`` or sequences ``(T, Z, Y, X)``; frames
-are stylized independently, as in the paper. ``render`` path-traces the heterogeneous medium
+are stylized independently, as in the paper. ``strength`` fades the style towards a uniform grey
+medium and a list of ``(style, weight)`` pairs mixes styles; both act on the predicted stylizing
+kernels (``Stylizer.kernels``, ``Stylizer.weakened``), not on finished albedos:
+
+    albedo = mistyle.stylize(density, [("wave.png", 0.7), ("starry.png", 0.3)], strength=0.5) ``render`` path-traces the heterogeneous medium
 with Mitsuba's ``volpath`` in ``llvm_ad_rgb`` on the CPU (``cuda_ad_rgb`` with ``device="cuda"``).
 """
 
@@ -27,6 +31,8 @@ from .io import load_density, load_style
 PACKAGE = Path(__file__).resolve().parent
 DEFAULT_CHECKPOINT = PACKAGE / "checkpoints" / "skpn_cpu.pt"
 SCALE_STRUCTURES_RANGE = (0.125, 8.0)
+# Rec. 709 luma of display RGB: the brightness a neutral (strength 0) medium keeps from the style.
+LUMA_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
 
 
 def validate_scale_structures(factor, name: str = "scale_structures") -> float:
@@ -35,6 +41,45 @@ def validate_scale_structures(factor, name: str = "scale_structures") -> float:
     if not (np.isfinite(factor) and low <= factor <= high):
         raise ValueError(f"{name} must lie in [{low}, {high}], got {factor}.")
     return float(factor)
+
+
+def validate_strength(strength, name: str = "strength") -> float:
+    """A style strength in [0, 1]; ``ValueError`` naming ``name``."""
+    if not (np.isfinite(strength) and 0.0 <= strength <= 1.0):
+        raise ValueError(f"{name} must lie in [0, 1] (0: a uniform grey medium, 1: the full style), got {strength}.")
+    return float(strength)
+
+
+def style_parts(style) -> list[tuple[object, float]]:
+    """``style`` as ``[(image or path, weight)]``: one image or path, or a list of ``(style, weight)``."""
+    if isinstance(style, (list, tuple)) and style and all(isinstance(p, tuple) and len(p) == 2 for p in style):
+        weights = [float(w) for _, w in style]
+        if not all(np.isfinite(w) and w >= 0 for w in weights) or sum(weights) <= 0:
+            raise ValueError(f"Style mix weights must be >= 0 with a positive sum, got {weights}.")
+        return [(image, float(w)) for image, w in style]
+    return [(style, 1.0)]
+
+def style_target(images: list[np.ndarray], weights, height: int = 256) -> np.ndarray:
+    """The picture a style's look is measured and refined against: the image itself, or for a mix a
+    mosaic ``(height, W, 3)`` of its images side by side, each given a width in proportion to its
+    weight (scaled to ``height``, tiled across its strip), so every style's colours and patterns
+    count as much as its weight."""
+    from PIL import Image
+
+    if len(images) == 1:
+        return images[0]
+    weights = np.asarray(weights, dtype=np.float64) / np.sum(weights)
+    strips = []
+    for image, weight in zip(images, weights):
+        width = round(height * len(images) * weight)
+        if width < 1:
+            continue
+        scaled = np.asarray(Image.fromarray((image * 255 + 0.5).astype(np.uint8)).resize(
+            (max(1, round(image.shape[1] * height / image.shape[0])), height), Image.LANCZOS), dtype=np.float32) / 255
+        repeats = -(-width // scaled.shape[1])
+        strips.append(np.tile(scaled, (1, repeats, 1))[:, :width])
+    return np.concatenate(strips, axis=1)
+
 
 __all__ = ["Stylizer", "display", "load_density", "load_style", "path_trace", "render", "stylize"]
 
@@ -90,21 +135,53 @@ class Stylizer:
         """What the network reads of ``style`` (``model.skpn.StyleInputs``)."""
         return self.trained.model.encode_style(self.style_tensor(style)[None].to(self.device), self.extractor)
 
-    def __call__(self, density, style, scale_structures: float = 1.0, notes: list | None = None) -> np.ndarray:
+    def kernels(self, style, notes: list | None = None):
+        """The stylizing kernels (``model.skpn.StylizingKernels``) the network applies for ``style``:
+        one image or path, or a mix ``[(style, weight)]``, whose kernels are blended with the
+        weights normalised to sum 1."""
+        import torch
+
+        from .model.skpn import StylizingKernels
+
+        model = self.trained.model
+        with torch.no_grad():
+            return StylizingKernels.blend([(model.predict_kernels(self.style_inputs(load_style(image, notes))), weight)
+                                           for image, weight in style_parts(style)])
+
+    def weakened(self, kernels, grid: np.ndarray, strength: float):
+        """``kernels`` at ``strength``: blended with ``SKPN.neutral_kernels`` whose grey is the luma of the
+        full-strength albedo's density-weighted mean on ``grid``, so that fading the style out keeps
+        the medium's brightness and removes its hues and patterns (0: uniform grey, 1: ``kernels``)."""
+        from .model.skpn import StylizingKernels
+
+        if validate_strength(strength) == 1.0:
+            return kernels
+        full = self._one(grid, kernels, 1.0)
+        weights = grid / grid.sum()
+        grey = float(np.tensordot(weights, full, axes=3) @ LUMA_WEIGHTS)
+        neutral = self.trained.model.neutral_kernels(kernels, grey)
+        return StylizingKernels.blend([(kernels, strength), (neutral, 1.0 - strength)])
+
+    def __call__(self, density, style, scale_structures: float = 1.0, notes: list | None = None,
+                 strength: float = 1.0) -> np.ndarray:
+        """Albedo ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) of ``density`` for ``style`` (see ``kernels``)
+        at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame)."""
         from .volume import validate_density
 
-        style = load_style(style, notes)
         array = np.asarray(density)
         sequence = array.ndim == 4 and array.shape[-1] != 1
         frames = array if sequence else array[None]
         validate_scale_structures(scale_structures)
-        inputs = self.style_inputs(style)
+        validate_strength(strength)
+        inputs = self.kernels(style, notes)
         albedos = []
         for index, frame in enumerate(frames):
             grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
             if not grid.any():
                 raise ValueError(f"{'Frame ' + str(index) + ' of the density' if sequence else 'The density'} is all zero; "
                                  "there is no medium to stylize.")
+            if index == 0:
+                inputs = self.weakened(inputs, grid, strength)
             albedos.append(self._one(grid, inputs, scale_structures))
         return np.stack(albedos) if sequence else albedos[0]
 
@@ -130,12 +207,14 @@ def _stylizer(checkpoint, device, vgg_weights) -> Stylizer:
 
 
 def stylize(density, style_image, checkpoint=None, scale_structures: float = 1.0, device: str = "cpu",
-            vgg_weights=None) -> np.ndarray:
+            vgg_weights=None, strength: float = 1.0) -> np.ndarray:
     """Albedo for ``density`` in the look of ``style_image``, feed-forward.
 
     Args:
         density: ``(Z, Y, X)`` or a sequence ``(T, Z, Y, X)``, finite, >= 0, not all zero.
-        style_image: a path, or an ``(H, W, 3)`` array (uint8, uint16 or float in [0, 1]).
+        style_image: a path, or an ``(H, W, 3)`` array (uint8, uint16 or float in [0, 1]), or a mix
+            ``[(style, weight), ...]`` (weights >= 0, normalised to sum 1).
+        strength: 0 gives a uniform grey medium of the styled one's brightness, 1 the full style.
         checkpoint: a ``python -m mistyle.train`` checkpoint; default: the bundled one.
         scale_structures: resample the density by this factor before stylizing (paper Sec. 5.5):
             > 1 makes the style's structures smaller relative to the volume.
@@ -144,7 +223,7 @@ def stylize(density, style_image, checkpoint=None, scale_structures: float = 1.0
         ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) float32 albedo in [0, 1].
     """
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
-    return _stylizer(key, device, vgg_weights)(density, style_image, scale_structures)
+    return _stylizer(key, device, vgg_weights)(density, style_image, scale_structures, strength=strength)
 
 
 def render(density, albedo, view: float = HELD_OUT_VIEW, res: int = 256, spp: int = 64, max_depth: int = -1,

@@ -15,6 +15,11 @@ Style code: with ``style_code="moments"`` (the paper's) each predictor reads its
 only; with ``"quantiles"`` also the style's quantile code (``model.style_code``), the same vector for
 every site. ``SKPN.encode_style`` turns style images into what ``forward`` takes (``StyleInputs``).
 
+Mixing and strength: ``SKPN.predict_kernels`` returns the SKP's output (``StylizingKernels``) and
+``forward`` also takes it, so styles are combined where the model combines them: a convex
+combination of predicted kernels (``StylizingKernels.blend``) is again a kernel set, and moves the
+albedo continuously from one style's to the other's.
+
 Shapes: density ``(B, 1, D, H, W)``; style levels ``[(B, C_l, H_l, W_l)]`` (4 levels) and code
 ``(B, CODE_SIZE)`` or None; output albedo ``(B, 3, D, H, W)``.
 """
@@ -70,6 +75,24 @@ class StyleInputs(NamedTuple):
         """Each style ``times`` times in a row, batch-wise (``[s0, s1, s0, s1]`` for two styles twice)."""
         return StyleInputs([torch.cat([level] * times) for level in self.levels],
                            None if self.code is None else torch.cat([self.code] * times))
+
+
+class StylizingKernels(NamedTuple):
+    """The SKP's output for a batch of ``B`` styles: per kernel site, ``gamma`` and ``beta`` ``(B, C)``
+    and, with ``stylize="kernel"``, ``weight (B, C, C, k, k, k)`` and ``bias (B, C)``."""
+
+    sites: dict
+
+    @staticmethod
+    def blend(parts: list[tuple["StylizingKernels", float]]) -> "StylizingKernels":
+        """``sum_i w_i K_i`` over ``parts = [(K_i, w_i)]``, the weights normalised to sum 1 (each >= 0)."""
+        weights = torch.tensor([float(w) for _, w in parts], dtype=torch.float64)
+        if not parts or not torch.isfinite(weights).all() or (weights < 0).any() or weights.sum() <= 0:
+            raise ValueError(f"Kernel blending needs finite weights >= 0 with a positive sum, got {weights.tolist()}.")
+        weights = weights / weights.sum()
+        first = parts[0][0].sites
+        return StylizingKernels({site: {key: sum(float(w) * kernels.sites[site][key] for (kernels, _), w in zip(parts, weights))
+                                        for key in first[site]} for site in first})
 
 
 class StylizingKernelPredictor(nn.Module):
@@ -163,18 +186,48 @@ class SKPN(nn.Module):
         levels = list(extractor(images))
         return StyleInputs(levels, style_code(images) if self.config.style_code == "quantiles" else None)
 
-    def forward(self, density: torch.Tensor, style: StyleInputs | list[torch.Tensor]) -> torch.Tensor:
-        """Albedo ``(B, 3, D, H, W)`` of ``density (B, 1, D, H, W)``; ``style``: ``encode_style``'s output
-        (or, for ``style_code="moments"``, the bare list of levels)."""
-        if density.dim() != 5 or density.shape[1] != 1:
-            raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
+    def predict_kernels(self, style: StyleInputs | list[torch.Tensor]) -> StylizingKernels:
+        """The SKP: ``StylizingKernels`` of ``encode_style``'s output (or, for ``style_code="moments"``,
+        the bare list of levels)."""
         if not isinstance(style, StyleInputs):
             style = StyleInputs(list(style))
         if (style.code is None) != (self.config.style_code == "moments"):
             raise ValueError(f"this SKPN has style_code={self.config.style_code!r}; build its style input with encode_style.")
+        return StylizingKernels({site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code)
+                                 for site in self.sites})
+
+    @torch.no_grad()
+    def neutral_kernels(self, kernels: StylizingKernels, grey: float) -> StylizingKernels:
+        """``kernels`` with the last site's replaced so that the albedo is ``grey`` everywhere.
+
+        With ``gamma = 0`` DAIN outputs ``beta``: the features entering the last convolution are a
+        constant, which that convolution (weights summed over its 3^3 taps) and the tanh map to one
+        albedo; ``beta`` is the least-norm solution giving ``grey`` in every channel. Exact away
+        from the grid's faces, where the convolution's zero padding enters (empty space in practice).
+        Blending towards these kernels (``StylizingKernels.blend``) moves the albedo's pre-tanh
+        values linearly from the style's to the grey's: the style strength."""
+        last = max(self.sites)
+        if last != 3:
+            raise ValueError("Style strength needs an SKPN with a kernel before its last convolution (model.kernels = 2 "
+                             "or 4); this checkpoint has none. Use strength 1 or another checkpoint.")
+        conv = self.decoder[2]
+        taps = conv.weight.sum(dim=(2, 3, 4)).double()  # (3, C): the convolution of a constant field
+        level = min(max(float(grey), 1e-3), 1.0 - 1e-3)
+        target = torch.full((3,), 2.0 * level - 1.0, dtype=torch.float64).atanh() - conv.bias.double()
+        beta = torch.linalg.pinv(taps) @ target
+        site = dict(kernels.sites[last])
+        site["gamma"] = torch.zeros_like(site["gamma"])
+        site["beta"] = beta.to(site["beta"]).expand_as(site["beta"]).clone()
+        return StylizingKernels({**kernels.sites, last: site})
+
+    def forward(self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor]) -> torch.Tensor:
+        """Albedo ``(B, 3, D, H, W)`` of ``density (B, 1, D, H, W)``; ``style``: ``encode_style``'s output
+        (or, for ``style_code="moments"``, the bare list of levels), or kernels from ``predict_kernels``."""
+        if density.dim() != 5 or density.shape[1] != 1:
+            raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
+        kernels = (style if isinstance(style, StylizingKernels) else self.predict_kernels(style)).sites
         size = density.shape[2:]
         padded = F.pad(density, [p for n in reversed(size) for p in (0, (-n) % 4)])
-        kernels = {site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code) for site in self.sites}
         masks = {}
 
         def stylize(x, site):

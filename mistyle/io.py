@@ -17,6 +17,7 @@ import os
 import struct
 import tempfile
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -233,16 +234,26 @@ def read_vol(path) -> np.ndarray:
     return data[..., 0] if c == 1 else data
 
 
-DENSITY_SUFFIXES = (".vol", ".npy", ".npz")
+DENSITY_SUFFIXES = (".vol", ".vdb", ".npy", ".npz")
 
 
-def load_density(path) -> np.ndarray:
-    """Load and validate a density grid ``(Z, Y, X)`` from a ``.vol``, ``.npy`` or ``.npz`` (key ``density``) file."""
-    return _read_density_file(Path(path))["density"]
+class DensityFrames(NamedTuple):
+    """``load_density_frames``' result; ``transforms`` only for ``.vdb`` frames (else None)."""
+
+    densities: list  # (Z, Y, X) float32 each
+    velocities: list | None  # (Z, Y, X, 3) each, when every frame has one
+    names: list  # file stems
+    transforms: list | None  # vdb.VdbTransform each: where the grid sits in the file's world
 
 
-def load_density_frames(path) -> tuple[list[np.ndarray], list[np.ndarray] | None, list[str]]:
-    """Density frames from a file or a folder of frame files: ``(densities, velocities or None, names)``.
+def load_density(path, grid: str | None = None) -> np.ndarray:
+    """Load and validate a density grid ``(Z, Y, X)`` from a ``.vol``, ``.vdb`` (float grid ``grid``,
+    default ``density`` or the only one), ``.npy`` or ``.npz`` (key ``density``) file."""
+    return _read_density_file(Path(path), grid)["density"]
+
+
+def load_density_frames(path, grid: str | None = None) -> DensityFrames:
+    """Density frames from a file or a folder of frame files (sorted by name).
 
     ``.npz`` frames of ``python -m mistyle.data`` carry each frame's velocity ``(Z, Y, X, 3)``; the
     velocities are returned only when every frame has one. All frames must share one grid size.
@@ -251,27 +262,34 @@ def load_density_frames(path) -> tuple[list[np.ndarray], list[np.ndarray] | None
     if path.is_dir():
         files = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES and p.is_file())
         if not files:
-            raise ValueError(f"The folder {path} holds no .vol, .npy or .npz density frames.")
+            raise ValueError(f"The folder {path} holds no {', '.join(DENSITY_SUFFIXES)} density frames.")
     else:
         files = [path]
-    frames = [_read_density_file(file) for file in files]
+    frames = [_read_density_file(file, grid) for file in files]
     shapes = {frame["density"].shape for frame in frames}
     if len(shapes) > 1:
         raise ValueError(f"The frames in {path} have different shapes {sorted(shapes)}; a sequence needs one grid size.")
     velocities = [frame.get("velocity") for frame in frames]
-    return ([frame["density"] for frame in frames], velocities if all(v is not None for v in velocities) else None,
-            [file.stem for file in files])
+    transforms = [frame.get("transform") for frame in frames]
+    return DensityFrames([frame["density"] for frame in frames],
+                         velocities if all(v is not None for v in velocities) else None,
+                         [file.stem for file in files], transforms if all(t is not None for t in transforms) else None)
 
 
-def _read_density_file(path: Path) -> dict:
+def _read_density_file(path: Path, grid: str | None = None) -> dict:
     if not path.exists():
         raise ValueError(f"Density {path} does not exist.")
     if not path.is_file():
         raise ValueError(f"Density {path} is not a file.")
     suffix = path.suffix.lower()
     if suffix not in DENSITY_SUFFIXES:
-        raise ValueError(f"Unsupported density file {path}: use a Mitsuba .vol, a numpy .npy (Z, Y, X) grid "
-                         "or an .npz with a 'density' array.")
+        raise ValueError(f"Unsupported density file {path}: use a Mitsuba .vol, an OpenVDB .vdb, a numpy .npy "
+                         "(Z, Y, X) grid or an .npz with a 'density' array.")
+    if suffix == ".vdb":
+        from .vdb import read_vdb
+
+        array, transform, _name = read_vdb(path, grid)  # read_vdb names the file and its grids in its errors
+        return {"density": validate_density(array, name=os.fspath(path)), "velocity": None, "transform": transform}
     if suffix == ".vol":
         array, velocity = read_vol(path), None  # read_vol names the file in its own errors
     else:

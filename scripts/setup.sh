@@ -18,6 +18,24 @@ if ! have_recent_llvm; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 >/dev/null
 fi
 
+have_openvdb_python() {
+    # .vdb input and output (mistyle/vdb.py) run Debian's OpenVDB module under the system Python:
+    # it is built for that interpreter and its numpy 1.x, so it cannot live in the venv.
+    if [ -n "${MISTYLE_VDB_PYTHON:-}" ]; then return 0; fi
+    /usr/bin/python3 -c "import pyopenvdb" >/dev/null 2>&1 || /usr/bin/python3 -c "import openvdb" >/dev/null 2>&1
+}
+
+if ! have_openvdb_python; then
+    echo "setup: installing python3-openvdb (for reading and writing .vdb volumes)"
+    SUDO=""
+    if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+    # Best effort: everything but .vdb input and output works without it.
+    if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq python3-openvdb >/dev/null; }; then
+        echo "setup: warning: could not install python3-openvdb; VDB input/output will be unavailable" \
+             "(install it by hand, or set MISTYLE_VDB_PYTHON to a Python with the openvdb module)" >&2
+    fi
+fi
+
 PYTHON=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
     echo "setup: creating .venv"

@@ -1,0 +1,396 @@
+"""OpenVDB (``.vdb``) input and output: densities in, densities and albedos out.
+
+The route. The OpenVDB Python binding that Debian and Ubuntu ship, ``python3-openvdb`` (module
+``pyopenvdb``; ``openvdb`` from OpenVDB 11 on), is built for the system interpreter and its numpy 1.x,
+and mistyle's environment has its own Python with numpy 2, so the module cannot load here. mistyle
+therefore runs ``mistyle/vdb_convert.py`` -- a standalone script that imports nothing from mistyle --
+under an interpreter that has the binding, and the two exchange ``.npy`` arrays and a JSON sidecar
+through a temporary folder. ``vdb_interpreter`` finds that interpreter: ``$MISTYLE_VDB_PYTHON`` if set,
+else this Python (then the converter's functions run in-process, no subprocess), else
+``/usr/bin/python3``, else ``python3`` on the PATH. Without one, ``VdbUnavailable`` names the fix.
+
+Conventions:
+
+* arrays use mistyle's layout, ``arr[z, y, x]`` (``(Z, Y, X)``) and ``(Z, Y, X, 3)`` for colours
+  (``mistyle.scenes.box``); OpenVDB's index coordinates are ``(i, j, k) = (x, y, z)``, so array element
+  ``[z, y, x]`` is voxel ``index_min + (x, y, z)``;
+* OpenVDB puts voxel centres at integer index coordinates, so the cells of a ``(Z, Y, X)`` array cover
+  the index box ``index_min - 0.5 .. index_min + (X, Y, Z) - 0.5``;
+* ``VdbTransform.matrix`` is the index-to-world 4x4 acting on COLUMN vectors, ``world = matrix @ (i, j,
+  k, 1)``, translation in ``matrix[:3, 3]`` -- the convention of ``MediumBox.unit_to_world_matrix`` and
+  Mitsuba's ``to_world``. (OpenVDB's own ``Mat4`` acts on row vectors, its transpose; the converter's
+  ``meta.json`` stores that, and this module transposes at the boundary.)
+
+Round trips are exact: float32 values are copied bit for bit, voxels equal to zero stay inactive
+(OpenVDB's background, so files stay sparse) and read back as zero, and the array's own index box is
+recorded in each grid's metadata, so ``read_vdb`` gives back the written shape even when the margins are
+empty. The matrix is stored as doubles and comes back bit for bit, scale-and-translate and rotated
+alike (``vdb_convert.linear_transform`` and ``index_to_world_matrix`` say how; an ulp at worst). Files
+from other tools read as the bounding box of their active voxels.
+
+Grid names: ``DENSITY_GRID`` ('density', class fog volume) is what Blender, Houdini and most renderers
+look for. The albedo is written only as ``ALBEDO_GRID`` ('Cd', a vec3 grid of linear RGB single-scattering
+albedo in [0, 1]), Houdini's name for colour fields: Houdini's Volume Visualization picks it up as its
+diffuse field; in Blender, type ``Cd`` into the Principled Volume node's Color Attribute (or use an
+Attribute node named ``Cd``).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+DENSITY_GRID = "density"
+ALBEDO_GRID = "Cd"
+INTERPRETER_ENV = "MISTYLE_VDB_PYTHON"
+CONVERTER = Path(__file__).with_name("vdb_convert.py")
+
+_PROBE = "import numpy\ntry:\n    import pyopenvdb\nexcept ImportError:\n    import openvdb\n"
+_PROBE_TIMEOUT_S = 120  # a cold import of numpy on a busy machine can take a while
+
+
+class VdbUnavailable(ValueError):
+    """No Python interpreter here can import OpenVDB's module; the message says how to get one."""
+
+
+@dataclass(frozen=True)
+class VdbTransform:
+    """Where a grid sits: the index-to-world matrix and the index of array element ``[0, 0, 0]``.
+
+    ``matrix``: 4x4 float64 acting on column vectors, ``world = matrix @ (i, j, k, 1)``.
+    ``index_min``: ``(i, j, k) = (x, y, z)`` index of ``arr[0, 0, 0]``.
+    """
+
+    matrix: np.ndarray
+    index_min: tuple[int, int, int] = (0, 0, 0)
+
+    def __post_init__(self):
+        matrix = np.array(self.matrix, dtype=np.float64)
+        if matrix.shape != (4, 4) or not np.all(np.isfinite(matrix)):
+            raise ValueError(f"A VDB transform needs a finite 4x4 index-to-world matrix, got shape {matrix.shape}.")
+        if not np.array_equal(matrix[3], [0.0, 0.0, 0.0, 1.0]):
+            raise ValueError("The index-to-world matrix must be affine (last row 0, 0, 0, 1; column vectors, "
+                             f"translation in matrix[:3, 3]), got last row {matrix[3].tolist()}.")
+        if np.linalg.cond(matrix[:3, :3]) > 1e12:
+            raise ValueError("The index-to-world matrix is singular; voxels need a non-zero size along every axis.")
+        index_min = tuple(self.index_min)
+        if len(index_min) != 3 or not all(float(v).is_integer() for v in index_min):
+            raise ValueError(f"index_min must be three integers (i, j, k), got {self.index_min}.")
+        matrix.flags.writeable = False  # frozen means frozen
+        object.__setattr__(self, "matrix", matrix)
+        object.__setattr__(self, "index_min", tuple(int(v) for v in index_min))
+
+    def __eq__(self, other):
+        if not isinstance(other, VdbTransform):
+            return NotImplemented
+        return self.index_min == other.index_min and np.array_equal(self.matrix, other.matrix)
+
+    def __hash__(self):
+        return hash((self.index_min, self.matrix.tobytes()))
+
+    @property
+    def voxel_size(self) -> np.ndarray:
+        """World length of one voxel step along ``i``, ``j`` and ``k`` (= x, y, z), shape ``(3,)``."""
+        return np.linalg.norm(self.matrix[:3, :3], axis=0)
+
+    def index_to_world(self, points_xyz) -> np.ndarray:
+        """World positions ``(..., 3)`` of index coordinates ``(..., 3)`` ordered ``(i, j, k) = (x, y, z)``."""
+        points = np.asarray(points_xyz, dtype=np.float64)
+        if points.shape[-1:] != (3,):
+            raise ValueError(f"Index coordinates are (..., 3) arrays ordered (i, j, k), got shape {points.shape}.")
+        return points @ self.matrix[:3, :3].T + self.matrix[:3, 3]
+
+    def voxel_centre(self, x: float, y: float, z: float) -> np.ndarray:
+        """World position ``(3,)`` of the centre of array element ``arr[z, y, x]``."""
+        return self.index_to_world(np.add(self.index_min, (x, y, z)))
+
+    def world_bbox(self, shape_zyx) -> tuple[np.ndarray, np.ndarray]:
+        """World-axis-aligned ``(min, max)`` corners (each ``(3,)``) around the cells of a ``(Z, Y, X)`` array.
+
+        Voxel centres sit at integer index coordinates, so the cells span ``index_min - 0.5`` to
+        ``index_max + 0.5``; a rotated grid gives the box around its eight corners.
+        """
+        size_xyz = np.array(_shape3(shape_zyx)[::-1], dtype=np.float64)
+        low = np.array(self.index_min, dtype=np.float64) - 0.5
+        corners = np.array([[low[a] + size_xyz[a] * bit for a, bit in enumerate(bits)]
+                            for bits in np.ndindex(2, 2, 2)])
+        world = self.index_to_world(corners)
+        return world.min(axis=0), world.max(axis=0)
+
+    @classmethod
+    def for_medium_box(cls, shape_zyx) -> VdbTransform:
+        """The transform that puts a ``(Z, Y, X)`` grid where mistyle renders it (``mistyle.scenes.box``).
+
+        The medium box is centred at the origin with its longest side 1 and cubic voxels of side
+        ``1 / max(Z, Y, X)``; the centre of ``arr[z, y, x]`` is ``bbox_min + (x + 0.5, y + 0.5, z + 0.5) *
+        voxel_size``. For densities that came from a file without a transform of its own.
+        """
+        z, y, x = _shape3(shape_zyx)
+        voxel = 1.0 / max(z, y, x)
+        bbox_min = -0.5 * voxel * np.array([x, y, z], dtype=np.float64)
+        matrix = np.diag([voxel, voxel, voxel, 1.0])
+        matrix[:3, 3] = bbox_min + 0.5 * voxel
+        return cls(matrix, (0, 0, 0))
+
+
+def _shape3(shape_zyx) -> tuple[int, int, int]:
+    shape = tuple(int(n) for n in shape_zyx)
+    if len(shape) != 3 or min(shape) < 1:
+        raise ValueError(f"A grid shape is (Z, Y, X) with every size >= 1, got {tuple(shape_zyx)}.")
+    return shape
+
+
+# ----------------------------------------------------------------------------- finding the binding
+@dataclass(frozen=True)
+class _Route:
+    python: str
+    in_process: bool
+    clean_env: bool  # run it without our PYTHONPATH/PYTHONHOME (not for an interpreter the user named)
+
+    def env(self) -> dict | None:
+        return _clean_env() if self.clean_env else None
+
+
+def _clean_env() -> dict:
+    """Our environment without the variables that would point another Python at our packages."""
+    return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+
+
+def _probe(python: str, env: dict | None) -> str | None:
+    """``None`` if ``python`` imports numpy and OpenVDB's module, else why not (one line)."""
+    try:
+        result = subprocess.run([python, "-c", _PROBE], check=False, capture_output=True, text=True,
+                                timeout=_PROBE_TIMEOUT_S, env=env,
+                                stdin=subprocess.DEVNULL)
+    except (OSError, subprocess.SubprocessError) as error:
+        return f"cannot run it ({error})"
+    if result.returncode == 0:
+        return None
+    lines = result.stderr.strip().splitlines()
+    return lines[-1] if lines else f"exit status {result.returncode}"
+
+
+def _import_in_process() -> bool:
+    try:
+        try:
+            import pyopenvdb  # noqa: F401
+        except ImportError:
+            import openvdb  # noqa: F401
+    except Exception:  # an ImportError, or a binding built against another numpy failing at load
+        return False
+    return True
+
+
+@functools.cache
+def _find_route(override: str | None) -> _Route:
+    """The interpreter to run the converter with; cached per value of ``$MISTYLE_VDB_PYTHON``."""
+    fix = ("Install OpenVDB's Python module with `apt-get install python3-openvdb` (Debian/Ubuntu; `make setup` "
+           f"tries this), or set {INTERPRETER_ENV} to a Python interpreter that can `import pyopenvdb` (or "
+           "`openvdb`) and numpy.")
+    if override:
+        python = shutil.which(override) or override
+        why = _probe(python, None)
+        if why is not None:
+            raise VdbUnavailable(f"{INTERPRETER_ENV}={override} cannot load OpenVDB's module ({why}). {fix}")
+        return _Route(python, False, False)
+    tried = []
+    candidates = [sys.executable, "/usr/bin/python3", shutil.which("python3")]
+    for python in candidates:
+        if not python or any(os.path.realpath(python) == os.path.realpath(t) for t in tried):
+            continue
+        tried.append(python)
+        if _probe(python, _clean_env()) is not None:
+            continue
+        # Only after a subprocess proved the binding loads: a binding built for another numpy can
+        # abort the interpreter that imports it, and this one is ours.
+        if python == sys.executable and _import_in_process():
+            return _Route(python, True, False)
+        return _Route(python, False, True)
+    raise VdbUnavailable("Reading and writing OpenVDB (.vdb) files needs OpenVDB's Python module, and no "
+                         f"interpreter here has it (tried {', '.join(tried)}). {fix}")
+
+
+def vdb_interpreter() -> str:
+    """The Python interpreter that reads and writes ``.vdb`` files for mistyle (this one when in-process).
+
+    Raises:
+        VdbUnavailable: no interpreter can import OpenVDB's module; the message names the fix.
+    """
+    return _find_route(os.environ.get(INTERPRETER_ENV) or None).python
+
+
+def _run_converter(route: _Route, *args: str) -> None:
+    """Run ``vdb_convert.py`` with ``args``; its one-line error becomes a ``ValueError``."""
+    try:
+        result = subprocess.run([route.python, str(CONVERTER), *args], check=False, capture_output=True, text=True,
+                                env=route.env(), stdin=subprocess.DEVNULL)
+    except OSError as error:
+        raise VdbUnavailable(f"Cannot run the OpenVDB interpreter {route.python} ({error}); set {INTERPRETER_ENV} "
+                             "to a Python with OpenVDB's module.") from None
+    if result.returncode == 0:
+        return
+    lines = [line for line in result.stderr.strip().splitlines() if line.strip()]
+    errors = [line for line in lines if line.startswith("error: ")]
+    if result.returncode == 2 and errors:
+        raise ValueError(errors[-1][len("error: "):])
+    how = (f"was killed by signal {-result.returncode}" if result.returncode < 0
+           else f"stopped with exit status {result.returncode}")
+    raise ValueError(f"The OpenVDB converter ({route.python} {CONVERTER.name}) {how}: "
+                     f"{lines[-1] if lines else 'no message'}.")
+
+
+def _convert_in_process(function, *args):
+    from . import vdb_convert
+
+    try:
+        return getattr(vdb_convert, function)(*args)
+    except vdb_convert.ConvertError as error:
+        raise ValueError(str(error)) from None
+
+
+def _existing_file(path) -> Path:
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"VDB file {path} does not exist.")
+    if not path.is_file():
+        raise ValueError(f"VDB file {path} is not a file.")
+    return path
+
+
+# ----------------------------------------------------------------------------- reading
+def read_vdb(path, grid: str | None = None) -> tuple[np.ndarray, VdbTransform, str]:
+    """Read one grid of a ``.vdb`` file as a dense array: ``(array, transform, grid_name)``.
+
+    The grid is ``grid`` if given (a float grid reads as ``(Z, Y, X)``, a vec3 grid such as 'Cd' as
+    ``(Z, Y, X, 3)``), else the float grid named 'density', else the file's only float grid. The array
+    is float32 and covers the written array's box for files from ``write_vdb``, the active voxels'
+    bounding box otherwise; ``transform.index_min`` is the index of its element ``[0, 0, 0]``.
+
+    Raises:
+        VdbUnavailable: no interpreter has OpenVDB's module (the message names the fix).
+        ValueError: a missing or unreadable file, no such grid (the message lists the file's grids),
+            several float grids and no 'density', an empty grid, or a non-linear (frustum) transform.
+    """
+    path = _existing_file(path)
+    route = _find_route(os.environ.get(INTERPRETER_ENV) or None)
+    if route.in_process:
+        array, meta = _convert_in_process("read_grid", os.fspath(path), grid)
+    else:
+        with tempfile.TemporaryDirectory(prefix="mistyle-vdb-") as workdir:
+            _run_converter(route, "read", os.fspath(path), workdir, *(["--grid", grid] if grid is not None else []))
+            with open(Path(workdir) / "meta.json") as handle:
+                meta = json.load(handle)
+            array = np.load(Path(workdir) / meta["array"], allow_pickle=False)
+    # meta["matrix"] is OpenVDB's row-vector matrix; ours acts on column vectors.
+    transform = VdbTransform(np.array(meta["matrix"], dtype=np.float64).T, tuple(meta["index_min"]))
+    expected = tuple(hi - lo + 1 for lo, hi in zip(meta["index_min"], meta["index_max"]))[::-1]
+    if array.shape[:3] != expected:
+        raise ValueError(f"The OpenVDB converter returned a {array.shape} array for the index box "
+                         f"{meta['index_min']}..{meta['index_max']}; this is a bug in mistyle.vdb.")
+    return np.ascontiguousarray(array, dtype=np.float32), transform, meta["grid"]
+
+
+def vdb_info(path) -> dict:
+    """What a ``.vdb`` file holds, without reading its voxels.
+
+    ``{"grids": [{"name", "type" ('float', 'vec3s', ...), "class" ('fog volume', ...),
+    "active_voxel_count", "index_min", "index_max" (None where the file does not record them),
+    "is_linear", "matrix" (OpenVDB's row-vector convention), "metadata"}, ...], "file_metadata": {...}}``.
+    """
+    path = _existing_file(path)
+    route = _find_route(os.environ.get(INTERPRETER_ENV) or None)
+    if route.in_process:
+        return _convert_in_process("file_info", os.fspath(path))
+    with tempfile.TemporaryDirectory(prefix="mistyle-vdb-") as workdir:
+        _run_converter(route, "info", os.fspath(path), workdir)
+        with open(Path(workdir) / "meta.json") as handle:
+            return json.load(handle)
+
+
+# ----------------------------------------------------------------------------- writing
+def _grid_spec(name, value, shape) -> tuple[str, np.ndarray]:
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError(f"VDB grid names are non-empty strings, got {name!r}.")
+    array = np.asarray(value)
+    if not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)
+            or array.dtype == np.bool_):
+        raise ValueError(f"VDB grid '{name}' has the type {array.dtype}; give real numbers.")
+    if array.ndim == 3:
+        kind = "float"
+    elif array.ndim == 4 and array.shape[-1] == 3:
+        kind = "vec3"
+    else:
+        raise ValueError(f"VDB grid '{name}' must be (Z, Y, X) (a scalar such as a density) or (Z, Y, X, 3) "
+                         f"(a colour such as an albedo), got shape {array.shape}.")
+    if min(array.shape) < 1:
+        raise ValueError(f"VDB grid '{name}' is empty (shape {array.shape}).")
+    if shape is not None and array.shape[:3] != shape:
+        raise ValueError(f"VDB grid '{name}' is {array.shape[:3]} (Z, Y, X) but the grids before it are {shape}; "
+                         "all grids of a file share one voxel box.")
+    values = array.astype(np.float32)
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"VDB grid '{name}' holds NaN or infinite values (or values beyond float32).")
+    return kind, values
+
+
+def write_vdb(path, transform: VdbTransform, grids: dict, metadata: dict | None = None) -> Path:
+    """Write named grids that share one voxel box to one ``.vdb`` file, atomically.
+
+    ``grids`` maps names to float arrays ``(Z, Y, X)`` (FloatGrid) or ``(Z, Y, X, 3)`` (Vec3SGrid), e.g.
+    ``{DENSITY_GRID: density, ALBEDO_GRID: albedo}``; the density grid gets the class fog volume. Values
+    are stored as float32, and zeros stay inactive, so empty space costs nothing (mask an albedo with
+    ``density > 0`` to keep it sparse too). ``transform`` places the grid (``VdbTransform.for_medium_box``
+    for mistyle's own box). ``metadata``: file-level ``name -> str | int | float | bool``.
+
+    Raises:
+        VdbUnavailable: no interpreter has OpenVDB's module (the message names the fix).
+        ValueError: bad shapes, non-finite values, bad metadata, or an unwritable path.
+    """
+    if not isinstance(transform, VdbTransform):
+        raise ValueError(f"write_vdb needs a VdbTransform (e.g. VdbTransform.for_medium_box(shape)), got "
+                         f"{type(transform).__name__}.")
+    if not isinstance(grids, dict) or not grids:
+        raise ValueError("write_vdb needs at least one grid, as a dict {name: array}.")
+    specs, shape = [], None
+    for name, value in grids.items():
+        kind, values = _grid_spec(name, value, shape)
+        shape = values.shape[:3]
+        specs.append({"name": name, "kind": kind, "class": "fog" if name == DENSITY_GRID else None, "array": values})
+    file_metadata = {}
+    for key, value in (metadata or {}).items():
+        if not isinstance(key, str) or not key:
+            raise ValueError(f"VDB metadata names are non-empty strings, got {key!r}.")
+        if isinstance(value, np.generic):
+            value = value.item()
+        if not isinstance(value, (str, bool, int, float)) or (isinstance(value, float) and not np.isfinite(value)):
+            raise ValueError(f"VDB metadata '{key}' must be a string, a finite number or a bool, got {value!r}.")
+        file_metadata[key] = value
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ValueError(f"Cannot write {path}: {error.strerror}. Choose a writable output directory.") from None
+    matrix = transform.matrix.T.tolist()  # OpenVDB's row-vector convention
+    route = _find_route(os.environ.get(INTERPRETER_ENV) or None)
+    if route.in_process:
+        _convert_in_process("write_grids", os.fspath(path), matrix, list(transform.index_min), specs, file_metadata)
+        return path
+    with tempfile.TemporaryDirectory(prefix="mistyle-vdb-") as workdir:
+        sidecar = {"matrix": matrix, "index_min": list(transform.index_min), "metadata": file_metadata, "grids": []}
+        for number, spec in enumerate(specs):
+            file = f"grid{number}.npy"
+            np.save(Path(workdir) / file, spec["array"], allow_pickle=False)
+            sidecar["grids"].append({"name": spec["name"], "file": file, "kind": spec["kind"], "class": spec["class"]})
+        with open(Path(workdir) / "meta.json", "w") as handle:
+            json.dump(sidecar, handle, allow_nan=False)
+        _run_converter(route, "write", os.fspath(path), workdir)
+    return path

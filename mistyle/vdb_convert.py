@@ -1,0 +1,446 @@
+"""OpenVDB files to and from numpy arrays: the helper that ``mistyle.vdb`` runs under an interpreter with
+the OpenVDB binding.
+
+Standalone on purpose: Debian's ``python3-openvdb`` (module ``pyopenvdb``; ``openvdb`` from OpenVDB 11 on)
+is built for the system Python and its numpy 1.x, so it cannot load in mistyle's environment. This file
+therefore imports only the standard library, numpy and the binding, never mistyle, and runs as a script
+under that other interpreter; its functions are also importable where the binding loads in-process.
+
+Commands (arrays in ``.npy`` files and a ``meta.json`` in a work folder)::
+
+    python vdb_convert.py read IN.vdb WORKDIR [--grid NAME]   ->  WORKDIR/grid.npy, WORKDIR/meta.json
+    python vdb_convert.py write OUT.vdb WORKDIR               <-  WORKDIR/meta.json and the .npy it names
+    python vdb_convert.py info IN.vdb WORKDIR                 ->  WORKDIR/meta.json (no voxel data read)
+
+Conventions:
+
+* arrays use mistyle's layout ``(Z, Y, X)`` (scalars) and ``(Z, Y, X, 3)`` (vectors); OpenVDB's dense copies
+  are indexed ``[i][j][k]`` = ``[x][y][z]``, so every array is transposed at this boundary;
+* ``index_min`` is the index coordinate ``(i, j, k)`` of array element ``[0, 0, 0]``; voxel centres sit at
+  integer index coordinates;
+* ``matrix`` in ``meta.json`` is the index-to-world 4x4 in OpenVDB's own (``Mat4``) convention: it acts on
+  ROW vectors, ``[x, y, z, 1] = [i, j, k, 1] @ matrix``, so the translation is the last row.
+
+Sparsity: grids are written with ``copyFromArray(..., tolerance=0)``, so voxels equal to the background
+(zero) stay inactive and cost nothing. Because a file then no longer knows the dense array it came from,
+``write`` records the array's index box in each grid's metadata (``mistyle_dense_min``/``_max``) and
+``read`` copies that box back when it encloses the active voxels; for files from other tools the dense
+box is the active voxels' bounding box.
+
+Errors print one line ``error: ...`` on stderr and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+# Run as a script, Python puts this file's folder (mistyle/) first on sys.path, where mistyle's own
+# modules could shadow others; the helper needs none of them.
+if __name__ == "__main__" and sys.path and os.path.abspath(sys.path[0] or os.curdir) == os.path.dirname(
+        os.path.abspath(__file__)):
+    del sys.path[0]
+
+import numpy as np
+
+DENSITY_GRID = "density"
+FLOAT_TYPE = "float"
+VEC3_TYPE = "vec3s"
+DENSE_MIN_KEY = "mistyle_dense_min"
+DENSE_MAX_KEY = "mistyle_dense_max"
+# A dense copy of a sparse grid can be far larger than the file; 2^30 voxels are 4 GiB of float32.
+MAX_DENSE_VOXELS = 2**30
+
+
+class ConvertError(Exception):
+    """A problem with the input, explained in one line for the user."""
+
+
+def openvdb_module():
+    """The OpenVDB binding: ``pyopenvdb`` (OpenVDB <= 10), else ``openvdb`` (11 on)."""
+    try:
+        import pyopenvdb as vdb
+    except ImportError:
+        try:
+            import openvdb as vdb
+        except ImportError as error:
+            raise ConvertError(f"{sys.executable} has no OpenVDB module (pyopenvdb or openvdb): {error}") from None
+    return vdb
+
+
+# ----------------------------------------------------------------------------- small helpers
+def _jsonable(value):
+    """Metadata values as JSON: numbers, strings and booleans as they are, vectors as lists, others as text."""
+    if isinstance(value, (bool, int, str)) or value is None:
+        return value
+    if isinstance(value, float):
+        return value if np.isfinite(value) else str(value)
+    if isinstance(value, (tuple, list)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return _jsonable(value.item())
+    return str(value)
+
+
+def _class_name(grid) -> str:
+    """The grid class as OpenVDB spells it in files ('fog volume', 'level set', 'staggered', 'unknown')."""
+    name = str(grid.gridClass).lower()
+    name = name.rsplit(".", 1)[-1].replace("_", " ")  # an enum ("GridClass.FOG_VOLUME") in newer bindings
+    return name
+
+
+def _grid_summary(grid) -> dict:
+    return {"name": grid.name, "type": grid.valueTypeName, "class": _class_name(grid)}
+
+
+def _describe(grids: list[dict]) -> str:
+    return ", ".join(f"'{g['name']}' ({g['type']})" for g in grids) or "no grids"
+
+
+def _check_file(path: str) -> None:
+    if not os.path.exists(path):
+        raise ConvertError(f"{path} does not exist.")
+    if not os.path.isfile(path):
+        raise ConvertError(f"{path} is not a file.")
+
+
+def _grid_list(vdb, path: str) -> list:
+    """All grids of ``path`` with their metadata and transforms but no voxels (cheap)."""
+    _check_file(path)
+    try:
+        return list(vdb.readAllGridMetadata(path))
+    except Exception as error:  # the binding raises OSError, RuntimeError or its own types
+        raise ConvertError(f"{path} is not a readable OpenVDB file ({_one_line(error)}).") from None
+
+
+def _file_metadata(vdb, path: str) -> dict:
+    try:
+        return {str(k): _jsonable(v) for k, v in dict(vdb.readMetadata(path)).items()}
+    except Exception:  # file-level metadata is a courtesy; an unreadable entry does not stop the read
+        return {}
+
+
+def index_to_world_matrix(transform) -> list[list[float]]:
+    """The 4x4 index-to-world matrix of a linear transform in OpenVDB's row-vector convention.
+
+    Rebuilt from ``indexToWorld`` (the binding exposes no matrix): the image of the origin is the last
+    row; the images of ``2^60`` along each index axis, less the origin and divided by ``2^60``, are the
+    other rows. The step is a power of two, so scaling by it is exact, and so large that adding and
+    removing the translation rounds it away: the rows come back bit for bit unless an entry is some
+    1e-18 of the translation, and then within about 1e-34 of it.
+    """
+    origin = np.array(transform.indexToWorld((0.0, 0.0, 0.0)), dtype=np.float64)
+    step = float(2**60)
+    matrix = np.eye(4)
+    for axis in range(3):
+        point = [0.0, 0.0, 0.0]
+        point[axis] = step
+        matrix[axis, :3] = (np.array(transform.indexToWorld(tuple(point)), dtype=np.float64) - origin) / step
+    matrix[3, :3] = origin
+    return matrix.tolist()
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+# ----------------------------------------------------------------------------- read
+def file_info(path: str) -> dict:
+    """What ``path`` holds, without reading voxels: grids (name, type, class, active voxel count and
+    index box where the file records them, transform) and the file's metadata."""
+    vdb = openvdb_module()
+    grids = []
+    for grid in _grid_list(vdb, path):
+        entry = _grid_summary(grid)
+        metadata = {str(k): _jsonable(v) for k, v in dict(grid.metadata).items()}
+        entry["active_voxel_count"] = metadata.get("file_voxel_count")  # written by OpenVDB's own writer
+        entry["index_min"] = metadata.get("file_bbox_min")
+        entry["index_max"] = metadata.get("file_bbox_max")
+        entry["is_linear"] = bool(grid.transform.isLinear)
+        entry["matrix"] = index_to_world_matrix(grid.transform) if grid.transform.isLinear else None
+        entry["metadata"] = metadata
+        grids.append(entry)
+    return {"file": path, "grids": grids, "file_metadata": _file_metadata(vdb, path)}
+
+
+def choose_grid(path: str, grids: list[dict], name: str | None) -> dict:
+    """The summary of the grid to read: ``name``, else 'density', else the only float grid."""
+    if name is not None:
+        matches = [g for g in grids if g["name"] == name]
+        if not matches:
+            raise ConvertError(f"{path} has no grid named '{name}'; it holds {_describe(grids)}.")
+        if matches[0]["type"] not in (FLOAT_TYPE, VEC3_TYPE):
+            raise ConvertError(f"Grid '{name}' of {path} holds {matches[0]['type']} values; mistyle reads float "
+                               f"(scalar) and vec3s (colour) grids. The file holds {_describe(grids)}.")
+        return matches[0]
+    floats = [g for g in grids if g["type"] == FLOAT_TYPE]
+    if not floats:
+        raise ConvertError(f"{path} holds no float grid to read as a density; it holds {_describe(grids)}.")
+    for grid in floats:
+        if grid["name"] == DENSITY_GRID:
+            return grid
+    if len(floats) == 1:
+        return floats[0]
+    raise ConvertError(f"{path} holds several float grids ({_describe(floats)}) and none is named "
+                       f"'{DENSITY_GRID}'; name the one to read (--grid NAME, or grid=NAME in mistyle.vdb.read_vdb).")
+
+
+def _dense_box(grid, active_min, active_max) -> tuple[tuple, tuple, str]:
+    """The index box to copy: mistyle's recorded array box if it encloses the active voxels, else theirs."""
+    try:
+        recorded_min, recorded_max = grid[DENSE_MIN_KEY], grid[DENSE_MAX_KEY]
+        recorded_min = tuple(int(v) for v in recorded_min)
+        recorded_max = tuple(int(v) for v in recorded_max)
+    except Exception:  # absent (a file from another tool) or of another type
+        return active_min, active_max, "active voxels"
+    if len(recorded_min) == len(recorded_max) == 3 and all(
+            r0 <= a0 and a1 <= r1 for r0, a0, a1, r1 in zip(recorded_min, active_min, active_max, recorded_max)):
+        return recorded_min, recorded_max, "mistyle metadata"
+    return active_min, active_max, "active voxels"
+
+
+def read_grid(path: str, grid_name: str | None = None) -> tuple[np.ndarray, dict]:
+    """Read one float (or, when named, vec3s) grid of ``path`` as a dense array and its description.
+
+    Returns ``(array, meta)``: ``array`` is float32 ``(Z, Y, X)`` or ``(Z, Y, X, 3)``; ``meta`` holds
+    ``grid``, ``value_type``, ``grid_class``, ``grids`` (every grid's name, type and class),
+    ``index_min``/``index_max`` (inclusive, ``(i, j, k)``), ``dense_extent``, ``active_voxel_count``,
+    ``background``, ``matrix`` (row-vector convention, see the module docstring), ``voxel_size``,
+    ``is_linear``, ``transform_type``, ``grid_metadata`` and ``file_metadata``.
+    """
+    vdb = openvdb_module()
+    summaries = [_grid_summary(g) for g in _grid_list(vdb, path)]
+    chosen = choose_grid(path, summaries, grid_name)
+    name = chosen["name"]
+    try:
+        grid = vdb.read(path, name)
+    except Exception as error:
+        raise ConvertError(f"Cannot read grid '{name}' of {path} ({_one_line(error)}).") from None
+    transform = grid.transform
+    if not transform.isLinear:
+        raise ConvertError(f"Grid '{name}' of {path} has a non-linear ({transform.typeName}, e.g. frustum) "
+                           "transform, which has no single voxel box; resample it onto a linear transform "
+                           "first (e.g. Houdini's VDB Resample).")
+    active = int(grid.activeVoxelCount())
+    if active == 0:
+        raise ConvertError(f"Grid '{name}' of {path} is empty (it has no active voxels).")
+    active_min, active_max = (tuple(int(v) for v in corner) for corner in grid.evalActiveVoxelBoundingBox())
+    index_min, index_max, extent_from = _dense_box(grid, active_min, active_max)
+    size_xyz = tuple(hi - lo + 1 for lo, hi in zip(index_min, index_max))
+    count = int(np.prod(size_xyz, dtype=np.int64))
+    if count > MAX_DENSE_VOXELS:
+        raise ConvertError(f"Grid '{name}' of {path} spans {size_xyz[0]}x{size_xyz[1]}x{size_xyz[2]} voxels "
+                           f"({count} dense), more than the {MAX_DENSE_VOXELS} mistyle copies into memory; "
+                           "crop or resample it first.")
+    vector = chosen["type"] == VEC3_TYPE
+    dense = np.zeros(size_xyz + ((3,) if vector else ()), dtype=np.float32)  # C-contiguous, as the binding needs
+    grid.copyToArray(dense, ijk=index_min)
+    array = np.ascontiguousarray(dense.transpose((2, 1, 0, 3) if vector else (2, 1, 0)))  # [i,j,k] -> [z,y,x]
+    background = grid.background
+    meta = {
+        "file": path,
+        "grid": name,
+        "value_type": chosen["type"],
+        "grid_class": chosen["class"],
+        "grids": summaries,
+        "index_min": list(index_min),
+        "index_max": list(index_max),
+        "dense_extent": extent_from,
+        "active_voxel_count": active,
+        "background": _jsonable(tuple(background) if vector else float(background)),
+        "matrix": index_to_world_matrix(transform),
+        "voxel_size": [float(v) for v in transform.voxelSize()],
+        "is_linear": True,
+        "transform_type": str(transform.typeName),
+        "grid_metadata": {str(k): _jsonable(v) for k, v in dict(grid.metadata).items()},
+        "file_metadata": _file_metadata(vdb, path),
+    }
+    return array, meta
+
+
+# ----------------------------------------------------------------------------- write
+def _check_matrix(matrix) -> np.ndarray:
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ConvertError(f"The index-to-world matrix must be a finite 4x4, got shape {m.shape}.")
+    if not np.array_equal(m[:, 3], [0.0, 0.0, 0.0, 1.0]):
+        raise ConvertError("The index-to-world matrix (row-vector convention) must be affine: last column 0, 0, 0, 1.")
+    if abs(np.linalg.det(m[:3, :3])) < 1e-300 or np.linalg.cond(m[:3, :3]) > 1e12:
+        raise ConvertError("The index-to-world matrix is singular; voxels need a non-zero size along every axis.")
+    return m
+
+
+def linear_transform(vdb, matrix: np.ndarray):
+    """An OpenVDB transform for the row-vector index-to-world ``matrix``, kept to the last bit.
+
+    ``createLinearTransform(matrix)`` simplifies a scale-and-translate matrix into a scale map and
+    loses an ulp of the voxel size on the way (0.05 comes back as 0.04999999999999999), so such
+    matrices are built from their scale and translation instead; every other matrix goes in as is.
+    """
+    linear, translation = matrix[:3, :3], matrix[3, :3]
+    scale = np.diag(linear)
+    try:
+        if np.array_equal(linear, np.diag(scale)) and np.all(scale > 0):
+            uniform = scale[0] == scale[1] == scale[2]
+            transform = vdb.createLinearTransform(float(scale[0]) if uniform else 1.0)
+            if not uniform:
+                transform.scale(tuple(float(v) for v in scale))
+            if np.any(translation != 0):
+                transform.translate(tuple(float(v) for v in translation))
+        else:
+            transform = vdb.createLinearTransform(matrix.tolist())
+    except Exception as error:
+        raise ConvertError(f"OpenVDB refuses the index-to-world matrix ({_one_line(error)}).") from None
+    built = np.array(index_to_world_matrix(transform))
+    if not np.allclose(built, matrix, rtol=1e-12, atol=1e-12 * np.abs(matrix).max()):
+        raise ConvertError(f"OpenVDB turned the index-to-world matrix {matrix.tolist()} into {built.tolist()}.")
+    return transform
+
+
+def write_grids(path: str, matrix, index_min, grids: list[dict], metadata: dict | None = None) -> str:
+    """Write ``grids`` to one ``.vdb`` file at ``path``, atomically.
+
+    ``matrix``: index-to-world 4x4, row-vector convention. ``index_min``: ``(i, j, k)`` of element
+    ``[0, 0, 0]``. ``grids``: dicts with ``name``, ``array`` (float32 ``(Z, Y, X)`` for ``kind`` 'float',
+    ``(Z, Y, X, 3)`` for 'vec3') and ``class`` ('fog' or None). ``metadata``: file-level name -> value.
+    """
+    vdb = openvdb_module()
+    m = _check_matrix(matrix)
+    ijk = tuple(int(v) for v in index_min)
+    if len(ijk) != 3:
+        raise ConvertError(f"index_min must be three integers (i, j, k), got {index_min}.")
+    if not grids:
+        raise ConvertError("There are no grids to write.")
+    transform = linear_transform(vdb, m)
+    built, shape, names = [], None, set()
+    for spec in grids:
+        name, kind = spec.get("name"), spec.get("kind")
+        if not isinstance(name, str) or not name or name in names:
+            raise ConvertError(f"Grid names must be distinct non-empty strings, got {name!r}.")
+        names.add(name)
+        array = np.asarray(spec["array"], dtype=np.float32)
+        expected_ndim = {"float": 3, "vec3": 4}.get(kind)
+        if expected_ndim is None:
+            raise ConvertError(f"Grid '{name}': kind must be 'float' or 'vec3', got {kind!r}.")
+        if array.ndim != expected_ndim or (kind == "vec3" and array.shape[-1] != 3) or min(array.shape) < 1:
+            raise ConvertError(f"Grid '{name}' ({kind}) must be {'(Z, Y, X)' if kind == 'float' else '(Z, Y, X, 3)'} "
+                               f"with every size >= 1, got shape {array.shape}.")
+        if shape is not None and array.shape[:3] != shape:
+            raise ConvertError(f"Grid '{name}' is {array.shape[:3]} but the others are {shape}; "
+                               "all grids share one box.")
+        shape = array.shape[:3]
+        if not np.all(np.isfinite(array)):
+            raise ConvertError(f"Grid '{name}' holds NaN or infinite values.")
+        if kind == "vec3":
+            grid = vdb.Vec3SGrid()
+            dense = np.ascontiguousarray(array.transpose(2, 1, 0, 3))  # [z,y,x] -> [i,j,k]; the binding needs C order
+            grid.copyFromArray(dense, ijk=ijk, tolerance=(0.0, 0.0, 0.0))  # zero vectors stay inactive
+        else:
+            grid = vdb.FloatGrid()
+            grid.copyFromArray(np.ascontiguousarray(array.transpose(2, 1, 0)), ijk=ijk, tolerance=0.0)
+        grid.name = name
+        grid.transform = transform
+        if spec.get("class") == "fog":
+            grid.gridClass = vdb.GridClass.FOG_VOLUME
+        grid.creator = "mistyle"
+        # The array's own box, so a read gives back the same shape even with empty margins.
+        grid[DENSE_MIN_KEY] = ijk
+        grid[DENSE_MAX_KEY] = tuple(lo + n - 1 for lo, n in zip(ijk, array.shape[2::-1]))
+        built.append(grid)
+    file_metadata = {}
+    for key, value in (metadata or {}).items():
+        if not isinstance(key, str) or not key or not isinstance(value, (str, bool, int, float)):
+            raise ConvertError(f"File metadata must map names to strings or numbers, got {key!r}: {value!r}.")
+        file_metadata[key] = value
+    _write_atomically(vdb, path, built, file_metadata)
+    return path
+
+
+def _write_atomically(vdb, path: str, grids: list, metadata: dict) -> None:
+    """Write to a temporary file beside ``path`` and rename it, so a failure leaves no half-written file."""
+    import tempfile
+
+    directory, name = os.path.split(os.path.abspath(path))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp.vdb", dir=directory)
+    except OSError as error:
+        raise ConvertError(f"Cannot write {path}: {error.strerror}. Choose a writable output directory.") from None
+    os.close(fd)
+    try:
+        vdb.write(tmp, grids=grids, metadata=metadata)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the usual permissions
+        os.replace(tmp, path)
+    except Exception as error:
+        raise ConvertError(f"Cannot write {path} ({_one_line(error)}).") from None
+    finally:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+
+
+# ----------------------------------------------------------------------------- command line
+def _read_command(path: str, workdir: str, grid: str | None) -> None:
+    array, meta = read_grid(path, grid)
+    np.save(os.path.join(workdir, "grid.npy"), array, allow_pickle=False)
+    meta["array"] = "grid.npy"
+    _write_json(os.path.join(workdir, "meta.json"), meta)
+
+
+def _write_command(path: str, workdir: str) -> None:
+    try:
+        with open(os.path.join(workdir, "meta.json")) as handle:
+            meta = json.load(handle)
+        grids = []
+        for spec in meta["grids"]:
+            file = os.path.join(workdir, os.path.basename(spec["file"]))  # only files inside the work folder
+            grids.append({"name": spec["name"], "kind": spec["kind"], "class": spec.get("class"),
+                          "array": np.load(file, allow_pickle=False)})
+        matrix, index_min, metadata = meta["matrix"], meta["index_min"], meta.get("metadata") or {}
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise ConvertError(f"The work folder {workdir} does not hold a valid meta.json and its arrays "
+                           f"({_one_line(error)}).") from None
+    write_grids(path, matrix, index_min, grids, metadata)
+
+
+def _write_json(path: str, value: dict) -> None:
+    with open(path, "w") as handle:
+        json.dump(value, handle, indent=1, allow_nan=False)
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+
+    class Parser(argparse.ArgumentParser):
+        def error(self, message):  # one line, like every other error of this script
+            raise ConvertError(f"{message} (usage: vdb_convert.py read|write|info FILE WORKDIR [--grid NAME])")
+
+    parser = Parser(prog="vdb_convert.py", description=__doc__.split("\n\n")[0])
+    parser.add_argument("command", choices=("read", "write", "info"))
+    parser.add_argument("file")
+    parser.add_argument("workdir")
+    parser.add_argument("--grid", default=None, help="grid to read (default: 'density', else the only float grid)")
+    try:
+        args = parser.parse_args(argv)
+        if not os.path.isdir(args.workdir):
+            raise ConvertError(f"The work folder {args.workdir} does not exist.")
+        if args.command == "read":
+            _read_command(args.file, args.workdir, args.grid)
+        elif args.command == "write":
+            _write_command(args.file, args.workdir)
+        else:
+            _write_json(os.path.join(args.workdir, "meta.json"), file_info(args.file))
+    except ConvertError as error:
+        print(f"error: {_one_line(error)}", file=sys.stderr)
+        return 2
+    except Exception as error:  # never a traceback: the caller shows this line to the user
+        print(f"error: unexpected {type(error).__name__} in vdb_convert.py: {_one_line(error)}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,5 +1,6 @@
 """What the fast layer and the path tracer share: the medium box, cameras, the medium, lights,
-and the one path-traced scene builder. Imports ``backend``, ``conventions`` and ``volume`` only."""
+and the one path-traced scene builder (and its export as files, ``export``). Imports ``backend``,
+``conventions``, ``volume`` and ``io`` only."""
 
 from .box import MediumBox
 from .cameras import CameraPath, View, batch_sensor_dict, sensor_dict, split_views

@@ -4,7 +4,7 @@ Stylizes the bundled smoke frame ``examples/smoke_64.vol`` with the bundled styl
 ``examples/style_marble.png`` using the bundled checkpoint (trained with ``configs/cpu.toml``),
 refines the albedo against the style (``--refine``), path-traces a small turntable
 with Mitsuba's ``volpath`` (multiple scattering, the training light), and writes the albedo grid, EXR/PNG frames, an MP4
-and a GIF and ``report.json`` to ``out/demo``. Any option of ``python -m mistyle.render_final``
+and a GIF, ``sheet.png``, ``scene.xml`` and ``report.json`` to ``out/demo`` (replacing an earlier demo). Any option of ``python -m mistyle.render_final``
 can be appended, e.g. ``python -m mistyle.demo --style my.png --coat dielectric:1.5``.
 """
 
@@ -26,7 +26,7 @@ def main(argv=None) -> int:
     if "--mesh" in given:
         given.add("--density")
     defaults = [item for key, value in DEFAULTS.items() if key not in given for item in (key, value)]
-    return render_final(defaults + argv)
+    return render_final(defaults + ["--overwrite"] + argv)  # the demo is made to be run again
 
 
 if __name__ == "__main__":

@@ -1,25 +1,43 @@
-"""``python -m mistyle.render_final``: stylize a density (or mesh, or sequence) and path-trace it.
+"""``mistyle-render`` (``python -m mistyle.render_final``): stylize densities (or meshes, or sequences) and path-trace them.
 
-    python -m mistyle.render_final --density examples/smoke_64.vol --style examples/style_marble.png --out out/marble
-    python -m mistyle.render_final --density smoke.vol --style jade.png --coat dielectric:1.5 --turntable 24 --out out/jade
-    python -m mistyle.render_final --mesh bunny.ply --style marble.png --coat dielectric --out out/bunny
-    python -m mistyle.render_final --density data/fire/ --style lava.png --out out/fire     # a folder of frames
+    mistyle-render --density examples/smoke_64.vol --style examples/style_marble.png --out out/marble
+    mistyle-render --density smoke.vol --style jade.png --coat dielectric:1.5 --turntable 24 --out out/jade
+    mistyle-render --mesh bunny.ply --style marble.png --coat dielectric --out out/bunny
+    mistyle-render --density data/fire/ --style lava.png --out out/fire             # a folder of frames
+    mistyle-render --density houdini.vdb --grid density --style wave.png --out out/wave   # OpenVDB in and out
+    mistyle-render --density a.vol b.vdb --style paintings/ --out out/batch          # every pair, index.html
+    mistyle-render --density smoke.vol --mix wave.png:0.7 starry.png:0.3 --strength 0.6 --out out/mix
 
-Writes into ``--out``: ``albedo.vol`` / ``albedo.npy`` (``albedo_frameNNNN.*`` for sequences: the
-network's albedo), ``albedo_refined.vol`` when refined or calibrated (the albedo that is path
-traced), per image ``*.exr`` (linear) and ``*.png`` (the training tone curve) and
-``*_network_layer.png`` (the fast layer's image of the network's albedo from the same view, under
-the training light: what the network was trained to produce), ``turntable.mp4``/``.gif`` or
-``sequence.mp4``/``.gif``, and ``report.json`` with timings and style metrics of the path-traced
-images against the style: ``rgb_swd``, ``patch_swd`` and ``hue_coverage`` (the fidelity benchmark's,
-``objective.metrics.style_fidelity``), ``swd_final`` (sliced W2 of colours), ``swd_layer`` (the
-``*_network_layer`` images), and ``temporal_flicker`` for sequences. By default a single frame's albedo
-is refined against the style (``--refine``: fast-layer steps, ``--refine-path``: path-traced steps;
-``fit.refine_albedo``), which is what makes the medium take on the style's hues and patterns
-(``docs/style_fidelity.md``); ``--refine 0`` renders the network's albedo as predicted.
-A run writes into a hidden staging folder beside ``--out`` that replaces ``--out`` only when the
-run is complete, so a failed or interrupted run leaves nothing half-written, and a second run
-into the same ``--out`` is refused while one is in progress.
+One output per (density, style) pair (``mistyle.batch``): a single pair into ``--out``, several into
+``--out/{density}__{style}/`` with ``--out/index.html``; an existing output is replaced only with
+``--overwrite``. Each output holds:
+
+- ``sheet.png``: style | fast layer | final render, with the metrics under them;
+- ``density.vol`` and the path-traced albedo (``albedo.vol``, or ``albedo_refined.vol`` when refined
+  or calibrated), both with the medium box as bounding box, and ``scene.xml``, the Mitsuba 3 scene
+  that reproduces the final render (``mi.load_file``; ``mistyle.scenes.export``) -- with ``--mesh``
+  the density is the voxelized mesh; per frame ``*_frameNNNN.*`` for sequences;
+- ``volume.vdb`` (OpenVDB: ``density`` and the albedo as ``Cd``) when the density came from a
+  ``.vdb`` -- with that file's transform, so it drops back into Houdini or Blender -- or with
+  ``--vdb``; ``albedo.npy`` (the network's albedo);
+- per image ``*.exr`` (linear) and ``*.png`` (the training tone curve) and ``*_network_layer.png``
+  (the fast layer's image of the network's albedo under the training light: what the network was
+  trained to produce), ``turntable.mp4``/``.gif`` or ``sequence.mp4``/``.gif``;
+- ``report.json`` with timings and the style metrics of the path-traced images against the style:
+  ``rgb_swd``, ``patch_swd`` and ``hue_coverage`` (the fidelity benchmark's,
+  ``objective.metrics.style_fidelity``), ``swd_final`` (sliced W2 of colours), ``swd_layer`` (the
+  ``*_network_layer`` images), and ``temporal_flicker`` for sequences.
+
+``--strength`` (0: a uniform grey medium, 1: the full style) and ``--mix`` act on the network's
+predicted stylizing kernels (``api.Stylizer.kernels``); a mix is measured and refined against a
+mosaic of its styles with areas in proportion to the weights (``api.style_target``). By default a
+single frame at full strength is refined against the style (``--refine``: fast-layer steps,
+``--refine-path``: path-traced steps; ``fit.refine_albedo``), which is what makes the medium take
+on the style's hues and patterns (``docs/style_fidelity.md``); ``--refine 0`` renders the network's
+albedo as predicted. Each output is written into a hidden staging folder beside it that replaces
+it only when complete, so a failed or interrupted run leaves nothing half-written, and a second
+run into the same output is refused while one is in progress. Progress bars (rates, time left)
+appear on a terminal only; ``--quiet`` keeps only errors and the final line.
 """
 
 from __future__ import annotations
@@ -61,13 +79,23 @@ def _coat(text: str) -> float:
 def parser() -> argparse.ArgumentParser:
     from .fit import RefineSettings
 
-    p = argparse.ArgumentParser(prog="python -m mistyle.render_final", description=__doc__,
+    p = argparse.ArgumentParser(prog="mistyle-render", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     source = p.add_mutually_exclusive_group(required=True)
-    source.add_argument("--density", type=Path, help=".vol, .npy or .npz density, or a folder of frames")
-    source.add_argument("--mesh", type=Path, help="closed .ply/.obj mesh, voxelized into a density")
-    p.add_argument("--style", type=Path, required=True, help="style image (PNG/JPEG)")
+    source.add_argument("--density", type=Path, nargs="+", action="extend",
+                        help=".vol, .vdb, .npy or .npz densities (one output each), or a folder of frames")
+    source.add_argument("--mesh", type=Path, nargs="+", action="extend", help="closed .ply/.obj meshes, voxelized")
+    p.add_argument("--grid", default=None, help="the float grid to read from .vdb densities (default: 'density', or the only one)")
+    styles = p.add_mutually_exclusive_group(required=True)
+    styles.add_argument("--style", type=Path, nargs="+", action="extend",
+                        help="style images (PNG/JPEG/EXR) or folders of them: one output each")
+    styles.add_argument("--mix", nargs="+", action="extend", metavar="IMAGE:WEIGHT",
+                        help="one style mixed from several, e.g. --mix a.png:0.7 b.png:0.3 (weights normalised)")
+    p.add_argument("--strength", type=float, default=1.0, help="0: a uniform grey medium ... 1: the full style")
     p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--overwrite", action="store_true", help="replace outputs that already exist")
+    p.add_argument("--vdb", action="store_true", help="also write volume.vdb for densities that are not .vdb files")
+    p.add_argument("--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)")
     p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
     p.add_argument("--vgg-weights", default=None, help="VGG16 weights, for checkpoints trained with VGG16")
     p.add_argument("--view", type=float, default=HELD_OUT_VIEW, help="camera position on the training orbit, in [0, 1)")
@@ -85,17 +113,20 @@ def parser() -> argparse.ArgumentParser:
                    help="calibrate: map the albedo so its multiply-scattered brightness matches single scattering")
     p.add_argument("--refine", type=int, default=None, metavar="STEPS",
                    help=f"refine the albedo for STEPS steps against the style through the fast layer "
-                        f"(default: {RefineSettings.layer_steps} for a single frame, 0 for sequences)")
+                        f"(default: {RefineSettings.layer_steps} for a single frame at full strength, else 0)")
     p.add_argument("--refine-path", type=int, default=None, metavar="STEPS",
                    help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
-                        f"{RefineSettings.path_steps} for a single frame, 0 for sequences and with --refine 0)")
+                        f"{RefineSettings.path_steps} for a single frame at full strength, else 0)")
     p.add_argument("--fps", type=int, default=12)
     p.add_argument("--device", choices=DEVICES, default="cpu")
     return p
 
 
 def main(argv=None) -> int:
+    from .progress import set_quiet
+
     args = parser().parse_args(argv)
+    set_quiet(args.quiet)
     try:
         return run(args)
     except (ValueError, OSError) as error:
@@ -111,7 +142,9 @@ def main(argv=None) -> int:
 
 
 def log(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
+    from .progress import status
+
+    status(message)
 
 
 @dataclass
@@ -119,8 +152,9 @@ class Job:
     """Everything a run needs, loaded and checked before any heavy work (``load``)."""
 
     args: argparse.Namespace
+    output: object  # batch.Output: the (density, style) pair and its folder
     stylizer: object  # api.Stylizer
-    style: np.ndarray  # (H, W, 3) display RGB in [0, 1]
+    style: np.ndarray  # (H, W, 3) display RGB in [0, 1]: the image (or a mix's mosaic) the look is measured against
     densities: list[np.ndarray]  # frames, (Z, Y, X) each
     velocities: list[np.ndarray] | None  # per frame (Z, Y, X, 3), when every frame has one
     names: list[str]
@@ -132,6 +166,7 @@ class Job:
     refine_path_steps: int
     coat_mesh: tuple | None = None  # (vertices, faces) placed in the medium box, for --mesh with --coat
     coat_mesh_path: Path | None = None
+    transforms: list | None = None  # per frame, the vdb.VdbTransform of a .vdb density
     notes: list[str] = field(default_factory=list)
     out: Path | None = None  # the staging folder of the run (``io.staged_directory``), set in ``run``
     prepared: dict = field(default_factory=dict)  # frame -> integrators.PreparedDensity, made once
@@ -157,21 +192,39 @@ class Job:
 
 
 def run(args) -> int:
+    from .api import Stylizer
+    from .backend import use_variant
+    from .batch import plan_outputs
     from .io import staged_directory
 
     check_options(args)
-    job = load(args)
-    # Everything is written into a staging folder that replaces --out only when the run is complete.
-    with staged_directory(args.out) as staging:
-        job.out = staging
-        report = {"inputs": _inputs_record(job), "notes": job.notes}
-        write_coat_mesh(job)
-        albedos = stylize_frames(job, report)
-        rendered = correct_frames(job, albedos, report)
-        images, layer_images = render_frames(job, rendered, albedos, report)
-        write_report(job, albedos, images, layer_images, report)
-    print(f"wrote {args.out}/: albedo grid(s), {len(images)} image(s) (EXR + PNG)"
-          + (", MP4 and GIF" if len(images) > 1 else "") + ", report.json")
+    outputs = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite)
+    if args.vdb or any(output.density.path.suffix.lower() == ".vdb" for output in outputs):
+        from .vdb import vdb_interpreter
+
+        vdb_interpreter()  # no OpenVDB binding: say so before any work
+    use_variant(args.device)
+    stylizer = Stylizer(args.checkpoint, args.device, args.vgg_weights)
+    for number, output in enumerate(outputs, 1):
+        if len(outputs) > 1:
+            log(f"[{number}/{len(outputs)}] {output.name}")
+        job = load(args, output, stylizer)
+        # Everything is written into a staging folder that replaces the output only when it is complete.
+        with staged_directory(output.folder) as staging:
+            job.out = staging
+            report = {"inputs": _inputs_record(job), "notes": job.notes}
+            write_coat_mesh(job)
+            albedos = stylize_frames(job, report)
+            rendered = correct_frames(job, albedos, report)
+            images, layer_images = render_frames(job, rendered, albedos, report)
+            report["files"] = write_assets(job, albedos, rendered)
+            write_report(job, albedos, images, layer_images, report)
+    if len(outputs) > 1:
+        from .pages import write_index
+
+        write_index(args.out, f"mistyle: {len(outputs)} renders", [f"checkpoint {stylizer.path}"])
+    where = f"{args.out}/ ({len(outputs)} outputs and index.html)" if len(outputs) > 1 else f"{args.out}/"
+    print(f"wrote {where}: sheet.png, density and albedo grids with scene.xml, EXR + PNG images, report.json")
     return 0
 
 
@@ -180,7 +233,7 @@ def check_options(args) -> None:
     """Every option's range, before anything is read or written; one message names the option.
 
     Options that a library function also takes are checked by that function's own validator."""
-    from .api import validate_scale_structures
+    from .api import validate_scale_structures, validate_strength
     from .scenes import validate_density_scale
     from .scenes.cameras import validate_camera_distance, validate_orbit_position
     from .scenes.pathtraced import validate_coat_ior, validate_max_depth
@@ -193,6 +246,7 @@ def check_options(args) -> None:
         validate_density_scale(args.density_scale, "--density-scale")
     validate_scale_structures(args.scale_structures, "--scale-structures")
     validate_coat_ior(args.coat, "--coat dielectric:<ior>")
+    validate_strength(args.strength, "--strength")
     checks = [
         (1 <= args.spp <= 1 << 16, f"--spp must lie in [1, 65536], got {args.spp}"),
         (8 <= args.res <= 8192, f"--res must lie in [8, 8192], got {args.res}"),
@@ -209,49 +263,54 @@ def check_options(args) -> None:
 
 
 # ---------------------------------------------------------------------------- stage 1: load and check
-def load(args) -> Job:
-    """Check every option and input and load them; nothing heavy runs before this returns."""
-    from .api import Stylizer
-    from .backend import use_variant
+def load(args, output, stylizer) -> Job:
+    """Check and load one output's inputs; nothing heavy runs before this returns."""
+    from .api import style_target
     from .io import load_density_frames, load_style
     from .scenes import CameraPath, LightSpec
 
     notes: list[str] = []
-    style = load_style(args.style, notes)
+    images = [load_style(path, notes) for path, _ in output.style.parts]
+    style = style_target(images, [weight for _, weight in output.style.parts])
     for note in notes:
         log(f"note: {note}")
-    use_variant(args.device)
-    stylizer = Stylizer(args.checkpoint, args.device, args.vgg_weights)
     config = stylizer.config
     light = LightSpec.parse(args.light, default_radiance=config.render.radiance)
     density_scale = args.density_scale if args.density_scale is not None else stylizer.density_scale
-    coat_mesh = None
-    if args.mesh is not None:
+    coat_mesh, transforms = None, None
+    if output.density.mesh:
         from .data.mesh import fit_to_box, load_mesh, voxelize
 
-        vertices, faces = load_mesh(args.mesh)
-        densities, velocities, names = [voxelize(vertices, faces, args.mesh_res, supersample=2)], None, [args.mesh.stem]
+        vertices, faces = load_mesh(output.density.path)
+        densities, velocities, names = [voxelize(vertices, faces, args.mesh_res, supersample=2)], None, [output.density.name]
         if args.coat is not None:
             placed, _ = fit_to_box(np.asarray(vertices, np.float64), args.mesh_res, 0.05)
             coat_mesh = (placed, faces)
     else:
-        densities, velocities, names = load_density_frames(args.density)
+        frames = load_density_frames(output.density.path, grid=args.grid)
+        densities, velocities, names, transforms = frames.densities, frames.velocities, frames.names, frames.transforms
     for name, grid in zip(names, densities):
         if not grid.any():
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
     sequence = len(densities) > 1
     # Sequences are not refined by default: even warm-started and anchored (refine_frames), refined
     # frames flicker about twice as much as the network's, and each frame costs the refinement's time.
+    # Nor is a weakened style: refining against the style would undo the strength.
     defaults = refinement_settings(config)
-    refine_steps = args.refine if args.refine is not None else (0 if sequence else defaults.layer_steps)
+    unrefined = sequence or args.strength < 1.0
+    refine_steps = args.refine if args.refine is not None else (0 if unrefined else defaults.layer_steps)
     refine_path_steps = (args.refine_path if args.refine_path is not None
-                         else 0 if sequence or args.refine == 0 else defaults.path_steps)
+                         else 0 if unrefined or args.refine == 0 else defaults.path_steps)
+    if args.strength < 1.0 and args.refine is None:
+        notes.append(f"--strength {args.strength:g}: not refined against the style (which would undo the strength); "
+                     "give --refine to refine anyway")
     camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
     orbit = CameraPath(distance=camera_distance)
     views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
-    return Job(args=args, stylizer=stylizer, style=style, densities=densities, velocities=velocities, names=names,
-               views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
-               refine_steps=refine_steps, refine_path_steps=refine_path_steps, coat_mesh=coat_mesh, notes=notes)
+    return Job(args=args, output=output, stylizer=stylizer, style=style, densities=densities, velocities=velocities,
+               names=names, views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
+               refine_steps=refine_steps, refine_path_steps=refine_path_steps, coat_mesh=coat_mesh,
+               transforms=transforms, notes=notes)
 
 
 def write_coat_mesh(job: Job) -> None:
@@ -272,15 +331,17 @@ def check_finite(what: str, arrays) -> None:
 
 def _inputs_record(job: Job) -> dict:
     args = job.args
-    return {"density": str(args.density or args.mesh), "style": str(args.style), "frames": len(job.densities),
+    return {"density": str(job.output.density.path), "mesh": job.output.density.mesh, "grid": args.grid,
+            "style": job.output.style.describe(), "strength": args.strength, "frames": len(job.densities),
             "shape_zyx": list(job.densities[0].shape), "checkpoint": str(job.stylizer.path), "light": args.light,
             "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": job.density_scale,
             "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct,
             "refine_steps": job.refine_steps, "refine_path_steps": job.refine_path_steps, "views": len(job.views)}
 
 
-def _albedo_stem(job: Job, kind: str, index: int) -> str:
-    return f"{kind}_frame{index:04d}" if job.sequence else kind
+def _frame_suffix(job: Job, index: int) -> str:
+    """How a frame's files are told apart: ``_frameNNNN`` in a sequence, nothing for one frame."""
+    return f"_frame{index:04d}" if job.sequence else ""
 
 
 # ---------------------------------------------------------------------------- stage 2: stylize
@@ -289,14 +350,20 @@ def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
     from .io import write_npy, write_vol
     from .objective.metrics import temporal_flicker
 
+    from .scenes import MediumBox
+
     started = time.perf_counter()
-    albedos = [job.stylizer(grid, job.style, job.args.scale_structures) for grid in job.densities]
+    frames = np.stack(job.densities) if job.sequence else job.densities[0]
+    stylized = job.stylizer(frames, job.output.style.as_stylizer_input(), job.args.scale_structures,
+                            strength=job.args.strength)
+    albedos = list(stylized) if job.sequence else [stylized]
     report["stylize_seconds"] = time.perf_counter() - started
     check_finite("The network's albedo of frame", albedos)
     log(f"stylized {len(albedos)} frame(s) of {job.densities[0].shape} in {report['stylize_seconds']:.2f} s")
+    box = MediumBox(job.densities[0].shape)
     for index, albedo in enumerate(albedos):
-        stem = _albedo_stem(job, "albedo", index)
-        write_vol(job.out / f"{stem}.vol", albedo)
+        stem = "albedo" + _frame_suffix(job, index)
+        write_vol(job.out / f"{stem}.vol", albedo, box.bbox_min, box.bbox_max)
         write_npy(job.out / f"{stem}.npy", albedo)
     if job.sequence and job.velocities is not None:
         report["temporal_flicker"] = temporal_flicker(np.stack(albedos), np.stack(job.velocities))
@@ -308,9 +375,8 @@ def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
 
 # ---------------------------------------------------------------------------- stage 3: correct and refine
 def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np.ndarray]:
-    """The albedos to path trace: calibrated for multiple scattering and/or refined, as asked."""
-    from .io import write_vol
-
+    """The albedos to path trace: calibrated for multiple scattering and/or refined, as asked
+    (written with the scene by ``write_assets``)."""
     rendered = albedos
     radiance = job.stylizer.config.render.radiance
     if job.args.correct == "calibrate":
@@ -328,9 +394,6 @@ def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np
 
             report["temporal_flicker_refined"] = temporal_flicker(np.stack(rendered), np.stack(job.velocities))
     check_finite("The corrected albedo of frame", rendered)
-    if rendered is not albedos:
-        for index, albedo in enumerate(rendered):
-            write_vol(job.out / f"{_albedo_stem(job, 'albedo_refined', index)}.vol", albedo)
     return rendered
 
 
@@ -343,24 +406,28 @@ def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray]
     measured on 3 held-out smoke frames, albedo flicker 0.0056 against 0.0148 for frames refined
     independently and 0.0029 for the network's (experiments/sequence_refine.py)."""
     from .fit import refine_albedo
+    from .progress import bar
     from .warp import warp_grid
 
     config = job.stylizer.config
     settings = refinement_settings(config, job.refine_steps, job.refine_path_steps, job.camera_distance)
     refined, seconds = [], 0.0
     for index, (grid, albedo) in enumerate(zip(job.densities, albedos)):
-        def progress(stage, done, count, loss, index=index):
-            if done == count or done % 25 == 0:
-                log(f"refining frame {index} ({stage}): step {done}/{count}, loss {loss:.4g}")
+        label = f"refining frame {index}" if job.sequence else "refining"
+        with bar(settings.layer_steps + settings.path_steps, label) as progress_bar:
+            def progress(stage, done, count, loss, progress_bar=progress_bar):
+                progress_bar.set_postfix_str(f"{stage}, loss {loss:.4g}", refresh=False)
+                progress_bar.update(1)
 
-        anchor = None
-        if index > 0:
-            previous = refined[-1]
-            anchor = warp_grid(previous, job.velocities[index - 1]) if job.velocities is not None else previous
-            albedo = anchor
-        result, took = refine_albedo(grid, job.density_scale, albedo, job.style, settings,
-                                     radiance=config.render.radiance, device=job.args.device,
-                                     prepared=job.prepared_frame(index), anchor=anchor, progress=progress)
+            anchor = None
+            if index > 0:
+                previous = refined[-1]
+                anchor = warp_grid(previous, job.velocities[index - 1]) if job.velocities is not None else previous
+                albedo = anchor
+            result, took = refine_albedo(grid, job.density_scale, albedo, job.style, settings,
+                                         radiance=config.render.radiance, device=job.args.device,
+                                         prepared=job.prepared_frame(index), anchor=anchor, progress=progress)
+        log(f"{label}: {settings.layer_steps} layer + {settings.path_steps} path-traced steps in {took:.1f} s")
         refined.append(result)
         seconds += took
     return refined, seconds
@@ -373,25 +440,22 @@ def render_frames(job: Job, rendered: list[np.ndarray], albedos: list[np.ndarray
     from .api import path_trace
     from .display import display
     from .io import write_exr, write_gif, write_mp4, write_png
+    from .progress import bar
 
     args = job.args
     jobs = job.render_jobs()
     total = sum(len(views) for _, views in jobs)
-    finished = []
-
-    def progress(done, count, seconds):
-        finished.append(seconds)
-        log(f"path tracing {len(finished)}/{total}: {seconds:.1f} s")
-
     images, layer_images, render_seconds = [], [], []
     started = time.perf_counter()
-    for frame, frame_views in jobs:
-        frame_images, seconds = path_trace(job.densities[frame], rendered[frame], frame_views, **_trace_options(job),
-                                           progress=progress)
-        images += frame_images
-        render_seconds += seconds
-        layer_images += _layer_images(job, frame, albedos[frame], frame_views)
+    with bar(total, "path tracing", unit="image") as progress_bar:
+        for frame, frame_views in jobs:
+            frame_images, seconds = path_trace(job.densities[frame], rendered[frame], frame_views, **_trace_options(job),
+                                               progress=lambda done, count, seconds: progress_bar.update(1))
+            images += frame_images
+            render_seconds += seconds
+            layer_images += _layer_images(job, frame, albedos[frame], frame_views)
     report["render_seconds"] = time.perf_counter() - started
+    log(f"path traced {total} image(s) of {args.res}^2 at {args.spp} spp in {report['render_seconds']:.1f} s")
     report["render_seconds_per_image"] = float(np.mean(render_seconds))
     check_finite("The path-traced image", images)
     check_finite("The fast layer's image", layer_images)
@@ -428,11 +492,41 @@ def _layer_images(job: Job, frame: int, albedo: np.ndarray, views) -> list[np.nd
     return [image.permute(1, 2, 0).cpu().numpy() for image in images]
 
 
-# ---------------------------------------------------------------------------- stage 5: report
+# ---------------------------------------------------------------------------- stage 5: assets
+def write_assets(job: Job, albedos: list[np.ndarray], rendered: list[np.ndarray]) -> list[str]:
+    """What a Mitsuba, Houdini or Blender user opens: per frame the density and the path-traced albedo
+    (``.vol``, medium box as bounding box), the ``scene.xml`` that reproduces the render, and
+    ``volume.vdb`` (density + albedo as ``Cd``) in the input ``.vdb``'s transform, or in the medium
+    box's with ``--vdb``. Returns the file names written."""
+    from .scenes.export import write_scene_files
+
+    scene_options = {key: value for key, value in _trace_options(job).items() if key != "device"}
+    written = []
+    for frame, views in job.render_jobs():
+        suffix = _frame_suffix(job, frame)
+        paths = write_scene_files(job.out, job.densities[frame], rendered[frame], views, suffix=suffix,
+                                  albedo_name="albedo" if rendered is albedos else "albedo_refined", **scene_options)
+        written += [path.name for path in paths.values()]
+        if job.transforms is not None or job.args.vdb:
+            from .vdb import ALBEDO_GRID, DENSITY_GRID, VdbTransform, write_vdb
+
+            density = job.densities[frame]
+            transform = job.transforms[frame] if job.transforms is not None else VdbTransform.for_medium_box(density.shape)
+            # The albedo only where there is medium: elsewhere it is never seen, and zeros stay inactive (small files).
+            albedo = rendered[frame] * (density > 0)[..., None]
+            path = write_vdb(job.out / f"volume{suffix}.vdb", transform, {DENSITY_GRID: density, ALBEDO_GRID: albedo},
+                             metadata={"mistyle_style": job.output.style.describe(), "mistyle_checkpoint": str(job.stylizer.path)})
+            written.append(path.name)
+    return written
+
+
+# ---------------------------------------------------------------------------- stage 6: report
 def write_report(job: Job, albedos, images, layer_images, report: dict) -> None:
-    """Style metrics of every image against the style, ``report.json``, and a summary line."""
+    """Style metrics of every image against the style, ``report.json``, ``sheet.png`` and a summary line."""
+    from .display import display
     from .io import atomic_write_bytes
     from .objective.metrics import style_distance, style_fidelity
+    from .pages import SHEET_FILE, write_sheet
 
     final = [style_distance(image, job.style) for image in images]
     report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
@@ -440,6 +534,13 @@ def write_report(job: Job, albedos, images, layer_images, report: dict) -> None:
     report["swd_layer"] = float(np.mean([style_distance(image, job.style)["swd"] for image in layer_images]))
     report.update(style_fidelity(images, job.style))
     atomic_write_bytes(job.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
+    seconds = report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds"]
+    lines = [f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
+             f"RGB SWD {report['rgb_swd']:.4f}   patch SWD {report['patch_swd']:.4f}   hue coverage {report['hue_coverage']:.2f}",
+             f"strength {job.args.strength:g}, refine {job.refine_steps}+{job.refine_path_steps} steps, "
+             f"{job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s"]
+    write_sheet(job.out / SHEET_FILE, [("style", job.style), ("fast layer (network)", display(layer_images[0])),
+                                       ("final render", display(images[0]))], lines)
     print(json.dumps({k: report[k] for k in ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd",
                                              "hue_coverage") if k in report}))
 

@@ -8,10 +8,10 @@ import mistyle
 ROOT = Path(mistyle.__file__).parent
 # A unit may import units of a lower layer only (or itself). Same as the map in README.md.
 LAYERS = [
-    {"conventions"},
-    {"display", "volume", "warp", "backend"},
+    {"conventions", "vdb_convert"},
+    {"display", "volume", "warp", "backend", "progress", "vdb", "batch"},
     {"io"},
-    {"scenes"},
+    {"scenes", "pages"},
     {"integrators"},
     {"bridge_torch", "reference_torch", "pathtrace"},
     {"model", "objective"},

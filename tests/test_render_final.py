@@ -39,6 +39,7 @@ def inputs(tmp_path_factory, blob_density):
     Image.fromarray((rng.random((32, 32)) * 65535).astype(np.uint16)).save(folder / "deep.png")
     Image.fromarray(np.zeros((1, 1, 3), np.uint8)).save(folder / "dot.png")
     (folder / "notes.txt").write_text("not an image")
+    (folder / "no_images").mkdir()
     np.save(folder / "nan.npy", np.full((8, 8, 8), np.nan, np.float32))
     np.save(folder / "negative.npy", -np.ones((8, 8, 8), np.float32))
     np.save(folder / "zeros.npy", np.zeros((8, 8, 8), np.float32))
@@ -101,7 +102,8 @@ def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_pa
     assert code == 0
     names = {p.name for p in out.iterdir()}
     assert {"albedo.vol", "albedo.npy", "report.json", "turntable.mp4", "turntable.gif", "turntable_0000.exr",
-            "turntable_0002.png", "turntable_0001_network_layer.png"} <= names
+            "turntable_0002.png", "turntable_0001_network_layer.png", "sheet.png", "scene.xml", "density.vol",
+            "albedo_refined.vol"} <= names
     report = json.loads((out / "report.json").read_text())
     for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "rgb_swd", "patch_swd", "hue_coverage",
                 "calibration", "refine_seconds"):
@@ -186,7 +188,7 @@ def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, 
     ({"--light": "laser"}, "not a known light"),
     ({"--light": "envmap:missing.exr"}, "does not exist"),
     ({"--density-scale": "-1"}, "--density-scale must lie in"),
-    ({"--style": "."}, "is a folder"),
+    ({"--style": "no_images"}, "holds no images"),
     ({"--density": "huge.npy"}, "mistyle takes densities up to"),
     ({"--light": "constant:-5"}, "must be a finite number > 0"),
     ({"--light": "point:nan,0,0"}, "must be finite"),
@@ -243,7 +245,7 @@ def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint,
 
     monkeypatch.setattr(render_final, "write_report", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        main(arguments + ["--view", "0.5"])
+        main(arguments + ["--view", "0.5", "--overwrite"])
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder or lock left
 
@@ -290,3 +292,136 @@ def test_calibration_is_applied_to_the_rendered_albedo(mi, checkpoint, inputs, t
     np.testing.assert_allclose(rendered, calibration.apply(network), atol=1e-6)
     # Multiple scattering brightens the medium, so matching single scattering darkens the albedo.
     assert calibration.multiple[-1] > calibration.single and rendered.mean() < network.mean()
+
+
+# ---------------------------------------------------------------------------- fitting artists' pipelines
+FAST = ["--res", "16", "--spp", "1", "--refine", "0"]
+
+
+def test_a_batch_writes_one_named_output_per_pair_and_an_index(mi, checkpoint, inputs, tmp_path, blob_density):
+    styles = tmp_path / "styles"
+    styles.mkdir()
+    for name in ("wave", "night"):
+        (styles / f"{name}.png").write_bytes((inputs / "style.png").read_bytes())
+    (styles / "readme.txt").write_text("not a style")
+    np.save(tmp_path / "ball.npy", blob_density[:, ::-1])
+    out = tmp_path / "batch"
+    arguments = ["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), str(tmp_path / "ball.npy"),
+                 "--style", str(styles), "--out", str(out), *FAST]
+    assert main(arguments) == 0
+    folders = sorted(p.name for p in out.iterdir() if p.is_dir())
+    assert folders == ["ball__night", "ball__wave", "blob__night", "blob__wave"]
+    index = (out / "index.html").read_text()
+    for folder in folders:
+        assert (out / folder / "sheet.png").is_file() and f"{folder}/sheet.png" in index
+        report = json.loads((out / folder / "report.json").read_text())
+        assert report["inputs"]["style"].endswith(f"{folder.split('__')[1]}.png")
+    before = (out / "blob__wave" / "report.json").read_bytes()
+    # A second run into existing outputs is refused before any work, and changes nothing.
+    assert main(arguments) == 2
+    assert (out / "blob__wave" / "report.json").read_bytes() == before
+    assert main(arguments + ["--overwrite", "--view", "0.5"]) == 0
+    assert json.loads((out / "blob__wave" / "report.json").read_text())["inputs"]["views"] == 1
+
+
+def test_an_existing_output_is_refused_without_overwrite(mi, checkpoint, inputs, tmp_path, capsys):
+    out = tmp_path / "out"
+    arguments = ["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(out), *FAST]
+    assert main(arguments) == 0
+    capsys.readouterr()
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert "already holds a render; pass --overwrite" in error and "Traceback" not in error
+
+
+def test_mix_and_strength_from_the_command_line(mi, checkpoint, inputs, tmp_path):
+    out = tmp_path / "mix"
+    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--mix", f"{inputs / 'style.png'}:3",
+                 f"{inputs / 'rgba.png'}:1", "--strength", "0.5", "--out", str(out), "--res", "16", "--spp", "1"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["inputs"]["strength"] == 0.5 and "0.75 x" in report["inputs"]["style"] and "0.25 x" in report["inputs"]["style"]
+    assert report["inputs"]["refine_steps"] == 0 and any("--strength 0.5" in note for note in report["notes"])
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--mix", "style.png:1"], "--mix needs two or more"),
+    (["--mix", "style.png:1", "rgba.png:x"], "--mix takes IMAGE:WEIGHT"),
+    (["--mix", "style.png:0", "rgba.png:0"], "must not all be zero"),
+    (["--style", "style.png", "--strength", "2"], "--strength must lie in [0, 1]"),
+])
+def test_bad_mix_or_strength_is_a_clear_error(mi, checkpoint, inputs, tmp_path, capsys, arguments, message):
+    arguments = [str(inputs / a) if a.endswith(("png", "png:1", "png:0", "png:x")) else a for a in arguments]
+    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), *arguments,
+                 "--out", str(tmp_path / "out"), *FAST])
+    error = capsys.readouterr().err
+    assert code == 2 and message in error and "Traceback" not in error, error
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_written_scene_reproduces_the_final_render(mi, checkpoint, inputs, tmp_path):
+    out = tmp_path / "out"
+    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--res", "16", "--spp", "4", "--refine", "1", "--refine-path", "0",
+                 "--light", "constant:5"]) == 0
+    from mistyle.io import read_exr
+
+    scene = mi.load_file(str(out / "scene.xml"))
+    np.testing.assert_allclose(np.array(mi.render(scene, sensor=0)), read_exr(out / "final.exr"), rtol=1e-4, atol=1e-5)
+    assert 'filename" value="albedo_refined.vol"' in (out / "scene.xml").read_text()
+
+
+def test_a_mesh_run_writes_the_voxelized_density_for_mitsuba(mi, checkpoint, inputs, tmp_path):
+    from mistyle.data.mesh import icosphere, write_ply
+
+    mesh = write_ply(tmp_path / "ball.ply", *icosphere(2))
+    out = tmp_path / "out"
+    assert main(["--checkpoint", str(checkpoint), "--mesh", str(mesh), "--mesh-res", "12", "--style", str(inputs / "style.png"),
+                 "--out", str(out), "--coat", "dielectric:1.5", *FAST]) == 0
+    assert read_vol(out / "density.vol").shape == (12, 12, 12) and read_vol(out / "density.vol").max() > 0.5
+    assert mi.load_file(str(out / "scene.xml")) is not None  # the coat mesh is found beside the scene
+
+
+def test_quiet_keeps_only_the_results_on_stdout(mi, checkpoint, inputs, tmp_path, capsys):
+    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 "--out", str(tmp_path / "out"), "--quiet", *FAST]) == 0
+    captured = capsys.readouterr()
+    summary, final = captured.out.splitlines()
+    assert captured.err == "" and "rgb_swd" in json.loads(summary) and final.startswith("wrote ")
+
+
+def test_vdb_in_and_out_keeps_the_transform_and_the_grids(mi, checkpoint, inputs, tmp_path, blob_density):
+    vdb = pytest.importorskip("mistyle.vdb")
+    try:
+        vdb.vdb_interpreter()
+    except vdb.VdbUnavailable as error:
+        pytest.skip(str(error))
+    matrix = np.diag([0.05, 0.05, 0.05, 1.0])
+    matrix[:3, 3] = [1.0, -2.0, 0.5]
+    transform = vdb.VdbTransform(matrix, (3, -4, 7))
+    source = vdb.write_vdb(tmp_path / "houdini.vdb", transform, {"smoke": blob_density, "temperature": blob_density * 2})
+    out = tmp_path / "out"
+    assert main(["--checkpoint", str(checkpoint), "--density", str(source), "--grid", "smoke", "--style",
+                 str(inputs / "style.png"), "--out", str(out), *FAST]) == 0
+    density, written, _ = vdb.read_vdb(out / "volume.vdb")
+    np.testing.assert_array_equal(density, blob_density)
+    np.testing.assert_array_equal(written.matrix, transform.matrix)
+    assert written.index_min == transform.index_min
+    albedo, _, _ = vdb.read_vdb(out / "volume.vdb", grid=vdb.ALBEDO_GRID)
+    expected = np.load(out / "albedo.npy") * (blob_density > 0)[..., None]
+    np.testing.assert_array_equal(albedo, expected)
+
+
+def test_vdb_with_two_float_grids_needs_grid(mi, checkpoint, inputs, tmp_path, blob_density, capsys):
+    vdb = pytest.importorskip("mistyle.vdb")
+    try:
+        vdb.vdb_interpreter()
+    except vdb.VdbUnavailable as error:
+        pytest.skip(str(error))
+    source = vdb.write_vdb(tmp_path / "two.vdb", vdb.VdbTransform.for_medium_box(blob_density.shape),
+                           {"smoke": blob_density, "heat": blob_density})
+    code = main(["--checkpoint", str(checkpoint), "--density", str(source), "--style", str(inputs / "style.png"),
+                 "--out", str(tmp_path / "out"), *FAST])
+    error = capsys.readouterr().err
+    assert code == 2 and "--grid" in error and "smoke" in error and "Traceback" not in error, error
+    assert not (tmp_path / "out").exists()

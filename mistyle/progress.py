@@ -1,0 +1,36 @@
+"""Progress bars and status lines for every long stage (training, data generation, refinement,
+path tracing), with rates and time estimates from ``tqdm``.
+
+Bars are drawn only on a terminal: when stderr is a pipe or a file (CI, ``nohup``, a log) they are
+off, so logs hold the plain status lines alone. ``set_quiet(True)`` (the ``--quiet`` flags) turns
+off both bars and status lines; errors are always printed.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from tqdm import tqdm
+
+_quiet = False
+
+
+def set_quiet(quiet: bool) -> None:
+    global _quiet
+    _quiet = bool(quiet)
+
+
+def is_quiet() -> bool:
+    return _quiet
+
+
+def status(message: str) -> None:
+    """One status line on stderr, above any bar (nothing when quiet)."""
+    if not _quiet:
+        tqdm.write(message, file=sys.stderr)
+
+
+def bar(total: int, description: str, unit: str = "step") -> tqdm:
+    """A progress bar on stderr; use as a context manager and ``.update(1)`` per unit done."""
+    return tqdm(total=total, desc=description, unit=unit, file=sys.stderr, dynamic_ncols=True, leave=False,
+                disable=True if _quiet else None)  # None: only on a terminal

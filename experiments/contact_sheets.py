@@ -13,6 +13,8 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
 import torch
 
 
@@ -75,7 +77,8 @@ def main() -> None:
         styles.append(np.zeros_like(styles[0]))
     rows = [np.concatenate(styles[i : i + columns], axis=1) for i in range(0, len(styles), columns)]
     write_png(args.out / "contact_styles.png", np.concatenate(rows, axis=0), srgb=False)
-    print(f"wrote {args.out}/contact_densities.png and {args.out}/contact_styles.png")
+    write_index(args.out, EXPERIMENTS_TITLE)
+    print(f"wrote {args.out}/contact_densities.png, {args.out}/contact_styles.png and {args.out}/index.html")
 
 
 if __name__ == "__main__":

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
+
 VAL_METRICS = ("val_swd", "val_rgb_swd", "val_patch_swd", "val_hue_coverage")
 
 
@@ -63,7 +65,8 @@ def main() -> None:
     print(json.dumps(summary))
     if args.out:
         chart(args.out, steps, losses, evals)
-        print(f"wrote {args.out}")
+        write_index(args.out.parent, EXPERIMENTS_TITLE)
+        print(f"wrote {args.out} and {args.out.parent / 'index.html'}")
 
 
 def chart(path: Path, steps, losses, evals: dict, width: int = 720, panel: int = 150) -> None:

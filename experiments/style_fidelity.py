@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 METHODS = ("network", "final", "uniform", "optimised")
@@ -96,6 +98,7 @@ def main() -> None:
         rows = [json.loads(line) for line in jsonl.read_text().splitlines()]
         write_table(rows, out.parent / f"{out.name}_table.md")
         write_sheet(rows, tiles, all_styles, out.parent / f"{out.name}_sheet.jpg")
+        write_index(out.parent, EXPERIMENTS_TITLE)
         return
     jsonl.write_text("".join(json.dumps(r) + "\n" for r in rows))
     for density_name in args.densities.split(","):
@@ -136,6 +139,7 @@ def main() -> None:
                 save_tile(tiles, density_name, style_name, named[method], images[0])
     write_table(rows, out.parent / f"{out.name}_table.md")
     write_sheet(rows, tiles, all_styles, out.parent / f"{out.name}_sheet.jpg")
+    write_index(out.parent, EXPERIMENTS_TITLE)
 
 
 def labelled(method: str, label: str) -> str:

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -53,7 +55,8 @@ def main() -> None:
         rows.append(np.concatenate([swatch, display(layer), display(traced)], axis=1))
         print(styles.val_names[index], flush=True)
     write_png(args.out, np.concatenate(rows, axis=0), srgb=False)
-    print(f"wrote {args.out}")
+    write_index(args.out.parent, EXPERIMENTS_TITLE)
+    print(f"wrote {args.out} and {args.out.parent / 'index.html'}")
 
 
 if __name__ == "__main__":

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
@@ -92,6 +94,7 @@ def main() -> None:
         print(json.dumps(summary), flush=True)
     out.with_suffix(".jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     chart(out.with_suffix(".png"), rows)
+    write_index(out.parent, EXPERIMENTS_TITLE)
 
 
 def chart(path: Path, rows: list[dict], size=(640, 300)) -> None:

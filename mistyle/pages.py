@@ -3,8 +3,9 @@
 ``write_sheet``: style | fast layer | final render side by side, with lines of text (the metrics)
 under them. ``write_index``: one HTML page for a batch of renders or an experiment's output folder,
 listing what is in it -- each sub-folder's ``sheet.png`` with its ``report.json`` metrics, then the
-folder's images, videos, tables and data files -- all as relative links, so the folder can be
-moved or served as it is.
+folder's images, videos, tables (``*_table.md``, shown) and data files and notes (linked) -- all as
+relative links, so the folder can be moved or served as it is. The experiments write one for their
+output folder (``docs/index.html`` by default).
 """
 
 from __future__ import annotations
@@ -17,10 +18,11 @@ import numpy as np
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".gif")
 VIDEO_SUFFIXES = (".mp4",)
-TABLE_SUFFIXES = (".md",)
-DATA_SUFFIXES = (".json", ".jsonl", ".csv", ".exr", ".vol", ".vdb", ".xml", ".npy", ".txt")
+TABLE_ENDINGS = ("_table.md",)  # written by the experiments; shown in the page, other .md files are linked
+DATA_SUFFIXES = (".md", ".json", ".jsonl", ".csv", ".exr", ".vol", ".vdb", ".xml", ".npy", ".txt")
 SHEET_FILE = "sheet.png"
 INDEX_FILE = "index.html"
+EXPERIMENTS_TITLE = "mistyle: figures and tables"  # the experiments' index of their output folder (docs/)
 REPORT_METRICS = ("rgb_swd", "patch_swd", "hue_coverage", "stylize_seconds", "refine_seconds", "render_seconds")
 
 
@@ -96,9 +98,10 @@ def write_index(folder, title: str, notes: list[str] | None = None) -> Path:
         parts.append("<h2>Videos</h2>")
         parts += [f"<figure><video src='{link(p)}' controls loop muted></video><figcaption>{html.escape(p.name)}"
                   "</figcaption></figure>" for p in videos]
-    for table in (p for p in files if p.suffix.lower() in TABLE_SUFFIXES):
+    tables = [p for p in files if p.name.endswith(TABLE_ENDINGS)]
+    for table in tables:
         parts.append(f"<h2>{html.escape(table.name)}</h2><pre>{html.escape(table.read_text())}</pre>")
-    data = [p for p in files if p.suffix.lower() in DATA_SUFFIXES]
+    data = [p for p in files if p.suffix.lower() in DATA_SUFFIXES and p not in tables]
     if data:
         parts.append("<h2>Data</h2><ul>" + "".join(f"<li><a href='{link(p)}'>{html.escape(p.name)}</a></li>" for p in data)
                      + "</ul>")

@@ -1,4 +1,4 @@
-"""``python -m mistyle.data``: generate mistyle's training and demo data offline.
+"""``mistyle-data`` (``python -m mistyle.data``): generate mistyle's training and demo data offline.
 
     python -m mistyle.data smoke --res 64 --plumes 100 --frames 90 --out data/smoke64
     python -m mistyle.data smoke --res 128 --plumes 20 --frames 90 --crop 64 --out data/smoke128
@@ -35,8 +35,9 @@ def _frames(text: str) -> tuple[int, int]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m mistyle.data", description=__doc__,
+    parser = argparse.ArgumentParser(prog="mistyle-data", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)")
     commands = parser.add_subparsers(dest="command", required=True)
     smoke = commands.add_parser("smoke", help="simulate smoke plumes and write density/velocity/Ls frames")
     smoke.add_argument("--res", type=int, default=64, help="simulation resolution (cubic)")
@@ -69,6 +70,9 @@ def main(argv=None) -> int:
     mesh.add_argument("--supersample", type=int, default=2, help="s: s^3 inside tests per voxel (soft edge)")
     mesh.add_argument("--out", type=Path, required=True, help="output .vol or .npy")
     args = parser.parse_args(argv)
+    from ..progress import set_quiet
+
+    set_quiet(args.quiet)
     if args.command == "mesh":
         return _mesh_command(args)
     if args.command == "tiny":

@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import __version__
 from ..io import atomic_write_bytes, write_npz
+from ..progress import bar, status
 
 GENERATOR_VERSION = f"mistyle-smoke-{__version__}-1"
 
@@ -63,7 +64,7 @@ def frame_path(out: Path, plume: int, frame: int, crop: int | None = None) -> Pa
     return out / f"plume{plume:04d}" / f"frame{frame:04d}{suffix}.npz"
 
 
-def generate_smoke(spec: SmokeDatasetSpec, out: Path, shard: tuple[int, int] = (0, 1), log=print) -> Path:
+def generate_smoke(spec: SmokeDatasetSpec, out: Path, shard: tuple[int, int] = (0, 1), log=status) -> Path:
     """Write the plumes of ``shard`` and their manifest; returns the manifest path."""
     import torch
 
@@ -80,7 +81,9 @@ def generate_smoke(spec: SmokeDatasetSpec, out: Path, shard: tuple[int, int] = (
     out.mkdir(parents=True, exist_ok=True)
     records, pairs = [], []
     started, simulated = time.perf_counter(), 0
-    for plume in range(index, spec.plumes, count):
+    plumes = range(index, spec.plumes, count)
+    progress_bar = bar(len(plumes), "simulating plumes", unit="plume")
+    for plume in plumes:
         rng = plume_rng(spec.seed, plume)
         config = PlumeConfig.random((spec.resolution,) * 3, rng)
         crop_rng = np.random.default_rng([spec.seed, plume, 1])
@@ -105,11 +108,13 @@ def generate_smoke(spec: SmokeDatasetSpec, out: Path, shard: tuple[int, int] = (
                     ls = inscattered_radiance(d * np.float32(spec.density_scale), spec.directions)
                     _write_frame(path, d, v, ls, spec, plume, frame)
             log(f"plume {plume}: {len(paths)} files")
+        progress_bar.update(1)
         for (frame, crop_id), path in sorted(paths.items(), key=lambda item: (item[0][0], item[0][1] or 0)):
             shape = [spec.crop] * 3 if spec.crop else [spec.resolution] * 3
             records.append({"path": str(path.relative_to(out)), "plume": plume, "frame": frame, "crop": crop_id, "shape": shape})
             if frame + 1 in kept:
                 pairs.append([str(path.relative_to(out)), str(paths[(frame + 1, crop_id)].relative_to(out))])
+    progress_bar.close()
     manifest = {
         "generator": GENERATOR_VERSION,
         "spec": asdict(spec),
@@ -148,7 +153,7 @@ def _write_frame(path: Path, density, velocity, ls, spec: SmokeDatasetSpec, plum
     )
 
 
-def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path, seed: int = 0, log=print) -> list[Path]:
+def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path, seed: int = 0, log=status) -> list[Path]:
     """One fire sequence: ``frameNNNN.npz`` with the flame ``density`` and ``velocity`` for each kept frame."""
     import torch
 
@@ -159,13 +164,15 @@ def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path
     torch.set_flush_denormal(True)
     config = FireConfig(resolution=(resolution,) * 3, source_radius=0.1)
     written = []
-    for frame0, flame, velocity in simulate(config, keep[1], seed=seed):
-        frame = frame0 + 1
-        if frame >= keep[0]:
-            path = out / f"frame{frame:04d}.npz"
-            if not path.is_file():
-                write_npz(path, density=flame.astype(np.float32), velocity=velocity.astype(np.float16), frame=np.int32(frame))
-            written.append(path)
+    with bar(keep[1], "simulating fire", unit="frame") as progress_bar:
+        for frame0, flame, velocity in simulate(config, keep[1], seed=seed):
+            frame = frame0 + 1
+            progress_bar.update(1)
+            if frame >= keep[0]:
+                path = out / f"frame{frame:04d}.npz"
+                if not path.is_file():
+                    write_npz(path, density=flame.astype(np.float32), velocity=velocity.astype(np.float16), frame=np.int32(frame))
+                written.append(path)
     log(f"fire: {len(written)} frames in {out}")
     return written
 

@@ -1,4 +1,4 @@
-"""``python -m mistyle.train``: train SKPN through the fast Mitsuba layer, or run the direct baseline.
+"""``mistyle-train`` (``python -m mistyle.train``): train SKPN through the fast Mitsuba layer, or run the direct baseline.
 
     python -m mistyle.train --config configs/cpu.toml --out runs/cpu
     python -m mistyle.train --config configs/cpu.toml --out runs/cpu --resume         # continue from last.pt
@@ -22,7 +22,7 @@ from pathlib import Path
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m mistyle.train", description=__doc__,
+    parser = argparse.ArgumentParser(prog="mistyle-train", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--config", type=Path, required=True, help="a TOML file, e.g. configs/cpu.toml")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
@@ -37,7 +37,12 @@ def main(argv=None) -> int:
     parser.add_argument("--checkpoint", type=Path, default=None, help="with --optimize: the network to compare against")
     parser.add_argument("--optimize-steps", type=int, default=300)
     parser.add_argument("--optimize-styles", type=int, default=3)
+    parser.add_argument("--quiet", action="store_true", help="no progress bar or status lines (errors are still printed)")
     args = parser.parse_args(argv)
+
+    from ..progress import set_quiet
+
+    set_quiet(args.quiet)
 
     from ..backend import BackendError
     from ..model.config import ConfigError, load_config

@@ -21,7 +21,6 @@ import math
 import os
 import resource
 import signal
-import sys
 import time
 from pathlib import Path
 
@@ -44,6 +43,7 @@ from ..model.config import TrainConfig, config_from_dict, config_to_dict, to_tom
 from ..model.features import make_extractor
 from ..model.skpn import parameter_count
 from ..objective.losses import temporal_loss, tv_loss
+from ..progress import bar, status
 from ..objective.masks import body_mask, render_mask
 from ..objective.metrics import multiview_spread, style_distance, style_fidelity
 from ..objective.style import make_objective
@@ -70,10 +70,11 @@ def device_for(config: TrainConfig) -> torch.device:
 
 
 class Trainer:
-    def __init__(self, config: TrainConfig, out: Path, resume: bool = False, log=print, init: Path | None = None):
+    def __init__(self, config: TrainConfig, out: Path, resume: bool = False, log=status, init: Path | None = None):
         self.config, self.out = config, Path(out)
         self.rank, self.world = (dist.get_rank(), dist.get_world_size()) if dist.is_initialized() else (0, 1)
         self.log = log if self.rank == 0 else (lambda *a, **k: None)
+        self._bar = None  # the progress bar of ``run`` (rank 0)
         if config.optim.batch % self.world:
             raise ValueError(f"optim.batch={config.optim.batch} must be divisible by the {self.world} processes.")
         if self.rank == 0:
@@ -215,6 +216,7 @@ class Trainer:
                 seen = [json.loads(line).get("val_rgb_swd") for line in (self.out / "metrics.jsonl").read_text().splitlines()]
                 self.best = min([value for value in seen if value is not None], default=math.inf)
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        self._bar = bar(config.optim.steps, "training", initial=self.step) if self.rank == 0 else None
         try:
             if self.step == 0:
                 self._log_record({"step": 0, **self.evaluate()})
@@ -222,6 +224,8 @@ class Trainer:
             while self.step < config.optim.steps:
                 values, visuals = self.train_step()
                 window_steps += 1
+                if self._bar is not None:
+                    self._bar.update(1)
                 if self.world > 1:  # every rank stops at the same step, or the checkpoint gather would hang
                     flag = torch.tensor([float(self.interrupted)], device=self.device)
                     dist.all_reduce(flag, op=dist.ReduceOp.MAX)
@@ -254,8 +258,8 @@ class Trainer:
                 signal.signal(sig, handler)
             if self._tensorboard is not None:
                 self._tensorboard.close()
-        if self.rank == 0:
-            sys.stderr.write("\n")
+            if self._bar is not None:
+                self._bar.close()
         return final
 
     def _keep_best(self, record: dict) -> None:
@@ -360,18 +364,17 @@ class Trainer:
         tb.add_images("train/masks", render_mask(images), self.step)
 
     def _progress(self, record: dict) -> None:
+        """The losses on the progress bar (on a terminal), else as a status line (logs, ``nohup``)."""
         if self.rank != 0:
             return
-        total = self.config.optim.steps
-        done = int(30 * record["step"] / total)
-        text = (f"[{'#' * done}{'.' * (30 - done)}] {record['step']}/{total}  loss {record['loss']:.4g} "
-                f"(hist {record['loss_hist']:.4g}, tv {record['loss_tv']:.3g}, temp {record['loss_temp']:.3g})  "
-                f"{record['steps_per_second']:.2f} steps/s")
+        text = (f"loss {record['loss']:.4g} (hist {record['loss_hist']:.4g}, tv {record['loss_tv']:.3g}, "
+                f"temp {record['loss_temp']:.3g})")
         if "val_swd" in record:
             text += f"  val_swd {record['val_swd']:.4f}"
-        end = "\r" if sys.stderr.isatty() else "\n"
-        sys.stderr.write(text + end)
-        sys.stderr.flush()
+        if self._bar is not None and not self._bar.disable:
+            self._bar.set_postfix_str(text)
+        else:
+            status(f"step {record['step']}/{self.config.optim.steps}  {text}  {record['steps_per_second']:.2f} steps/s")
 
     # ------------------------------------------------------------------ checkpoints
     def _rng_states(self) -> list:

@@ -425,3 +425,11 @@ def test_vdb_with_two_float_grids_needs_grid(mi, checkpoint, inputs, tmp_path, b
     error = capsys.readouterr().err
     assert code == 2 and "--grid" in error and "smoke" in error and "Traceback" not in error, error
     assert not (tmp_path / "out").exists()
+
+
+def test_a_bad_style_late_in_a_batch_stops_it_before_any_output(mi, checkpoint, inputs, tmp_path, capsys):
+    out = tmp_path / "batch"
+    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
+                 str(inputs / "notes.txt"), "--out", str(out), *FAST])
+    error = capsys.readouterr().err
+    assert code == 2 and "notes.txt is not a readable image" in error and not out.exists()

@@ -109,7 +109,7 @@ def _kill_after(out, smoke, step, sig, *extra):
     """Start a run, wait for its progress line of ``step``, send ``sig``; returns the process result."""
     process = subprocess.Popen(command(out, smoke, *extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
     for line in process.stderr:
-        if line.startswith("[") and f"] {step}/" in line:
+        if line.startswith(f"step {step}/"):
             process.send_signal(sig)
             break
     stderr = process.stderr.read()

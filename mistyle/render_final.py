@@ -195,10 +195,17 @@ def run(args) -> int:
     from .api import Stylizer
     from .backend import use_variant
     from .batch import plan_outputs
-    from .io import staged_directory
+    from .io import load_style, staged_directory
 
     check_options(args)
     outputs = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite)
+    # Every input is looked at before the first output is made, so a bad file late in a batch
+    # does not stop it half way (each density is read in full when its turn comes).
+    for path in dict.fromkeys(image for output in outputs for image, _ in output.style.parts):
+        load_style(path)
+    for source in dict.fromkeys(output.density for output in outputs):
+        if not source.path.exists():
+            raise ValueError(f"{'Mesh' if source.mesh else 'Density'} {source.path} does not exist.")
     if args.vdb or any(output.density.path.suffix.lower() == ".vdb" for output in outputs):
         from .vdb import vdb_interpreter
 

@@ -12,8 +12,10 @@ are stylized independently, as in the paper. ``strength`` fades the style toward
 medium and a list of ``(style, weight)`` pairs mixes styles; both act on the predicted stylizing
 kernels (``Stylizer.kernels``, ``Stylizer.weakened``), not on finished albedos:
 
-    albedo = mistyle.stylize(density, [("wave.png", 0.7), ("starry.png", 0.3)], strength=0.5) ``render`` path-traces the heterogeneous medium
-with Mitsuba's ``volpath`` in ``llvm_ad_rgb`` on the CPU (``cuda_ad_rgb`` with ``device="cuda"``).
+    albedo = mistyle.stylize(density, [("wave.png", 0.7), ("starry.png", 0.3)], strength=0.5)
+
+``render`` path-traces the heterogeneous medium with Mitsuba's ``volpath`` in ``llvm_ad_rgb`` on the
+CPU (``cuda_ad_rgb`` with ``device="cuda"``).
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ def style_parts(style) -> list[tuple[object, float]]:
             raise ValueError(f"Style mix weights must be >= 0 with a positive sum, got {weights}.")
         return [(image, float(w)) for image, w in style]
     return [(style, 1.0)]
+
 
 def style_target(images: list[np.ndarray], weights, height: int = 256) -> np.ndarray:
     """The picture a style's look is measured and refined against: the image itself, or for a mix a

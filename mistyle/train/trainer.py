@@ -43,10 +43,10 @@ from ..model.config import TrainConfig, config_from_dict, config_to_dict, to_tom
 from ..model.features import make_extractor
 from ..model.skpn import parameter_count
 from ..objective.losses import temporal_loss, tv_loss
-from ..progress import bar, status
 from ..objective.masks import body_mask, render_mask
 from ..objective.metrics import multiview_spread, style_distance, style_fidelity
 from ..objective.style import make_objective
+from ..progress import bar, status
 from ..scenes import CameraPath
 from .dataset import SmokePairs, StyleSet, augment_styles
 

@@ -32,10 +32,6 @@ class StyleChoice:
     def is_mix(self) -> bool:
         return len(self.parts) > 1
 
-    def as_stylizer_input(self):
-        """What ``api.Stylizer`` takes: the path, or ``[(path, weight)]`` for a mix."""
-        return list(self.parts) if self.is_mix else self.parts[0][0]
-
     def describe(self) -> str:
         if not self.is_mix:
             return str(self.parts[0][0])

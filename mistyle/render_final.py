@@ -155,6 +155,7 @@ class Job:
     output: object  # batch.Output: the (density, style) pair and its folder
     stylizer: object  # api.Stylizer
     style: np.ndarray  # (H, W, 3) display RGB in [0, 1]: the image (or a mix's mosaic) the look is measured against
+    style_parts: list  # [(decoded image, weight)]: what the network is given (``api.Stylizer``)
     densities: list[np.ndarray]  # frames, (Z, Y, X) each
     velocities: list[np.ndarray] | None  # per frame (Z, Y, X, 3), when every frame has one
     names: list[str]
@@ -200,9 +201,14 @@ def run(args) -> int:
     check_options(args)
     outputs = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite)
     # Every input is looked at before the first output is made, so a bad file late in a batch
-    # does not stop it half way (each density is read in full when its turn comes).
+    # does not stop it half way (each density is read in full when its turn comes). Each style is
+    # decoded once, with the notes on its conversion.
+    styles = {}
     for path in dict.fromkeys(image for output in outputs for image, _ in output.style.parts):
-        load_style(path)
+        notes: list[str] = []
+        styles[path] = (load_style(path, notes), notes)
+        for note in notes:
+            log(f"note: {note}")
     for source in dict.fromkeys(output.density for output in outputs):
         if not source.path.exists():
             raise ValueError(f"{'Mesh' if source.mesh else 'Density'} {source.path} does not exist.")
@@ -215,7 +221,7 @@ def run(args) -> int:
     for number, output in enumerate(outputs, 1):
         if len(outputs) > 1:
             log(f"[{number}/{len(outputs)}] {output.name}")
-        job = load(args, output, stylizer)
+        job = load(args, output, stylizer, styles)
         # Everything is written into a staging folder that replaces the output only when it is complete.
         with staged_directory(output.folder) as staging:
             job.out = staging
@@ -270,17 +276,16 @@ def check_options(args) -> None:
 
 
 # ---------------------------------------------------------------------------- stage 1: load and check
-def load(args, output, stylizer) -> Job:
-    """Check and load one output's inputs; nothing heavy runs before this returns."""
+def load(args, output, stylizer, styles: dict) -> Job:
+    """Check and load one output's inputs (``styles``: path -> (decoded image, conversion notes));
+    nothing heavy runs before this returns."""
     from .api import style_target
-    from .io import load_density_frames, load_style
+    from .io import load_density_frames
     from .scenes import CameraPath, LightSpec
 
-    notes: list[str] = []
-    images = [load_style(path, notes) for path, _ in output.style.parts]
-    style = style_target(images, [weight for _, weight in output.style.parts])
-    for note in notes:
-        log(f"note: {note}")
+    notes = [note for path, _ in output.style.parts for note in styles[path][1]]
+    parts = [(styles[path][0], weight) for path, weight in output.style.parts]
+    style = style_target([image for image, _ in parts], [weight for _, weight in parts])
     config = stylizer.config
     light = LightSpec.parse(args.light, default_radiance=config.render.radiance)
     density_scale = args.density_scale if args.density_scale is not None else stylizer.density_scale
@@ -314,7 +319,8 @@ def load(args, output, stylizer) -> Job:
     camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
     orbit = CameraPath(distance=camera_distance)
     views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
-    return Job(args=args, output=output, stylizer=stylizer, style=style, densities=densities, velocities=velocities,
+    return Job(args=args, output=output, stylizer=stylizer, style=style, style_parts=parts, densities=densities,
+               velocities=velocities,
                names=names, views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
                refine_steps=refine_steps, refine_path_steps=refine_path_steps, coat_mesh=coat_mesh,
                transforms=transforms, notes=notes)
@@ -353,25 +359,21 @@ def _frame_suffix(job: Job, index: int) -> str:
 
 # ---------------------------------------------------------------------------- stage 2: stylize
 def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
-    """The network's albedo for every frame, written as ``albedo*.vol/.npy``; flicker for sequences."""
-    from .io import write_npy, write_vol
+    """The network's albedo for every frame, written as ``albedo*.npy`` (the ``.vol`` by
+    ``write_assets``); flicker for sequences."""
+    from .io import write_npy
     from .objective.metrics import temporal_flicker
-
-    from .scenes import MediumBox
 
     started = time.perf_counter()
     frames = np.stack(job.densities) if job.sequence else job.densities[0]
-    stylized = job.stylizer(frames, job.output.style.as_stylizer_input(), job.args.scale_structures,
-                            strength=job.args.strength)
+    style = job.style_parts if len(job.style_parts) > 1 else job.style_parts[0][0]
+    stylized = job.stylizer(frames, style, job.args.scale_structures, strength=job.args.strength)
     albedos = list(stylized) if job.sequence else [stylized]
     report["stylize_seconds"] = time.perf_counter() - started
     check_finite("The network's albedo of frame", albedos)
     log(f"stylized {len(albedos)} frame(s) of {job.densities[0].shape} in {report['stylize_seconds']:.2f} s")
-    box = MediumBox(job.densities[0].shape)
     for index, albedo in enumerate(albedos):
-        stem = "albedo" + _frame_suffix(job, index)
-        write_vol(job.out / f"{stem}.vol", albedo, box.bbox_min, box.bbox_max)
-        write_npy(job.out / f"{stem}.npy", albedo)
+        write_npy(job.out / f"albedo{_frame_suffix(job, index)}.npy", albedo)
     if job.sequence and job.velocities is not None:
         report["temporal_flicker"] = temporal_flicker(np.stack(albedos), np.stack(job.velocities))
     elif job.sequence:
@@ -502,17 +504,21 @@ def _layer_images(job: Job, frame: int, albedo: np.ndarray, views) -> list[np.nd
 # ---------------------------------------------------------------------------- stage 5: assets
 def write_assets(job: Job, albedos: list[np.ndarray], rendered: list[np.ndarray]) -> list[str]:
     """What a Mitsuba, Houdini or Blender user opens: per frame the density and the path-traced albedo
-    (``.vol``, medium box as bounding box), the ``scene.xml`` that reproduces the render, and
-    ``volume.vdb`` (density + albedo as ``Cd``) in the input ``.vdb``'s transform, or in the medium
-    box's with ``--vdb``. Returns the file names written."""
-    from .scenes.export import write_scene_files
+    (``.vol``, medium box as bounding box; also the network's ``albedo.vol`` when another albedo was
+    path traced), the ``scene.xml`` that reproduces the render, and ``volume.vdb`` (density + albedo
+    as ``Cd``) in the input ``.vdb``'s transform, or in the medium box's with ``--vdb``. Returns the
+    file names written."""
+    from .scenes.export import write_medium_grid, write_scene_files
 
     scene_options = {key: value for key, value in _trace_options(job).items() if key != "device"}
+    refined = rendered is not albedos
     written = []
     for frame, views in job.render_jobs():
         suffix = _frame_suffix(job, frame)
+        if refined:
+            written.append(write_medium_grid(job.out / f"albedo{suffix}.vol", albedos[frame]).name)
         paths = write_scene_files(job.out, job.densities[frame], rendered[frame], views, suffix=suffix,
-                                  albedo_name="albedo" if rendered is albedos else "albedo_refined", **scene_options)
+                                  albedo_name="albedo_refined" if refined else "albedo", **scene_options)
         written += [path.name for path in paths.values()]
         if job.transforms is not None or job.args.vdb:
             from .vdb import ALBEDO_GRID, DENSITY_GRID, VdbTransform, write_vdb

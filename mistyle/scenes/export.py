@@ -84,6 +84,14 @@ def scene_xml(scene: dict) -> str:
     return ET.tostring(root, encoding="unicode") + "\n"
 
 
+def write_medium_grid(path, grid: np.ndarray) -> Path:
+    """A ``(Z, Y, X[, C])`` grid as a ``.vol`` whose bounding box is the medium box it fills."""
+    from ..io import write_vol
+
+    box = MediumBox(grid.shape[:3])
+    return write_vol(path, grid, box.bbox_min, box.bbox_max)
+
+
 def write_scene_files(folder, density: np.ndarray, albedo: np.ndarray, views, *, res: int, spp: int,
                       max_depth: int, density_scale: float, light, coat_ior: float | None = None,
                       coat_mesh: str | Path | None = None, suffix: str = "",
@@ -97,14 +105,12 @@ def write_scene_files(folder, density: np.ndarray, albedo: np.ndarray, views, *,
         coat_mesh: the coat's ``.ply``; copied into ``folder`` if it is not there already.
         suffix: tells a sequence's frames apart (``_frame0003``).
     """
-    from ..io import atomic_write_bytes, write_vol
+    from ..io import atomic_write_bytes
     from .pathtraced import pathtraced_scene
 
     folder = Path(folder)
-    box = MediumBox(density.shape)
     names = {"density": f"{DENSITY_STEM}{suffix}.vol", "albedo": f"{albedo_name}{suffix}.vol"}
-    paths = {key: write_vol(folder / name, grid, box.bbox_min, box.bbox_max)
-             for (key, name), grid in zip(names.items(), (density, albedo))}
+    paths = {key: write_medium_grid(folder / name, grid) for (key, name), grid in zip(names.items(), (density, albedo))}
     scene = pathtraced_scene(density, albedo, views, res=res, spp=spp, max_depth=max_depth, density_scale=density_scale,
                              light=light, coat_ior=coat_ior, coat_mesh=coat_mesh)
     medium = scene["medium_box"]["interior"]

@@ -254,13 +254,17 @@ def render(density, albedo, view: float = HELD_OUT_VIEW, res: int = 256, spp: in
 
 def path_trace(density, albedo, views, *, res: int = 256, spp: int = 64, max_depth: int = -1,
                density_scale: float = DEFAULT_DENSITY_SCALE, light="constant", coat_ior: float | None = None,
-               coat_mesh=None, device: str = "cpu", seed: int = 0, progress=None) -> tuple[list[np.ndarray], list[float]]:
+               coat_mesh=None, device: str = "cpu", seed: int = 0, progress=None,
+               bricks: int | None = None) -> tuple[list[np.ndarray], list[float]]:
     """``render`` for several ``View``s of one scene: ``([(res, res, 3)] images, [seconds per view])``.
 
-    ``progress(done, count, seconds)`` is called after each view when given.
+    ``progress(done, count, seconds)`` is called after each view when given. ``bricks``: voxels per
+    brick of the medium's majorant bricks (``scenes.bricks``; the same image in expectation, faster
+    on sparse volumes), ``0`` for one medium; by default ``DEFAULT_BRICK``, and 0 under a coat.
     """
     from .backend import use_variant
     from .scenes import LightSpec, pathtraced_scene
+    from .scenes.bricks import DEFAULT_BRICK
     from .volume import validate_albedo, validate_density
 
     mi = use_variant(device)
@@ -269,9 +273,11 @@ def path_trace(density, albedo, views, *, res: int = 256, spp: int = 64, max_dep
     if not 1 <= res <= 8192 or spp < 1:
         raise ValueError(f"Need 1 <= res <= 8192 and spp >= 1, got res={res}, spp={spp}.")
     light = light if isinstance(light, LightSpec) else LightSpec.parse(light)
+    if bricks is None:
+        bricks = 0 if coat_ior is not None else DEFAULT_BRICK
     scene = mi.load_dict(pathtraced_scene(grid, colours, views, res=res, density_scale=density_scale, spp=spp,
                                           max_depth=max_depth, light=light, coat_ior=coat_ior, coat_mesh=coat_mesh,
-                                          seed=seed))
+                                          seed=seed, bricks=bricks))
     images, seconds = [], []
     for index in range(len(views)):
         started = time.perf_counter()

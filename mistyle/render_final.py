@@ -78,6 +78,7 @@ def _coat(text: str) -> float:
 
 def parser() -> argparse.ArgumentParser:
     from .fit import RefineSettings
+    from .scenes.bricks import DEFAULT_BRICK
 
     p = argparse.ArgumentParser(prog="mistyle-render", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -107,6 +108,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--res", type=int, default=256)
     p.add_argument("--density-scale", type=float, default=None, help="extinction per unit density (default: training's)")
     p.add_argument("--coat", type=_coat, default=None, metavar="dielectric[:ior]", help="smooth dielectric boundary")
+    p.add_argument("--bricks", type=int, default=None, metavar="VOXELS",
+                   help=f"path-trace the medium as bricks of this many voxels, each with its own majorant (default "
+                        f"{DEFAULT_BRICK}; 0: one medium; always 0 with --coat)")
     p.add_argument("--scale-structures", type=float, default=1.0, help="resample the density by f before stylizing")
     p.add_argument("--mesh-res", type=int, default=64, help="voxels along the mesh's longest side")
     p.add_argument("--correct", choices=CORRECTIONS, default="none",
@@ -269,6 +273,9 @@ def check_options(args) -> None:
         (args.refine_path is None or 0 <= args.refine_path <= 10000,
          f"--refine-path must lie in [0, 10000] steps, got {args.refine_path}"),
         (8 <= args.mesh_res <= 512, f"--mesh-res must lie in [8, 512], got {args.mesh_res}"),
+        (args.bricks is None or 0 <= args.bricks <= 4096, f"--bricks must lie in [0, 4096] voxels, got {args.bricks}"),
+        (not (args.bricks and args.coat is not None),
+         "--bricks needs one medium under --coat (the coat is an optical boundary on the box); drop --bricks"),
     ]
     for ok, message in checks:
         if not ok:
@@ -485,7 +492,8 @@ def render_frames(job: Job, rendered: list[np.ndarray], albedos: list[np.ndarray
 def _trace_options(job: Job) -> dict:
     args = job.args
     return {"res": args.res, "spp": args.spp, "max_depth": args.max_depth, "density_scale": job.density_scale,
-            "light": job.light, "coat_ior": args.coat, "coat_mesh": job.coat_mesh_path, "device": args.device}
+            "light": job.light, "coat_ior": args.coat, "coat_mesh": job.coat_mesh_path, "device": args.device,
+            "bricks": args.bricks}
 
 
 def _layer_images(job: Job, frame: int, albedo: np.ndarray, views) -> list[np.ndarray]:
@@ -510,7 +518,8 @@ def write_assets(job: Job, albedos: list[np.ndarray], rendered: list[np.ndarray]
     file names written."""
     from .scenes.export import write_medium_grid, write_scene_files
 
-    scene_options = {key: value for key, value in _trace_options(job).items() if key != "device"}
+    # scene.xml holds one medium: bricks only speed the render up (scenes.export).
+    scene_options = {key: value for key, value in _trace_options(job).items() if key not in ("device", "bricks")}
     refined = rendered is not albedos
     written = []
     for frame, views in job.render_jobs():

@@ -21,12 +21,19 @@ def validate_density_scale(density_scale, name: str = "density_scale") -> float:
     return scale
 
 
-def heterogeneous_medium(density: np.ndarray, density_scale: float, albedo: np.ndarray) -> dict:
-    """Mitsuba ``heterogeneous`` medium filling the medium box, trilinear grids, isotropic phase."""
+def heterogeneous_medium(
+    density: np.ndarray, density_scale: float, albedo: np.ndarray, unit_to_world: np.ndarray | None = None
+) -> dict:
+    """Mitsuba ``heterogeneous`` medium, trilinear grids, isotropic phase.
+
+    Its grids fill the medium box of ``density``, or the box onto which the 4x4 ``unit_to_world``
+    maps the unit cube (for a part of a larger grid, ``scenes.bricks``).
+    """
     mi = require_variant()
 
-    box = MediumBox(density.shape)
-    to_world = mi.ScalarTransform4f(box.unit_to_world_matrix().tolist())
+    if unit_to_world is None:
+        unit_to_world = MediumBox(density.shape).unit_to_world_matrix()
+    to_world = mi.ScalarTransform4f(np.asarray(unit_to_world, dtype=np.float64).tolist())
     return {
         "type": "heterogeneous",
         "sigma_t": {

@@ -19,6 +19,7 @@ import numpy as np
 
 from .cameras import View, batch_sensor_dict, sensor_dict
 from .lights import LightSpec
+from .bricks import bricked_media
 from .medium import heterogeneous_medium, medium_cube
 
 PATH_TRACERS = ("volpath", "prbvolpath")
@@ -56,6 +57,7 @@ def pathtraced_scene(
     seed: int = 0,
     batch: bool = False,
     integrator: str = "volpath",
+    bricks: int = 0,
 ) -> dict:
     """A Mitsuba scene dictionary for ``mi.load_dict``.
 
@@ -70,6 +72,9 @@ def pathtraced_scene(
         coat_mesh: a closed ``.ply`` already placed in the medium box (see
             ``mistyle.data.mesh.fit_to_box``), used as the coat instead of the box.
         integrator: ``volpath``, or ``prbvolpath`` for gradients with respect to the albedo.
+        bricks: ``0`` one medium in the box; ``n`` the box cut into bricks of ``n`` voxels with
+            majorants of their own (``scenes.bricks``: the same image in expectation, less time on
+            sparse volumes). Only without a coat and with ``volpath``.
     """
     height, width = (res, res) if np.isscalar(res) else (int(res[0]), int(res[1]))
     if spp < 1:
@@ -79,15 +84,20 @@ def pathtraced_scene(
     if integrator not in PATH_TRACERS:
         raise ValueError(f"Unknown path tracer {integrator!r}; use one of {PATH_TRACERS}.")
     bsdf = {"type": "null"} if coat_ior is None else {"type": "dielectric", "int_ior": float(coat_ior), "ext_ior": 1.0}
-    if coat_mesh is not None and coat_ior is not None:
-        boundary = {"type": "ply", "filename": str(coat_mesh), "bsdf": bsdf,
-                    "interior": heterogeneous_medium(density, density_scale, albedo)}
+    if bricks and (coat_ior is not None or integrator != "volpath"):
+        raise ValueError("bricks work with volpath and no coat only: a coat is an optical boundary on the box, and "
+                         "prbvolpath differentiates one albedo grid; use bricks=0.")
+    if bricks:
+        boundary = bricked_media(density, density_scale, albedo, bricks)
+    elif coat_mesh is not None and coat_ior is not None:
+        boundary = {"medium_box": {"type": "ply", "filename": str(coat_mesh), "bsdf": bsdf,
+                                   "interior": heterogeneous_medium(density, density_scale, albedo)}}
     else:
-        boundary = medium_cube(density, density_scale, albedo, bsdf)
+        boundary = {"medium_box": medium_cube(density, density_scale, albedo, bsdf)}
     scene = {
         "type": "scene",
         "integrator": {"type": integrator, "max_depth": int(max_depth), "hide_emitters": True},
-        "medium_box": boundary,
+        **boundary,
         **light.emitters(),
     }
     if batch:

@@ -198,7 +198,7 @@ class Stylizer:
             size = tuple(max(4, round(n * scale_structures)) for n in shape)
             density = F.interpolate(density, size=size, mode="trilinear", align_corners=False)
         with torch.no_grad():
-            albedo = self.trained.model(density, inputs)
+            albedo = self.trained.model.infer(density, inputs)  # bfloat16, empty space cropped: SKPN.infer
             if tuple(albedo.shape[2:]) != shape:
                 albedo = F.interpolate(albedo, size=shape, mode="trilinear", align_corners=False)
         return np.ascontiguousarray(albedo[0].permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)

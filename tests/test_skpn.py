@@ -1,7 +1,11 @@
 """SKPN shapes (odd and non-cubic), variants, empty density, gradients."""
 
+from pathlib import Path
+
 import pytest
 import torch
+
+from mistyle.io import load_density
 
 from mistyle.model.skpn import SKPN, SKPNConfig, parameter_count
 
@@ -89,3 +93,53 @@ def test_averaged_checkpoints_hold_the_mean_weights_and_refuse_other_architectur
     checkpoint(tmp_path / "wide.pt", (4, 8, 16), 30)
     with pytest.raises(ValueError, match="one run only"):
         average_checkpoints([tmp_path / "a.pt", tmp_path / "wide.pt"], tmp_path / "bad.pt")
+
+
+def test_occupied_window_keeps_the_stride_alignment_and_a_margin():
+    from mistyle.model.skpn import occupied_window
+
+    density = torch.zeros(1, 1, 40, 24, 32)
+    density[0, 0, 21:25, 9, 30] = 1.0
+    window = occupied_window(density, margin=2)
+    assert window == (slice(16, 27), slice(4, 12), slice(28, 32))  # low corners rounded down to a multiple of 4
+    assert occupied_window(density, margin=40) is None  # the whole grid
+    assert occupied_window(torch.zeros(1, 1, 8, 8, 8), margin=2) is None  # nothing to crop to
+
+
+def test_infer_in_float32_without_crop_is_forward_and_the_fast_path_stays_close():
+    model = SKPN(SKPNConfig(**TINY)).eval()
+    density = torch.zeros(1, 1, 24, 20, 28)
+    density[..., 6:14, 5:12, 9:20] = torch.rand(8, 7, 11, generator=GEN)
+    style = style_levels()
+    with torch.no_grad():
+        plain = model(density, style)
+    assert torch.equal(model.infer(density, style, precision="fp32", crop_margin=None), plain)
+    occupied = density[0, 0] > 0
+    for precision, margin in (("bf16", None), ("fp32", 8), ("bf16", 8)):
+        fast = model.infer(density, style, precision=precision, crop_margin=margin)
+        assert fast.shape == plain.shape and fast.dtype == torch.float32
+        change = (fast - plain)[0].permute(1, 2, 3, 0)[occupied].abs()
+        # Random weights: a loose bound; the shipped network's is the next test's.
+        assert float(change.mean()) < 0.01 and float(change.max()) < 0.1, (precision, margin)
+    # Outside the crop the albedo repeats the crop's faces.
+    cropped = model.infer(density, style, precision="fp32", crop_margin=2)
+    assert torch.equal(cropped[..., 0, :, :], cropped[..., 3, :, :])
+    with pytest.raises(ValueError, match="precision"):
+        model.infer(density, style, precision="fp16")
+
+
+def test_the_shipped_networks_fast_path_changes_its_albedo_by_less_than_8_bit_steps():
+    """What users get (``SKPN.infer``: bfloat16, empty space cropped) against the float32 forward pass over
+    the whole box, on the bundled smoke and a held-out painting."""
+    from mistyle.api import Stylizer
+    from mistyle.data.heldout import held_out_styles
+
+    stylizer = Stylizer()
+    model = stylizer.trained.model
+    density = torch.from_numpy(load_density(Path(__file__).parents[1] / "examples" / "smoke_64.vol"))[None, None]
+    kernels = stylizer.kernels(held_out_styles()["hokusai_great_wave"]["path"])
+    with torch.no_grad():
+        plain = model(density, kernels)
+    change = (model.infer(density, kernels) - plain)[0].permute(1, 2, 3, 0)[density[0, 0] > 0].abs()
+    assert float(change.mean()) < 1.0 / 255 and float(change.quantile(0.99)) < 2.0 / 255
+

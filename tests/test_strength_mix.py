@@ -39,7 +39,7 @@ def inside(density):
 def test_strength_one_is_the_network_as_trained(stylizer, two_styles, plume):
     model = stylizer.trained.model
     with torch.no_grad():
-        direct = model(torch.from_numpy(plume)[None, None], stylizer.style_inputs(two_styles[0]))
+        direct = model.infer(torch.from_numpy(plume)[None, None], stylizer.style_inputs(two_styles[0]))
     expected = direct[0].permute(1, 2, 3, 0).clamp(0, 1).numpy()
     np.testing.assert_array_equal(stylizer(plume, two_styles[0], strength=1.0), expected)
 
@@ -50,7 +50,7 @@ def test_strength_zero_is_uniform_grey_of_the_styled_brightness(stylizer, two_st
     voxels = neutral[inside(plume)]
     assert float(np.ptp(voxels)) < 1e-4  # one value in every channel and voxel
     grey = float(np.tensordot(plume / plume.sum(), full, axes=3) @ LUMA_WEIGHTS)
-    np.testing.assert_allclose(voxels.mean(), grey, atol=1e-4)
+    np.testing.assert_allclose(voxels.mean(), grey, atol=1e-3)  # bfloat16 inference (SKPN.infer): 1.5e-4 here
 
 
 def test_strength_moves_the_albedo_monotonically(stylizer, two_styles, plume):

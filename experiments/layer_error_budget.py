@@ -71,6 +71,7 @@ def main() -> None:
         (128, "sheared", 1): inscattered_radiance(sigma_t, 128, "sheared"),
         (128, "bruteforce", 1): inscattered_radiance(sigma_t, 128, "bruteforce"),
         (2048, "sheared", 1): inscattered_radiance(sigma_t, 2048, "sheared"),
+        (128, "sheared", 2): inscattered_radiance(sigma_t, 128, "sheared", grid_factor=2),
         (128, "bruteforce", 2): fine_ls(2, 128),
     }
     rows = []

@@ -117,3 +117,29 @@ def test_sheared_ls_changes_layer_images_by_under_half_a_percent_at_64(mi):
     image_fast, image_brute = (render_views(albedo, p, views, 160) for p in (fast, brute))
     rel_rmse = float(((image_fast - image_brute).pow(2).mean() / image_brute.pow(2).mean()).sqrt())
     assert rel_rmse < 5e-3
+
+
+def test_resampling_keeps_the_trilinear_field(mi):
+    from mistyle.integrators.inscatter import resample_trilinear
+
+    z, y, x = np.meshgrid(*(np.arange(n, dtype=np.float32) for n in (6, 5, 4)), indexing="ij")
+    ramp = 0.5 + 0.1 * x + 0.2 * y - 0.05 * z
+    fine = resample_trilinear(ramp, 2)
+    assert fine.shape == (12, 10, 8)
+    # Fine centre j sits at (j + 0.5) / 2 - 0.5 coarse voxels: the ramp exactly, clamped beyond the end centres.
+    fz, fy, fx = (np.clip((np.arange(n) + 0.5) / 2 - 0.5, 0, n // 2 - 1) for n in (12, 10, 8))
+    expected = 0.5 + 0.1 * fx[None, None] + 0.2 * fy[None, :, None] - 0.05 * fz[:, None, None]
+    np.testing.assert_allclose(fine, expected, atol=1e-5)
+
+
+def test_ls_on_a_finer_grid_agrees_with_the_density_grid(mi, blob_density):
+    sigma_t = blob_density * np.float32(6.0)
+    coarse = inscattered_radiance(sigma_t, 32, "sheared")
+    fine = inscattered_radiance(sigma_t, 32, "sheared", grid_factor=2)
+    assert fine.shape == tuple(2 * n for n in sigma_t.shape)
+    # The mean of each 2x2x2 block of fine values is close to the coarse value at its centre, inside the medium.
+    blocks = fine.reshape(sigma_t.shape[0], 2, sigma_t.shape[1], 2, sigma_t.shape[2], 2).mean(axis=(1, 3, 5))
+    inside = sigma_t > 1.0
+    assert np.abs(blocks - coarse)[inside].max() < 0.03
+    with pytest.raises(ValueError, match="grid_factor"):
+        inscattered_radiance(sigma_t, 32, "sheared", grid_factor=1.5)

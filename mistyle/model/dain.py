@@ -40,8 +40,7 @@ def masked_statistics(features: torch.Tensor, mask: torch.Tensor | None) -> tupl
             flat = features.float().flatten(2)
             variance, mean = torch.var_mean(flat, dim=2, keepdim=True, correction=0)
             return mean[..., None, None], variance[..., None, None]
-        # Voxels as rows, channels as columns: (B, N, C). For channels-last features (the fast inference
-        # layout, ``model.inference``) this is a view; otherwise one copy, as flatten() made before.
+        # Voxels as rows, channels as columns: (B, N, C); a view for channels-last features, one copy otherwise.
         rows = features.permute(0, 2, 3, 4, 1).reshape(batch, -1, channels)
         # Any value near the mean serves as the shift; a strided subsample's mean spares a full pass.
         shift = rows[:, :: max(1, rows.shape[1] // 4096)].float().mean(1, keepdim=True).detach()

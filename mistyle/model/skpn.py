@@ -259,7 +259,6 @@ class SKPN(nn.Module):
         albedo = 0.5 * (torch.tanh(self.decoder[2](x).float()) + 1.0)
         return albedo[..., : size[0], : size[1], : size[2]]
 
-
     @torch.no_grad()
     def infer(self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor],
               precision: str = "bf16", crop_margin: int | None = DEFAULT_CROP_MARGIN) -> torch.Tensor:

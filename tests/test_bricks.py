@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from mistyle.data.procedural import colour_noise_albedo
-from mistyle.scenes import CameraPath, pathtraced_scene
+from mistyle.scenes import CameraPath, LightSpec, pathtraced_scene
 from mistyle.scenes.bricks import brick_levels, bricked_media
 from mistyle.scenes.medium import heterogeneous_medium
 
@@ -72,21 +72,27 @@ def test_every_level_returns_the_whole_mediums_field_inside_its_bricks(mi):
     assert checked == (level >= 0).sum() > 4
 
 
-def test_bricks_render_the_same_image_as_one_medium(mi):
-    """Same expectation: the means of the two renders agree within their noise (two seeds each)."""
-    density = sparse_smoke()
-    albedo = colour_noise_albedo(density.shape, seed=1)
-    views = [CameraPath().view(0.1)]
+def mean_difference_z(mi, density, albedo, view, res, density_scale, bricks, spp, seed,
+                      light: str = "constant") -> tuple[float, float]:
+    """``(z, mean)``: the bricked render's mean minus one medium's over its standard error (two seeds each,
+    the noise measured from the seed pairs), and the plain render's mean."""
+    def renders(brick):
+        scene = mi.load_dict(pathtraced_scene(density, albedo, [CameraPath().view(view)], res=res,
+                                              density_scale=density_scale, bricks=brick, light=LightSpec.parse(light)))
+        return [np.asarray(mi.render(scene, spp=spp, seed=s))[..., :3] for s in (seed, 1000 * seed)]
 
-    def renders(bricks):
-        scene = mi.load_dict(pathtraced_scene(density, albedo, views, res=24, density_scale=10.0, bricks=bricks))
-        return [np.asarray(mi.render(scene, spp=256, seed=seed))[..., :3] for seed in (3, 3000)]
-
-    plain, bricked = renders(0), renders(4)
+    plain, bricked = renders(0), renders(bricks)
     variance = sum(np.mean((a - b) ** 2) / 2 for a, b in (plain, bricked)) / 2
     difference = np.mean(bricked[0] + bricked[1] - plain[0] - plain[1]) / 2
-    assert abs(difference) < 4.0 * np.sqrt(variance / plain[0].size)
-    assert np.mean(plain) > 0.05
+    return float(difference / np.sqrt(variance / plain[0].size)), float(np.mean(plain))
+
+
+@pytest.mark.parametrize("light", ["constant", "point:1.5,1.2,0.5:100", "area:50"])
+def test_bricks_render_the_same_image_as_one_medium(mi, light):
+    density = sparse_smoke()
+    z, mean = mean_difference_z(mi, density, colour_noise_albedo(density.shape, seed=1), 0.1, res=24,
+                                density_scale=10.0, bricks=4, spp=256, seed=3, light=light)
+    assert abs(z) < 4.0 and mean > 0.01
 
 
 def test_thin_medium_through_face_meshes_matches_the_box(mi):
@@ -95,16 +101,8 @@ def test_thin_medium_through_face_meshes_matches_the_box(mi):
     density = np.full((16, 16, 16), 0.2, np.float32)
     density[8:] = 0.05  # a second level above
     albedo = np.full(density.shape + (3,), 0.8, np.float32)
-    views = [CameraPath().view(0.0625)]
-
-    def renders(bricks):
-        scene = mi.load_dict(pathtraced_scene(density, albedo, views, res=16, density_scale=20.0, bricks=bricks))
-        return [np.asarray(mi.render(scene, spp=1024, seed=seed))[..., :3] for seed in (5, 5000)]
-
-    plain, bricked = renders(0), renders(8)
-    variance = sum(np.mean((a - b) ** 2) / 2 for a, b in (plain, bricked)) / 2
-    difference = np.mean(bricked[0] + bricked[1] - plain[0] - plain[1]) / 2
-    assert abs(difference) < 4.0 * np.sqrt(variance / plain[0].size)
+    z, _ = mean_difference_z(mi, density, albedo, 0.0625, res=16, density_scale=20.0, bricks=8, spp=1024, seed=5)
+    assert abs(z) < 4.0
 
 
 def test_bricks_refuse_a_coat_and_prbvolpath(mi):

@@ -4,8 +4,9 @@ One pixel-centre ``volpath`` reference (max_depth=2, two seeds, noise taken out;
 ``layer_vs_pathtraced.py``), then the layer with one ingredient changed at a time:
   * K, the number of directions for Ls, and the Ls method (sheared or brute force);
   * N, the number of ray-marching steps;
-  * the resolution of the Ls grid (1x: the density's own grid, as in the paper; 2x: Ls computed by
-    brute force at the centres of a grid twice as fine, from the same trilinear extinction).
+  * the resolution of the Ls grid (1x: the density's own grid, as in the paper; 2x or 3x: a finer
+    grid, sheared on the resampled extinction, or brute force from the same trilinear extinction;
+    only on the 3x grid is the resampled extinction exactly the rendered field).
 
 Prints one JSON line: ``{"noise": ..., "rows": [{"K", "method", "ls_grid", "N", "rel_rmse", "brightness"}]}``.
 
@@ -72,11 +73,12 @@ def main() -> None:
         (128, "bruteforce", 1): inscattered_radiance(sigma_t, 128, "bruteforce"),
         (2048, "sheared", 1): inscattered_radiance(sigma_t, 2048, "sheared"),
         (128, "sheared", 2): inscattered_radiance(sigma_t, 128, "sheared", grid_factor=2),
+        (128, "sheared", 3): inscattered_radiance(sigma_t, 128, "sheared", grid_factor=3),
         (128, "bruteforce", 2): fine_ls(2, 128),
     }
     rows = []
     for (directions, method, factor), ls in grids.items():
-        for steps in (64, 128, 256):
+        for steps in (64, 80, 128, 256):
             rendered = layer(ls, steps)
             rows.append({
                 "K": directions, "method": method, "ls_grid": factor, "N": steps,

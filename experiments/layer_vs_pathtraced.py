@@ -40,6 +40,7 @@ def main() -> None:
     parser.add_argument("--views", type=int, default=2)
     parser.add_argument("--steps", type=int, default=64)
     parser.add_argument("--directions", type=int, default=128)
+    parser.add_argument("--ls-grid-factor", type=int, default=1, help="Ls on a grid this many times finer (3: 0.45%% at 80 steps)")
     parser.add_argument("--density-scale", type=float, default=DEFAULT_DENSITY_SCALE)
     parser.add_argument("--ref-spp", type=int, default=4096, help="spp of each single-scattering reference")
     parser.add_argument("--multi-spp", type=int, default=1024, help="spp of each multiple-scattering reference")
@@ -85,7 +86,7 @@ def main() -> None:
         return two_seed_reference(lambda count, seed: render(count, max_depth, seed)[0], spp)
 
     start = time.perf_counter()
-    prepared = prepare_density(density, args.density_scale, args.directions)
+    prepared = prepare_density(density, args.density_scale, args.directions, ls_grid_factor=args.ls_grid_factor)
     ls_seconds = time.perf_counter() - start
 
     layer_images, layer_seconds = {}, {}
@@ -139,7 +140,7 @@ def main() -> None:
         "ls_seconds": ls_seconds,
         "setting": {
             "res": args.res, "image": args.image, "views": args.views, "steps": args.steps,
-            "directions": args.directions, "density_scale": args.density_scale,
+            "directions": args.directions, "density_scale": args.density_scale, "ls_grid_factor": args.ls_grid_factor,
             "ref_spp": args.ref_spp, "multi_spp": args.multi_spp,
         },
         "machine": {"cpu_count": os.cpu_count(), "load_avg_1m": os.getloadavg()[0]},

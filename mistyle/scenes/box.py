@@ -69,8 +69,15 @@ class MediumBox:
 
     def unit_to_world_matrix(self) -> np.ndarray:
         """4x4 matrix taking the unit cube ``[0,1]^3`` onto the box (a ``gridvolume``'s ``to_world``)."""
-        m = np.diag(np.append(self.extent, 1.0))
-        m[:3, 3] = self.bbox_min
+        return self.window_to_world_matrix((0, 0, 0), self.shape_zyx)
+
+    def window_to_world_matrix(self, start_zyx, stop_zyx) -> np.ndarray:
+        """4x4 matrix taking the unit cube onto the voxels ``[start, stop)`` of the grid (per axis, z, y, x):
+        the ``to_world`` of a ``gridvolume`` holding ``arr[z0:z1, y0:y1, x0:x1]`` in place."""
+        start = np.asarray(start_zyx, dtype=np.float64)[::-1]
+        size = np.asarray(stop_zyx, dtype=np.float64)[::-1] - start
+        m = np.diag(np.append(size * self.voxel_size, 1.0))
+        m[:3, 3] = self.bbox_min + start * self.voxel_size
         return m
 
     def cube_to_world_matrix(self) -> np.ndarray:

@@ -117,11 +117,8 @@ def _level_medium(density, density_scale, albedo, level, edges, k) -> dict:
         mask[_window(edges, position, density.shape)] = True
     bounds = [np.nonzero(mask.any(axis=tuple(b for b in range(3) if b != a)))[0] for a in range(3)]
     window = tuple(slice(int(b[0]), int(b[-1]) + 1) for b in bounds)
-    lo_xyz = np.array([w.start for w in window][::-1], dtype=np.float64)
-    size_xyz = np.array([w.stop - w.start for w in window][::-1], dtype=np.float64)
-    unit_to_world = np.diag(np.append(size_xyz * box.voxel_size, 1.0))
-    unit_to_world[:3, 3] = box.bbox_min + lo_xyz * box.voxel_size
     grid = np.where(mask[window], density[window], 0.0).astype(np.float32)
+    unit_to_world = box.window_to_world_matrix([w.start for w in window], [w.stop for w in window])
     return heterogeneous_medium(grid, density_scale, np.ascontiguousarray(albedo[window]), unit_to_world)
 
 

@@ -186,7 +186,7 @@ def test_two_process_ddp_on_cpu(tmp_path, tiny_smoke):
     launcher = (sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", str(port), "-m")
     result = subprocess.run(command(out, tiny_smoke, "--set", "optim.steps=6", "--set", "run.eval_every=100", launcher=launcher),
                             capture_output=True, text=True, cwd=REPO, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"})
-    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.returncode == 0, result.stdout[-1000:] + result.stderr[-3000:]
     checkpoint = torch.load(out / "final.pt", weights_only=True)
     assert checkpoint["world_size"] == 2 and len(checkpoint["rng"]) == 2 and checkpoint["step"] == 6
     assert [r["step"] for r in records(out) if "loss" in r] == list(range(1, 7))

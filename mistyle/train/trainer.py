@@ -253,6 +253,8 @@ class Trainer:
                     raise Interrupted()
             self.save(self.out / "last.pt")
             final = self.save(self.out / "final.pt")
+            if self.world > 1:  # leave together: a rank that tears gloo down while rank 0 still writes can abort it
+                dist.barrier()
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)

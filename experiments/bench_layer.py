@@ -134,9 +134,9 @@ def main() -> None:
 
 
 def inscatter_used_fraction(sigma_t) -> float:
-    from mistyle.integrators.inscatter import _used_voxels
+    from mistyle.integrators.inscatter import layer_reads_ls
 
-    return _used_voxels(sigma_t).mean()
+    return layer_reads_ls(sigma_t).mean()
 
 
 if __name__ == "__main__":

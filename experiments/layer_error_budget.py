@@ -4,13 +4,20 @@ One pixel-centre ``volpath`` reference (max_depth=2, two seeds, noise taken out;
 ``layer_vs_pathtraced.py``), then the layer with one ingredient changed at a time:
   * K, the number of directions for Ls, and the Ls method (sheared or brute force);
   * N, the number of ray-marching steps;
+  * what the Ls texture holds: the Ls samples at its voxel centres (``samples``, as in the paper)
+    or the nodes fitted to them for trilinear interpolation (``nodes``, ``inscatter.trilinear_nodes``,
+    what ``prepare_density`` gives the layer);
+  * where rays are marched: the whole medium box (``box``) or the extinction's support
+    (``support``, ``MediumBox.field_support``, the layer's default);
   * the resolution of the Ls grid (1x: the density's own grid, as in the paper; 2x or 3x: a finer
     grid, sheared on the resampled extinction, or brute force from the same trilinear extinction;
     only on the 3x grid is the resampled extinction exactly the rendered field).
 
-Prints one JSON line: ``{"noise": ..., "rows": [{"K", "method", "ls_grid", "N", "rel_rmse", "brightness"}]}``.
+Prints one JSON line: ``{"noise": ..., "rows": [{"K", "method", "ls_grid", "ls", "march", "N", "rel_rmse",
+"brightness"}]}``.
 
-    python experiments/layer_error_budget.py            # 64^3, 2 views at 128^2, 2 x 8192 spp (~15 min)
+    python experiments/layer_error_budget.py            # 64^3 pyroclastic sphere, 2 views at 128^2, 2 x 8192 spp (~15 min)
+    python experiments/layer_error_budget.py --density data/heldout/smoke64.npy --reference-cache /tmp/smoke64_ref.npz
     python experiments/layer_error_budget.py --quick    # 24^3, 32^2
 """
 
@@ -18,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 
 import numpy as np
 
@@ -25,6 +33,9 @@ import numpy as np
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--density", default=None, help="a (Z, Y, X) .npy density instead of the pyroclastic sphere")
+    parser.add_argument("--reference-cache", default=None,
+                        help="an .npz to load the path-traced reference from, or to save it to when missing")
     args = parser.parse_args()
     res, image, spp = (24, 32, 1024) if args.quick else (64, 128, 8192)
 
@@ -33,9 +44,11 @@ def main() -> None:
     from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
     from mistyle.integrators import PreparedDensity, layer_scene
     from mistyle.integrators.inscatter import (
-        _used_voxels,
         inscattered_radiance,
         inscattered_radiance_at,
+        layer_reads_ls,
+        resample_trilinear,
+        trilinear_nodes,
     )
     from mistyle.pathtrace import (
         net_rel_rmse,
@@ -46,21 +59,36 @@ def main() -> None:
 
     mi = use_variant("cpu")
     scale = DEFAULT_DENSITY_SCALE
-    density = pyroclastic_sphere((res,) * 3, seed=7)
+    density = pyroclastic_sphere((res,) * 3, seed=7) if args.density is None else np.load(args.density).astype(np.float32)
     albedo = colour_noise_albedo(density.shape, seed=11)
     views = CameraPath().turntable(2, offset=0.125)
     sigma_t = density * np.float32(scale)
-    reference_scene = mi.load_dict(pathtraced_scene(density, albedo, views, res=image, density_scale=scale, max_depth=2,
-                                                         batch=True))
-    reference, noise = two_seed_reference(lambda count, seed: pixel_centre_estimate(reference_scene, count, seed, 2), spp)
+    if args.reference_cache and os.path.isfile(args.reference_cache):
+        cached = np.load(args.reference_cache)
+        reference, noise = cached["reference"], float(cached["noise"])
+    else:
+        reference_scene = mi.load_dict(pathtraced_scene(density, albedo, views, res=image, density_scale=scale,
+                                                        max_depth=2, batch=True))
+        reference, noise = two_seed_reference(lambda count, seed: pixel_centre_estimate(reference_scene, count, seed, 2),
+                                              spp)
+        if args.reference_cache:
+            np.savez(args.reference_cache, reference=reference, noise=noise)
 
-    def layer(ls: np.ndarray, steps: int) -> np.ndarray:
-        scene = layer_scene(PreparedDensity(density, scale, np.ones_like(density)), albedo, views, res=image, steps=steps)
+    def layer(ls: np.ndarray, steps: int, march: str) -> np.ndarray:
+        scene = layer_scene(PreparedDensity(density, scale, np.ones_like(ls)), albedo, views, res=image, steps=steps)
         scene["integrator"]["ls"] = mi.TensorXf(np.ascontiguousarray(ls, dtype=np.float32)[..., None])
+        if march == "box":
+            scene["integrator"]["march_min"] = scene["integrator"]["bbox_min"]
+            scene["integrator"]["march_max"] = scene["integrator"]["bbox_max"]
         return split_views(mi.render(mi.load_dict(scene)), 2)
 
+    def nodes(ls: np.ndarray) -> np.ndarray:
+        factor = ls.shape[0] // density.shape[0]
+        fine_sigma_t = sigma_t if factor == 1 else resample_trilinear(sigma_t, factor)
+        return trilinear_nodes(ls, valid=layer_reads_ls(fine_sigma_t))
+
     def fine_ls(factor: int, directions: int) -> np.ndarray:
-        used = _used_voxels(sigma_t)
+        used = layer_reads_ls(sigma_t)
         for axis in range(3):
             used = np.repeat(used, factor, axis=axis)
         z, y, x = np.nonzero(used)
@@ -77,14 +105,16 @@ def main() -> None:
         (128, "bruteforce", 2): fine_ls(2, 128),
     }
     rows = []
-    for (directions, method, factor), ls in grids.items():
-        for steps in (64, 80, 128, 256):
-            rendered = layer(ls, steps)
-            rows.append({
-                "K": directions, "method": method, "ls_grid": factor, "N": steps,
-                "rel_rmse": net_rel_rmse(rendered, reference, noise),
-                "brightness": float(rendered.mean() / reference.mean()),
-            })
+    for (directions, method, factor), samples in grids.items():
+        fitted = nodes(samples)
+        for ls, march in (("samples", "box"), ("samples", "support"), ("nodes", "box"), ("nodes", "support")):
+            for steps in (64, 80, 128, 256):
+                rendered = layer(samples if ls == "samples" else fitted, steps, march)
+                rows.append({
+                    "K": directions, "method": method, "ls_grid": factor, "ls": ls, "march": march, "N": steps,
+                    "rel_rmse": net_rel_rmse(rendered, reference, noise),
+                    "brightness": float(rendered.mean() / reference.mean()),
+                })
     print(json.dumps({"noise": float(np.sqrt(noise / np.mean(reference**2))), "res": res, "image": image, "rows": rows}))
 
 

@@ -143,6 +143,9 @@ class _LayerRenderer:
         if state.density is not self.current_density:
             params["integrator.sigma_t"] = mi.TensorXf(state.density.sigma_t[..., None])
             params["integrator.ls"] = mi.TensorXf(state.density.ls[..., None])
+            march_min, march_max = state.density.march_bounds
+            params["integrator.march_min"] = mi.Point3f(*map(float, march_min))
+            params["integrator.march_max"] = mi.Point3f(*map(float, march_max))
             self.current_density = state.density
         if state.views is not self.current_views:
             for index, view in enumerate(state.views):

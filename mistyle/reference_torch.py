@@ -50,10 +50,11 @@ def camera_rays(views: Sequence[View], height: int, width: int, dtype=torch.floa
     return torch.stack(origins), torch.stack(directions)
 
 
-def clip_to_box(origins: torch.Tensor, directions: torch.Tensor, box: MediumBox):
-    """Slab test: entry and exit distances ``(...,)`` and a hit mask; zero components are safe."""
-    lo = torch.as_tensor(box.bbox_min, dtype=origins.dtype, device=origins.device)
-    hi = torch.as_tensor(box.bbox_max, dtype=origins.dtype, device=origins.device)
+def clip_to_box(origins: torch.Tensor, directions: torch.Tensor, corner_min, corner_max):
+    """Slab test against the box ``[corner_min, corner_max]`` (world ``(x, y, z)`` each): entry and exit
+    distances ``(...,)`` and a hit mask; zero direction components are safe."""
+    lo = torch.as_tensor(corner_min, dtype=origins.dtype, device=origins.device)
+    hi = torch.as_tensor(corner_max, dtype=origins.dtype, device=origins.device)
     parallel = directions == 0
     safe = torch.where(parallel, torch.ones_like(directions), directions)
     t_lo, t_hi = (lo - origins) / safe, (hi - origins) / safe
@@ -91,7 +92,8 @@ def render_views_torch(
     box = MediumBox(tuple(albedo.shape[2:]))
     dtype, device = albedo.dtype, albedo.device
     origins, directions = camera_rays(views, height, width, dtype, device)
-    t_enter, t_exit, hit = clip_to_box(origins, directions, box)
+    # March where the extinction can be non-zero, as the Mitsuba layer does (MediumBox.field_support).
+    t_enter, t_exit, hit = clip_to_box(origins, directions, *box.field_support((sigma_t > 0).cpu().numpy()))
     dt = torch.where(hit, (t_exit - t_enter) / steps, torch.zeros_like(t_enter))  # (V, h, w)
     t = t_enter[..., None] + (torch.arange(steps, dtype=dtype, device=device) + 0.5) * dt[..., None]
     points = origins[..., None, :] + directions[..., None, :] * t[..., None]  # (V, h, w, N, 3)

@@ -51,6 +51,20 @@ def test_batch_items_use_their_own_density_and_views_in_backward(prepared, blob_
     torch.testing.assert_close(grads(True), grads(False), rtol=1e-5, atol=1e-7)
 
 
+def test_a_cached_scene_takes_the_next_densitys_grids_and_march_box(mi, prepared, blob_density):
+    from mistyle.integrators import layer_scene
+    from mistyle.scenes import split_views
+
+    other = prepare_density(np.roll(blob_density, 4, axis=2), 20.0, directions=16)
+    assert not np.allclose(other.march_bounds[1], prepared.march_bounds[1])
+    albedo = torch.rand((3,) + prepared.shape, generator=torch.Generator().manual_seed(3))
+    render_views(albedo, prepared, VIEWS, 12)  # loads the scene with the first density
+    through_cache = render_views(albedo, other, VIEWS, 12)
+    fresh = mi.load_dict(layer_scene(other, albedo.permute(1, 2, 3, 0).numpy(), VIEWS, res=12))
+    expected = torch.from_numpy(split_views(mi.render(fresh), len(VIEWS))).permute(0, 3, 1, 2)
+    torch.testing.assert_close(through_cache, expected, rtol=1e-5, atol=1e-6)
+
+
 @pytest.mark.parametrize(
     "albedo,match",
     [

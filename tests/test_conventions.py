@@ -41,6 +41,32 @@ def test_texture_lookup_at_voxel_centre_reads_arr_z_y_x(mi):
     assert texture.eval(mi.Point3f(*map(float, unit_neighbour)))[0][0] == pytest.approx(0.0)
 
 
+def test_field_support_bounds_where_the_interpolated_field_is_non_zero(mi):
+    grid = hot_voxel_grid()
+    grid[0, 9, 11] = 1.0  # a corner voxel: the clamped edge carries it to the faces
+    box = MediumBox(SHAPE)
+    low, high = box.field_support(grid > 0)
+    texture = mi.Texture3f(mi.TensorXf(grid[..., None]))
+    # A lattice of 4 points per voxel and axis, off the voxel faces and centres.
+    axes = [(np.arange(4 * n) + 0.37) / (4 * n) for n in SHAPE[::-1]]
+    unit = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    values = np.asarray(texture.eval(mi.Point3f(*(mi.Float(unit[:, i]) for i in range(3))))[0])
+    world = box.bbox_min + unit * box.extent
+    inside = np.all((world >= low) & (world <= high), axis=1)
+    assert values[~inside].max() == 0.0 and values[inside].max() > 0
+    # Tight: the non-zero points come within a lattice step of every side of the support.
+    seen = world[values > 0]
+    step = box.voxel_size / 4
+    assert np.all(seen.min(axis=0) - low < step) and np.all(high - seen.max(axis=0) < step)
+    np.testing.assert_allclose(high, box.bbox_max)  # the corner voxel reaches the box's faces
+    np.testing.assert_allclose(low, box.bbox_min + np.array([1.5, 4.5, -0.5]).clip(0) * box.voxel_size)
+    empty_low, empty_high = box.field_support(np.zeros(SHAPE, bool))
+    np.testing.assert_array_equal(empty_low, box.bbox_min)
+    np.testing.assert_array_equal(empty_high, box.bbox_max)
+    with pytest.raises(ValueError, match="does not match"):
+        box.field_support(np.ones((2, 2, 2), bool))
+
+
 def test_gridvolume_of_path_tracer_reads_arr_z_y_x(mi):
     import drjit as dr
 

@@ -31,7 +31,7 @@ def test_homogeneous_slab_matches_closed_form(mi, scheme):
     view = View(origin=(0.3, 0.2, 2.0), fov_deg=30.0)
     image = render_views(torch.full((3,) + shape, a), prepared, [view], (9, 9), steps=32, scheme=scheme, radiance=2.5)[0, 0]
     origins, directions = camera_rays([view], 9, 9)
-    t0, t1, hit = clip_to_box(origins, directions, MediumBox(shape))
+    t0, t1, hit = clip_to_box(origins, directions, MediumBox(shape).bbox_min, MediumBox(shape).bbox_max)
     expected = a * (1 - torch.exp(-sigma * (t1 - t0).clamp_min(0)))[0] * hit[0]
     tolerance = 1e-5 if scheme == "exact" else 2e-2
     torch.testing.assert_close(image.double() / 2.5, expected, atol=tolerance, rtol=tolerance)
@@ -76,6 +76,36 @@ def test_matches_pure_torch_reference_in_float64(mi, blob):
     assert float((image.detach().double() - reference.detach()).norm() / reference.detach().norm()) <= 1e-4
     assert float((leaf.grad.double() - reference_leaf.grad).norm() / reference_leaf.grad.norm()) <= 1e-4
     assert torch.isfinite(leaf.grad).all()
+
+
+def test_marching_only_where_the_medium_is_converges_to_the_same_image_sooner(mi, blob):
+    """Rays are marched through the extinction's support (``MediumBox.field_support``), not the whole box:
+    the same integral, so the same converged image, and at few steps a smaller error."""
+    from mistyle.integrators import layer_scene
+    from mistyle.scenes import split_views
+
+    albedo = random_albedo(blob.shape, seed=6)[0].permute(1, 2, 3, 0).numpy()
+    low, high = blob.box.field_support(blob.density > 0)
+    assert np.all(high - low < 0.95 * blob.box.extent)  # the blob leaves margins to skip
+
+    def render(steps, whole_box):
+        scene = layer_scene(blob, albedo, VIEWS, res=SIZE, steps=steps)
+        if whole_box:
+            scene["integrator"]["march_min"] = scene["integrator"]["bbox_min"]
+            scene["integrator"]["march_max"] = scene["integrator"]["bbox_max"]
+        return split_views(mi.render(mi.load_dict(scene)), len(VIEWS)).astype(np.float64)
+
+    converged = render(4096, whole_box=True)
+    assert np.abs(render(4096, whole_box=False) - converged).max() < 1e-4 * converged.max()
+    # Per step count the error also depends on how the samples fall on the voxel lattice; on average
+    # the shorter segments win (here by 1.6x).
+    error = {whole: np.mean([np.sqrt(np.mean((render(n, whole) - converged) ** 2)) for n in (8, 12, 16, 32, 48)])
+             for whole in (True, False)}
+    assert error[False] < 0.8 * error[True]
+    scene = layer_scene(blob, albedo, VIEWS, res=SIZE)
+    scene["integrator"]["march_max"] = mi.ScalarPoint3f(2.0, 0.0, 0.0)
+    with pytest.raises(Exception, match="inside the medium box"):
+        mi.load_dict(scene)
 
 
 def test_exact_scheme_needs_fewer_steps_than_riemann(mi, blob):

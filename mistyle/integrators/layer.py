@@ -38,6 +38,7 @@ def layer_scene(
     height, width = (res, res) if np.isscalar(res) else (int(res[0]), int(res[1]))
     albedo = validate_albedo(albedo, prepared.shape)
     box = prepared.box
+    march_min, march_max = prepared.march_bounds
     sensor = batch_sensor_dict(views, width, height)
     sensor["sampler"] = {"type": "independent", "sample_count": 1}
     return {
@@ -49,6 +50,8 @@ def layer_scene(
             "albedo": mi.TensorXf(albedo),
             "bbox_min": mi.ScalarPoint3f(box.bbox_min),
             "bbox_max": mi.ScalarPoint3f(box.bbox_max),
+            "march_min": mi.ScalarPoint3f(march_min),
+            "march_max": mi.ScalarPoint3f(march_max),
             "steps": int(steps),
             "scheme": scheme,
         },

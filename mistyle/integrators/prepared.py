@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,8 +20,9 @@ class PreparedDensity:
     Attributes:
         density: ``(Z, Y, X)`` float32, unitless, >= 0.
         density_scale: ``sigma_t = density_scale * density`` in 1/world-length (box side 1).
-        ls: ``(Z, Y, X) * f`` float32 in-scattered radiance for unit environment radiance, on the
-            density's grid (``f = 1``) or on one ``f`` times finer (``ls_grid_factor``).
+        ls: ``(Z, Y, X) * f`` float32 nodal values of the in-scattered radiance for unit environment
+            radiance (``prepare_density`` fits them to the Ls samples), on the density's grid
+            (``f = 1``) or on one ``f`` times finer (``ls_grid_factor``).
         directions: K used for ``ls``.
     """
 
@@ -30,15 +32,12 @@ class PreparedDensity:
     directions: int = LS_DIRECTIONS
 
     def __post_init__(self):
-        factor = self.ls.shape[0] // self.density.shape[0] if self.ls.ndim == 3 else 0
-        if factor < 1 or self.ls.shape != tuple(factor * n for n in self.density.shape):
-            raise ValueError(f"Ls grid {self.ls.shape} is neither the density grid {self.density.shape} nor a whole "
-                             "multiple of it.")
+        _ls_grid_factor(self.ls.shape, self.density.shape)
 
     @property
     def ls_grid_factor(self) -> int:
         """How many times finer than the density's the Ls grid is (1: the same grid, as in the paper)."""
-        return self.ls.shape[0] // self.density.shape[0]
+        return _ls_grid_factor(self.ls.shape, self.density.shape)
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -47,6 +46,12 @@ class PreparedDensity:
     @property
     def box(self) -> MediumBox:
         return MediumBox(self.shape)
+
+    @functools.cached_property
+    def march_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """World corners ``(min, max)`` of the part of the box where the extinction can be non-zero
+        (``MediumBox.field_support``): the layer marches only there."""
+        return self.box.field_support(self.density > 0)
 
     @property
     def sigma_t(self) -> np.ndarray:
@@ -68,21 +73,37 @@ def prepare_density(
         density_scale: extinction per unit density, 1/world-length.
         directions: K Hammersley directions for Ls.
         method: ``"sheared"`` or ``"bruteforce"`` (see ``inscatter``).
-        ls: a previously computed Ls grid for this density and scale, e.g. from a dataset cache.
+        ls: Ls samples previously computed for this density and scale by ``inscattered_radiance``
+            (e.g. from a dataset cache), instead of computing them.
         ls_grid_factor: compute Ls on a grid this many times finer (``inscatter.inscattered_radiance``).
             3 puts fine voxel centres on the density's own, so the resampled extinction is exactly the
-            rendered field; with 80 layer steps it takes the layer from 0.89% to 0.45% of volpath
-            (docs/performance.md), for about 35x the precompute time and 27x its memory.
+            rendered field; for about 35x the precompute time and 27x its memory (docs/performance.md).
+
+    The layer interpolates ``PreparedDensity.ls`` trilinearly, so it holds the nodal values that fit
+    the Ls samples best (``inscatter.trilinear_nodes``), not the samples themselves: point samples
+    would overestimate Ls inside the medium's surface (docs/performance.md).
     """
     from ..backend import active_variant
 
     grid = validate_density(density)
     scale = validate_density_scale(density_scale)
-    if ls is None:
-        active_variant()
-        from .inscatter import inscattered_radiance
+    sigma_t = grid * np.float32(scale)
+    active_variant()
+    from .inscatter import inscattered_radiance, layer_reads_ls, resample_trilinear, trilinear_nodes
 
-        ls = inscattered_radiance(grid * np.float32(scale), directions=directions, method=method,
-                                  grid_factor=ls_grid_factor)
-    ls = np.ascontiguousarray(ls, dtype=np.float32)
-    return PreparedDensity(density=grid, density_scale=scale, ls=ls, directions=directions)
+    if ls is None:
+        ls = inscattered_radiance(sigma_t, directions=directions, method=method, grid_factor=ls_grid_factor)
+    ls = np.asarray(ls, dtype=np.float32)
+    factor = _ls_grid_factor(ls.shape, grid.shape)
+    fine_sigma_t = sigma_t if factor == 1 else resample_trilinear(sigma_t, factor)
+    nodes = trilinear_nodes(ls, valid=layer_reads_ls(fine_sigma_t))
+    return PreparedDensity(density=grid, density_scale=scale, ls=np.ascontiguousarray(nodes), directions=directions)
+
+
+def _ls_grid_factor(ls_shape, density_shape) -> int:
+    """How many times finer than ``density_shape`` the Ls grid ``ls_shape`` is; ``ValueError`` unless whole."""
+    ls_shape, density_shape = tuple(ls_shape), tuple(density_shape)
+    factor = ls_shape[0] // density_shape[0] if len(ls_shape) == 3 else 0
+    if factor < 1 or ls_shape != tuple(factor * n for n in density_shape):
+        raise ValueError(f"Ls grid {ls_shape} is neither the density grid {density_shape} nor a whole multiple of it.")
+    return factor

@@ -21,14 +21,19 @@ Single-scattering ray marcher (:monosp:`mistyle_single_scatter`)
  * - bbox_min, bbox_max
    - |point|
    - The medium box the grids fill (``mistyle.scenes.box.MediumBox``).
+ * - march_min, march_max
+   - |point|
+   - The part of the medium box that rays are marched through: where the interpolated
+     :math:`\sigma_t` can be non-zero (``MediumBox.field_support``). Nothing outside it contributes,
+     so the N segments are spent where the medium is. (Default: the medium box)
  * - steps
    - |int|
-   - Number N of equal ray-marching segments between the box entry and exit. (Default: 64)
+   - Number N of equal ray-marching segments between the march box's entry and exit. (Default: 64)
  * - scheme
    - |string|
    - Per-segment weight: ``exact`` (default), ``midpoint`` or ``riemann`` (the paper's Eq. 9).
 
-One ray through each pixel centre (box filter, no jitter) is clipped to the box and cut into N
+One ray through each pixel centre (box filter, no jitter) is clipped to the march box and cut into N
 segments of length :math:`\Delta t`. At each segment midpoint :math:`x_i` the layer looks up
 :math:`\sigma_i`, :math:`L_{s,i}` and :math:`\alpha_i` trilinearly and accumulates
 
@@ -85,6 +90,10 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         self.bbox = mi.ScalarBoundingBox3f(
             mi.ScalarPoint3f(props.get("bbox_min")), mi.ScalarPoint3f(props.get("bbox_max"))
         )
+        # Parameters (traversed), so one loaded scene can take another density's support.
+        self.march_min = mi.Point3f(mi.ScalarPoint3f(props.get("march_min", self.bbox.min)))
+        self.march_max = mi.Point3f(mi.ScalarPoint3f(props.get("march_max", self.bbox.max)))
+        self._check_march_box()
         self.sigma_t = mi.Texture3f(_grid(props, "sigma_t", 1))
         self.ls = mi.Texture3f(_grid(props, "ls", 1))
         self.albedo = mi.Texture3f(_grid(props, "albedo", 3))
@@ -93,11 +102,21 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         callback.put("albedo", self.albedo.tensor(), mi.ParamFlags.Differentiable)
         callback.put("sigma_t", self.sigma_t.tensor(), mi.ParamFlags.NonDifferentiable)
         callback.put("ls", self.ls.tensor(), mi.ParamFlags.NonDifferentiable)
+        callback.put("march_min", self.march_min, mi.ParamFlags.NonDifferentiable)
+        callback.put("march_max", self.march_max, mi.ParamFlags.NonDifferentiable)
 
     def parameters_changed(self, keys):
         for key in keys:
-            # SceneParameters wrote into the texture's own tensor; let the texture pick it up.
-            getattr(self, key).update_inplace()
+            if key in ("albedo", "sigma_t", "ls"):
+                # SceneParameters wrote into the texture's own tensor; let the texture pick it up.
+                getattr(self, key).update_inplace()
+        if "march_min" in keys or "march_max" in keys:
+            self._check_march_box()
+
+    def _check_march_box(self):
+        corners = [mi.ScalarPoint3f(*(float(c[0]) for c in corner)) for corner in (self.march_min, self.march_max)]
+        if not all(self.bbox.contains(corner) for corner in corners):
+            raise ValueError("march_min/march_max must lie inside the medium box bbox_min/bbox_max.")
 
     def aov_names(self):
         return []
@@ -112,7 +131,7 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         primal = mode == dr.ADMode.Primal
 
         # --------------------- Clip the ray to the medium box ---------------------
-        hit, t_enter, t_exit = mi.BoundingBox3f(mi.Point3f(self.bbox.min), mi.Point3f(self.bbox.max)).ray_intersect(ray)
+        hit, t_enter, t_exit = mi.BoundingBox3f(self.march_min, self.march_max).ray_intersect(ray)
         t_enter = dr.maximum(t_enter, 0.0)
         active = mi.Bool(active) & hit & (t_exit > t_enter)
         Δt = dr.select(active, (t_exit - t_enter) / self.steps, 0.0)

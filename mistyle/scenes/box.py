@@ -63,6 +63,26 @@ class MediumBox:
         z, y, x = np.meshgrid(*(np.arange(n) + 0.5 for n in self.shape_zyx), indexing="ij")
         return self.bbox_min + np.stack([x, y, z], axis=-1) * self.voxel_size
 
+    def field_support(self, occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World corners ``(min, max)``, each ``(3,)``, of the box outside which a field that is zero
+        off the ``occupied`` voxels (``(Z, Y, X)`` bool) stays zero when interpolated trilinearly with
+        clamped edges, as ``mi.Texture3f`` and volpath's ``gridvolume`` do: voxel ``i``'s weight reaches
+        half a voxel past its neighbours' centres, ``((i - 1/2) h, (i + 3/2) h)``, and the box clips it.
+        A grid with nothing occupied gives the whole box."""
+        occupied = np.asarray(occupied, dtype=bool)
+        if occupied.shape != self.shape_zyx:
+            raise ValueError(f"occupied mask {occupied.shape} does not match the box's grid {self.shape_zyx}.")
+        if not occupied.any():
+            return self.bbox_min.copy(), self.bbox_max.copy()
+        low, high = [], []
+        for axis in (2, 1, 0):  # x, y, z
+            used = np.flatnonzero(occupied.any(axis=tuple(a for a in range(3) if a != axis)))
+            low.append(used[0] - 0.5)
+            high.append(used[-1] + 1.5)
+        corner_min = np.maximum(self.bbox_min + np.array(low) * self.voxel_size, self.bbox_min)
+        corner_max = np.minimum(self.bbox_min + np.array(high) * self.voxel_size, self.bbox_max)
+        return corner_min, corner_max
+
     def world_to_unit(self, p: np.ndarray) -> np.ndarray:
         """Map world positions ``(..., 3)`` to texture coordinates in ``[0, 1]^3`` (``(x, y, z)``)."""
         return (np.asarray(p, dtype=np.float64) - self.bbox_min) / self.extent

@@ -2,6 +2,9 @@
 
 One density and albedo (same box, scale, cameras and environment) are rendered with
   * the fast layer, every scheme (the default one is reported as "the layer");
+  * the paper's layer ("plain": the Ls samples at the voxel centres interpolated as they are, rays
+    marched through the whole medium box), which the default replaces: its error and both layers'
+    forward + backward time (image and albedo gradient, median of 5 after a warm-up), in turns;
   * ``volpath`` with ``max_depth=2`` (single scattering, the layer's model), twice with different
     seeds so its own noise can be measured and taken out:
     ``rel_rmse = sqrt(max(0, MSE(layer, ref) - noise_var(ref))) / RMS(ref)``.
@@ -14,7 +17,8 @@ One density and albedo (same box, scale, cameras and environment) are rendered w
   * ``volpath`` with ``max_depth=-1`` (multiple scattering, the final render's model).
 
 Prints one JSON line with ``rel_rmse_single``, ``rel_rmse_multi``, ``pt_spp_equal_error``,
-``pt_seconds_equal_error``, ``layer_seconds`` and details.
+``pt_seconds_equal_error``, ``layer_seconds``, ``rel_rmse_single_plain``, ``forward_backward_seconds``
+(default and plain) and details.
 
     python experiments/layer_vs_pathtraced.py            # 64^3, N=64, K=128, 2 views at 128^2
     python experiments/layer_vs_pathtraced.py --quick    # 24^3, 32^2, well under a minute
@@ -40,7 +44,7 @@ def main() -> None:
     parser.add_argument("--views", type=int, default=2)
     parser.add_argument("--steps", type=int, default=64)
     parser.add_argument("--directions", type=int, default=128)
-    parser.add_argument("--ls-grid-factor", type=int, default=1, help="Ls on a grid this many times finer (3: 0.45%% at 80 steps)")
+    parser.add_argument("--ls-grid-factor", type=int, default=1, help="Ls on a grid this many times finer (3: 0.35%% at 80 steps, 27x the Ls memory)")
     parser.add_argument("--density-scale", type=float, default=DEFAULT_DENSITY_SCALE)
     parser.add_argument("--ref-spp", type=int, default=4096, help="spp of each single-scattering reference")
     parser.add_argument("--multi-spp", type=int, default=1024, help="spp of each multiple-scattering reference")
@@ -52,7 +56,8 @@ def main() -> None:
     from mistyle.conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
     from mistyle.conventions import LAYER_SCHEMES as SCHEMES
     from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
-    from mistyle.integrators import layer_scene, prepare_density
+    from mistyle.integrators import PreparedDensity, layer_scene, prepare_density
+    from mistyle.integrators.inscatter import inscattered_radiance
     from mistyle.pathtrace import (
         net_rel_rmse,
         pixel_centre_estimate,
@@ -88,6 +93,22 @@ def main() -> None:
     start = time.perf_counter()
     prepared = prepare_density(density, args.density_scale, args.directions, ls_grid_factor=args.ls_grid_factor)
     ls_seconds = time.perf_counter() - start
+    # The paper's layer: the Ls samples themselves in the texture, rays marched through the whole box.
+    samples = inscattered_radiance(prepared.sigma_t, args.directions)
+    plain_scene = layer_scene(PreparedDensity(density, args.density_scale, samples, args.directions), albedo, views,
+                              res=size, steps=args.steps)
+    plain_scene["integrator"]["march_min"] = plain_scene["integrator"]["bbox_min"]
+    plain_scene["integrator"]["march_max"] = plain_scene["integrator"]["bbox_max"]
+    plain_scene = mi.load_dict(plain_scene)
+    default_scene = mi.load_dict(layer_scene(prepared, albedo, views, res=size, steps=args.steps))
+    forward_backward = {"default": [], "plain": []}
+    for repeat in range(6):  # in turns, so both see the same load; the first round compiles
+        for name, scene in (("default", default_scene), ("plain", plain_scene)):
+            seconds = forward_backward_seconds(mi, scene)
+            if repeat:
+                forward_backward[name].append(seconds)
+    forward_backward = {name: float(np.median(times)) for name, times in forward_backward.items()}
+    plain_layer = split_views(mi.render(plain_scene), len(views))
 
     layer_images, layer_seconds = {}, {}
     for scheme in SCHEMES:
@@ -101,6 +122,7 @@ def main() -> None:
     single_ref, single_noise = reference(path_trace_pixel_centres, args.ref_spp, max_depth=2)
     errors = {scheme: net_rel_rmse(image, single_ref, single_noise) for scheme, image in layer_images.items()}
     layer_error = errors[DEFAULT_SCHEME]
+    plain_error = net_rel_rmse(plain_layer, single_ref, single_noise)
 
     # The path tracer's own error at growing spp: its noise is what it has to beat.
     pt_spp, pt_seconds, extrapolated = None, None, False
@@ -129,6 +151,10 @@ def main() -> None:
         "pt_spp_equal_error": pt_spp,
         "pt_seconds_equal_error": pt_seconds,
         "layer_seconds": layer_seconds[DEFAULT_SCHEME],
+        "rel_rmse_single_plain": plain_error,
+        "plain_over_single_brightness": float(plain_layer.mean() / single_ref.mean()),
+        "forward_backward_seconds": forward_backward,
+        "forward_backward_ratio": forward_backward["default"] / forward_backward["plain"],
         "pt_equal_error_extrapolated": extrapolated,
         "default_scheme": DEFAULT_SCHEME,
         "rel_rmse_single_by_scheme": errors,
@@ -146,6 +172,22 @@ def main() -> None:
         "machine": {"cpu_count": os.cpu_count(), "load_avg_1m": os.getloadavg()[0]},
     }
     print(json.dumps(result))
+
+
+def forward_backward_seconds(mi, scene) -> float:
+    """One forward render with the albedo differentiable and its backward pass to the albedo."""
+    import drjit as dr
+
+    params = mi.traverse(scene)
+    start = time.perf_counter()
+    dr.enable_grad(params["integrator.albedo"])
+    params.update()
+    image = mi.render(scene, params, seed=0, spp=1)
+    dr.backward(dr.mean(image, axis=None))
+    dr.eval(dr.grad(params["integrator.albedo"]))
+    seconds = time.perf_counter() - start
+    dr.disable_grad(params["integrator.albedo"])
+    return seconds
 
 
 if __name__ == "__main__":

@@ -12,8 +12,9 @@ Single-scattering ray marcher (:monosp:`mistyle_single_scatter`)
    - Extinction :math:`\sigma_t` on the grid, ``(Z, Y, X, 1)``, in 1/world-length.
  * - ls
    - |tensor|
-   - In-scattered radiance :math:`L_s` for unit environment radiance, ``(Z, Y, X, 1)``
-     (``mistyle.integrators.inscatter``).
+   - In-scattered radiance :math:`L_s` for unit environment radiance, ``(Z, Y, X, 1)``: the nodes
+     of its trilinear interpolation (``mistyle.integrators.inscatter.trilinear_nodes``), on the
+     density's grid or a whole multiple of it.
  * - albedo
    - |tensor|
    - Single-scattering albedo :math:`\alpha`, ``(Z, Y, X, 3)``, RGB in [0, 1].
@@ -48,10 +49,10 @@ with the weight :math:`w_i` of the chosen ``scheme``:
   :math:`\sigma_i`, :math:`\alpha_i`, :math:`L_{s,i}`.
 
 ``exact`` is the default: it converges fastest in N, and against ``volpath`` (max_depth=2, traced
-through the same pixel centres; ``experiments/layer_vs_pathtraced.py``, 64^3, N=64) it leaves
-0.9% relative RMSE where ``riemann`` leaves 9.7%. ``midpoint`` measures 0.8% there only because it
-is slightly darker and so cancels part of the trilinear-Ls bias; with Ls on a 2x finer grid
-``exact`` is ahead again (0.59% vs 0.65%).
+through the same pixel centres; ``experiments/layer_vs_pathtraced.py``, 64^3, N=64, with the
+``ls`` nodes of ``prepare_density`` and the march box of ``layer_scene``) it leaves 0.48% relative
+RMSE, ``midpoint`` 0.52% and ``riemann`` 6.8%. With the Ls samples themselves in ``ls`` and the
+whole box marched, as in the paper, ``exact`` leaves 0.89% (docs/performance.md).
 
 :math:`L_e` is the radiance of the scene's constant environment emitter. The image is linear in
 :math:`\alpha`, so the adjoint pass replays the march and scatters :math:`\delta L\, L_e w_i L_{s,i}`
@@ -130,7 +131,7 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
     def sample(self, mode, scene, sampler, ray, δL, state_in, active, **kwargs):
         primal = mode == dr.ADMode.Primal
 
-        # --------------------- Clip the ray to the medium box ---------------------
+        # --------------------- Clip the ray to the march box ----------------------
         hit, t_enter, t_exit = mi.BoundingBox3f(self.march_min, self.march_max).ray_intersect(ray)
         t_enter = dr.maximum(t_enter, 0.0)
         active = mi.Bool(active) & hit & (t_exit > t_enter)

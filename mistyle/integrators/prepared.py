@@ -89,7 +89,12 @@ def prepare_density(
     scale = validate_density_scale(density_scale)
     sigma_t = grid * np.float32(scale)
     active_variant()
-    from .inscatter import inscattered_radiance, layer_reads_ls, resample_trilinear, trilinear_nodes
+    from .inscatter import (
+        inscattered_radiance,
+        layer_reads_ls,
+        resample_trilinear,
+        trilinear_nodes,
+    )
 
     if ls is None:
         ls = inscattered_radiance(sigma_t, directions=directions, method=method, grid_factor=ls_grid_factor)

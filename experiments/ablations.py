@@ -1,0 +1,255 @@
+"""The SKPN paper's design choices, one arm per choice, measured with the fidelity benchmark (#14).
+
+Every arm trains ``configs/ablation.toml`` (the paper's design at a reduced CPU scale) with one
+change, for the same step budget, data and seeds, then stylizes held-out (density, style) pairs
+that training never saw and scores them as ``style_fidelity.py`` does: path traced (volpath,
+multiple scattering, the training light) from 3 views around the orbit, RGB SWD, patch SWD and hue
+coverage, each also as a ratio to the must-beat uniform baseline of that pair. Claims:
+
+1. DAIN vs plain instance normalisation
+2. the histogram feature loss vs Gram matrices vs mean/std, and the fidelity study's sliced objective
+3. four stylizing kernels vs two and one
+4. 1x1x1 predicted kernels vs 3x3x3
+5. four views per training step vs one (also: the spread of RGB SWD over 8 views around the orbit)
+6. the temporal loss on vs off
+7. kernel prediction vs AdaIN-style modulation (parameter counts reported beside)
+8. the fast layer vs the path tracer (no training: ``layer_vs_pathtraced.py``'s JSON, ``--layer-json``)
+
+Runs are kept under ``--runs`` (one training run per claim, arm and seed; a finished run is reused),
+results are appended to ``docs/ablations.jsonl`` (one line per claim, arm, seed and pair), and
+``docs/ablations_table.md`` holds the per-arm means and spreads over seeds.
+
+    python experiments/ablations.py --claims 4                 # one claim, 2 seeds per arm
+    python experiments/ablations.py --claims all               # every claim (hours on 2 cores)
+    python experiments/ablations.py --claims 8 --layer-json out.json   # claim 8 from layer_vs_pathtraced.py
+    python experiments/ablations.py --report-only              # rewrite the table from the jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+sys.path.insert(0, str(HERE))
+
+BASE_CONFIG = REPO / "configs" / "ablation.toml"
+EVAL_DENSITIES = ("smoke64", "pyroclastic64")
+EVAL_STYLES = ("hokusai_great_wave", "munch_the_scream", "photo_nasa_carina_pillar", "texture_rusty_metal")
+SPREAD_VIEWS = 8
+
+
+@dataclass(frozen=True)
+class Claim:
+    title: str
+    arms: dict  # arm name -> config overrides (SECTION.KEY=VALUE); the first arm is the paper's choice
+    view_spread: bool = False
+    notes: list = field(default_factory=list)
+
+
+CLAIMS = {
+    1: Claim("DAIN vs instance normalisation", {"DAIN": [], "instance norm": ['model.norm="in"']}),
+    2: Claim("style loss", {
+        "histogram": ['loss.style="histogram"'],
+        "Gram": ['loss.style="gram"'],
+        "mean/std": ['loss.style="meanstd"'],
+        "sliced (fidelity study)": ['loss.objective="sliced"', 'loss.mask="body"'],
+    }),
+    3: Claim("number of stylizing kernels", {"4": ["model.kernels=4"], "2": ["model.kernels=2"], "1": ["model.kernels=1"]}),
+    4: Claim("predicted kernel size", {"1x1x1": ["model.kernel_size=1"], "3x3x3": ["model.kernel_size=3"]}),
+    5: Claim("views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True),
+    6: Claim("temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}),
+    7: Claim("kernel prediction vs AdaIN", {"kernels": ['model.stylize="kernel"'], "AdaIN": ['model.stylize="adain"']}),
+}
+LAYER_CLAIM = 8
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--claims", default="all", help="comma-separated claim numbers 1-8, or all")
+    parser.add_argument("--seeds", default="0,1")
+    parser.add_argument("--steps", type=int, default=None, help="training steps per run (default: the config's)")
+    parser.add_argument("--runs", type=Path, default=REPO / "runs" / "ablations")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "ablations")
+    parser.add_argument("--res", type=int, default=128, help="metric renders' side")
+    parser.add_argument("--spp", type=int, default=16, help="metric renders' paths per pixel")
+    parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+    parser.add_argument("--layer-json", type=Path, default=None, help="claim 8: layer_vs_pathtraced.py's output line")
+    parser.add_argument("--report-only", action="store_true")
+    args = parser.parse_args()
+    claims = sorted(set(CLAIMS) | {LAYER_CLAIM}) if args.claims == "all" else [int(c) for c in args.claims.split(",")]
+    unknown = [c for c in claims if c not in CLAIMS and c != LAYER_CLAIM]
+    if unknown:
+        parser.error(f"no claim {unknown}; the claims are 1-8")
+    jsonl = args.out.with_suffix(".jsonl")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    if not args.report_only:
+        seeds = [int(s) for s in args.seeds.split(",")]
+        for number in claims:
+            if number == LAYER_CLAIM:
+                if args.layer_json is None:
+                    print("claim 8 needs --layer-json (run experiments/layer_vs_pathtraced.py > out.json)", file=sys.stderr)
+                    continue
+                append(jsonl, layer_row(args.layer_json))
+                continue
+            for arm, overrides in CLAIMS[number].arms.items():
+                for seed in seeds:
+                    run_arm(number, arm, overrides, seed, args, jsonl)
+    rows = [json.loads(line) for line in jsonl.read_text().splitlines()] if jsonl.exists() else []
+    table = args.out.parent / f"{args.out.name}_table.md"
+    table.write_text(report(rows))
+    print(f"wrote {table}")
+
+
+def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path) -> None:
+    """Train one (claim, arm, seed) unless its run finished before, then score it unless already scored."""
+    done = {(r["claim"], r["arm"], r["seed"]) for r in read_rows(jsonl)}
+    if (number, arm, seed) in done:
+        return
+    import torch
+
+    from mistyle.model.config import load_config
+    from mistyle.train.trainer import Trainer
+
+    settings = [*overrides, f"run.seed={seed}"] + ([f"optim.steps={args.steps}"] if args.steps else [])
+    config = load_config(BASE_CONFIG, settings)
+    out = args.runs / f"claim{number}" / slug(arm) / f"seed{seed}"
+    if not (out / "final.pt").exists():
+        Trainer(config, out, resume=(out / "last.pt").exists()).run()
+    train_seconds = float(torch.load(out / "final.pt", map_location="cpu", weights_only=True)["seconds"])
+    for row in score_run(out / "final.pt", CLAIMS[number].view_spread, args):
+        append(jsonl, {"claim": number, "arm": arm, "seed": seed, "overrides": overrides,
+                       "steps": config.optim.steps, "train_seconds": train_seconds, **row})
+
+
+def score_run(checkpoint: Path, view_spread: bool, args) -> list[dict]:
+    """Fidelity metrics of a checkpoint on the held-out pairs, each with its uniform baseline's ratio."""
+    from fidelity_core import metric_views, score
+
+    from mistyle.api import Stylizer
+    from mistyle.data.heldout import (
+        HELD_OUT_DENSITIES,
+        held_out_density,
+        held_out_styles,
+    )
+    from mistyle.io import load_style
+    from mistyle.objective.metrics import multiview_spread, style_fidelity
+
+    stylizer = Stylizer(checkpoint)
+    scale, radiance = stylizer.density_scale, stylizer.config.render.radiance
+    views = metric_views(stylizer.config.render.camera_distance)
+    parameters = sum(p.numel() for p in stylizer.trained.model.parameters())
+    specs = {spec.name: spec for spec in HELD_OUT_DENSITIES}
+    styles = held_out_styles()
+    rows = []
+    for density_name in EVAL_DENSITIES:
+        density = held_out_density(specs[density_name], args.cache)
+        for style_name in EVAL_STYLES:
+            style = load_style(styles[style_name]["path"])
+            albedo = stylizer(density, style)
+            metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
+                               radiance=radiance)
+            uniform = uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args)
+            row = {"density": density_name, "style": style_name, "parameters": parameters, **metrics,
+                   **{f"{key}_x_uniform": metrics[key] / uniform[key] for key in ("rgb_swd", "patch_swd")}}
+            if view_spread:
+                around = metric_views(stylizer.config.render.camera_distance, SPREAD_VIEWS)
+                _, images = score(density, albedo, style, around, res=args.res, spp=args.spp, density_scale=scale,
+                                  radiance=radiance)
+                per_view = [style_fidelity([image], style)["rgb_swd"] for image in images]
+                row["rgb_swd_view_spread"] = multiview_spread(per_view)["relative_std"]
+            rows.append(row)
+            print(json.dumps({key: (round(v, 4) if isinstance(v, float) else v) for key, v in row.items()}), flush=True)
+    return rows
+
+
+_UNIFORM: dict = {}
+
+
+def uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args) -> dict:
+    """The uniform baseline's metrics for one pair (computed once per process and cached on disk)."""
+    from fidelity_core import score, uniform_baseline
+
+    key = f"{density_name}/{style_name}/{args.res}/{args.spp}"
+    cache = args.runs / "uniform.json"
+    if not _UNIFORM and cache.exists():
+        _UNIFORM.update(json.loads(cache.read_text()))
+    if key not in _UNIFORM:
+        albedo = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
+        metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
+                           radiance=radiance)
+        _UNIFORM[key] = metrics
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        cache.write_text(json.dumps(_UNIFORM, indent=1))
+    return _UNIFORM[key]
+
+
+def layer_row(path: Path) -> dict:
+    """Claim 8 from ``layer_vs_pathtraced.py``'s JSON line: the layer's error and the path tracer's time
+    to reach it."""
+    result = json.loads(Path(path).read_text().strip().splitlines()[-1])
+    return {"claim": LAYER_CLAIM, "arm": "fast layer", "seed": 0, "rel_rmse_single": result["rel_rmse_single"],
+            "layer_seconds": result["layer_seconds"], "pt_spp_equal_error": result["pt_spp_equal_error"],
+            "pt_seconds_equal_error": result["pt_seconds_equal_error"],
+            "speedup_at_equal_error": result["pt_seconds_equal_error"] / result["layer_seconds"],
+            "extrapolated": result["pt_equal_error_extrapolated"], "setting": result["setting"]}
+
+
+def report(rows: list[dict]) -> str:
+    """Markdown: per claim and arm, the mean over seeds of the per-seed medians over pairs, and the spread."""
+    lines = ["# Ablations: per-arm results (`experiments/ablations.py`)", "",
+             "Per arm: the median over held-out pairs of each seed's run, then mean ± spread (max - min) over",
+             "seeds. `x uniform`: ratio to the uniform baseline of the same pair (lower is better).", ""]
+    for number in sorted({r["claim"] for r in rows}):
+        claim_rows = [r for r in rows if r["claim"] == number]
+        if number == LAYER_CLAIM:
+            r = claim_rows[-1]
+            lines += ["## Claim 8: the fast layer", "",
+                      "| layer rel. RMSE vs volpath | layer s | volpath spp at equal error | volpath s | speed-up |",
+                      "| --- | --- | --- | --- | --- |",
+                      f"| {100 * r['rel_rmse_single']:.2f}% | {r['layer_seconds']:.3f} | {r['pt_spp_equal_error']:,.0f}"
+                      f"{' (extrapolated)' if r['extrapolated'] else ''} | {r['pt_seconds_equal_error']:.0f} | "
+                      f"{r['speedup_at_equal_error']:,.0f}x |", ""]
+            continue
+        claim = CLAIMS[number]
+        extra = ["rgb_swd_view_spread"] if claim.view_spread else []
+        columns = ["rgb_swd_x_uniform", "patch_swd_x_uniform", "hue_coverage", *extra]
+        lines += [f"## Claim {number}: {claim.title}", "",
+                  "| arm | seeds | steps | " + " | ".join(columns) + " | parameters |",
+                  "| --- | --- | --- | " + " | ".join("---" for _ in columns) + " | --- |"]
+        for arm in claim.arms:
+            arm_rows = [r for r in claim_rows if r["arm"] == arm]
+            seeds = sorted({r["seed"] for r in arm_rows})
+            if not seeds:
+                lines.append(f"| {arm} | not run | | " + " | ".join("" for _ in columns) + " | |")
+                continue
+            cells = []
+            for column in columns:
+                per_seed = [statistics.median(r[column] for r in arm_rows if r["seed"] == s) for s in seeds]
+                cells.append(f"{statistics.mean(per_seed):.3f} ± {max(per_seed) - min(per_seed):.3f}")
+            lines.append(f"| {arm} | {len(seeds)} | {arm_rows[0]['steps']} | " + " | ".join(cells)
+                         + f" | {arm_rows[0]['parameters']:,} |")
+        lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+def read_rows(jsonl: Path) -> list[dict]:
+    return [json.loads(line) for line in jsonl.read_text().splitlines()] if jsonl.exists() else []
+
+
+def append(jsonl: Path, row: dict) -> None:
+    with jsonl.open("a") as handle:
+        handle.write(json.dumps(row) + "\n")
+
+
+def slug(name: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in name.lower()).strip("_")
+
+
+if __name__ == "__main__":
+    main()

@@ -31,7 +31,7 @@ import argparse
 import json
 import statistics
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -49,7 +49,6 @@ class Claim:
     title: str
     arms: dict  # arm name -> config overrides (SECTION.KEY=VALUE); the first arm is the paper's choice
     view_spread: bool = False
-    notes: list = field(default_factory=list)
 
 
 CLAIMS = {
@@ -95,6 +94,8 @@ def main() -> None:
                 if args.layer_json is None:
                     print("claim 8 needs --layer-json (run experiments/layer_vs_pathtraced.py > out.json)", file=sys.stderr)
                     continue
+                kept = [r for r in read_rows(jsonl) if r["claim"] != LAYER_CLAIM]  # one layer row, the newest
+                jsonl.write_text("".join(json.dumps(r) + "\n" for r in kept))
                 append(jsonl, layer_row(args.layer_json))
                 continue
             for arm, overrides in CLAIMS[number].arms.items():

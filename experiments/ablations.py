@@ -15,7 +15,8 @@ coverage, each also as a ratio to the must-beat uniform baseline of that pair. C
 7. kernel prediction vs AdaIN-style modulation (parameter counts reported beside)
 8. the fast layer vs the path tracer (no training: ``layer_vs_pathtraced.py``'s JSON, ``--layer-json``)
 
-Runs are kept under ``--runs`` (one training run per claim, arm and seed; a finished run is reused),
+Runs are kept under ``--runs``, one per setting and seed (the paper's arm of every claim is one run
+per seed, shared; a finished run is reused),
 results are appended to ``docs/ablations.jsonl`` (one line per claim, arm, seed and pair), and
 ``docs/ablations_table.md`` holds the per-arm means and spreads over seeds.
 
@@ -119,7 +120,8 @@ def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path
 
     settings = [*overrides, f"run.seed={seed}"] + ([f"optim.steps={args.steps}"] if args.steps else [])
     config = load_config(BASE_CONFIG, settings)
-    out = args.runs / f"claim{number}" / slug(arm) / f"seed{seed}"
+    # Arms with the same effective settings (the paper's arm of every claim) share one run per seed.
+    out = args.runs / run_name(overrides) / f"steps{config.optim.steps}_seed{seed}"
     if not (out / "final.pt").exists():
         Trainer(config, out, resume=(out / "last.pt").exists()).run()
     train_seconds = float(torch.load(out / "final.pt", map_location="cpu", weights_only=True)["seconds"])
@@ -246,6 +248,15 @@ def read_rows(jsonl: Path) -> list[dict]:
 def append(jsonl: Path, row: dict) -> None:
     with jsonl.open("a") as handle:
         handle.write(json.dumps(row) + "\n")
+
+
+def run_name(overrides: list) -> str:
+    """A folder name for the settings in ``overrides`` that differ from the base config ("paper": none)."""
+    from mistyle.model.config import config_to_dict, load_config
+
+    base = config_to_dict(load_config(BASE_CONFIG))
+    changed = [o for o in overrides if config_to_dict(load_config(BASE_CONFIG, [o])) != base]
+    return "_".join(slug(o) for o in sorted(changed)) or "paper"
 
 
 def slug(name: str) -> str:

@@ -85,7 +85,7 @@ def test_marching_only_where_the_medium_is_converges_to_the_same_image_sooner(mi
     from mistyle.scenes import split_views
 
     albedo = random_albedo(blob.shape, seed=6)[0].permute(1, 2, 3, 0).numpy()
-    low, high = blob.box.field_support(blob.density > 0)
+    low, high = blob.march_bounds
     assert np.all(high - low < 0.95 * blob.box.extent)  # the blob leaves margins to skip
 
     def render(steps, whole_box):
@@ -106,6 +106,19 @@ def test_marching_only_where_the_medium_is_converges_to_the_same_image_sooner(mi
     scene["integrator"]["march_max"] = mi.ScalarPoint3f(2.0, 0.0, 0.0)
     with pytest.raises(Exception, match="inside the medium box"):
         mi.load_dict(scene)
+
+
+def test_prepare_density_gives_the_layer_fitted_nodes_for_computed_and_cached_ls(mi, blob_density):
+    from mistyle.integrators.inscatter import inscattered_radiance, layer_reads_ls, trilinear_nodes
+
+    sigma_t = blob_density * np.float32(20.0)
+    samples = inscattered_radiance(sigma_t, directions=16)
+    computed = prepare_density(blob_density, 20.0, directions=16)
+    cached = prepare_density(blob_density, 20.0, directions=16, ls=samples)
+    expected = trilinear_nodes(samples, valid=layer_reads_ls(sigma_t))
+    np.testing.assert_allclose(computed.ls, expected, rtol=1e-6)
+    np.testing.assert_array_equal(cached.ls, computed.ls)
+    assert np.abs(computed.ls - samples).max() > 1e-3  # the nodes are not the samples
 
 
 def test_exact_scheme_needs_fewer_steps_than_riemann(mi, blob):

@@ -11,7 +11,8 @@ coverage, each also as a ratio to the must-beat uniform baseline of that pair. C
 3. four stylizing kernels vs two and one
 4. 1x1x1 predicted kernels vs 3x3x3
 5. four views per training step vs one (also: the spread of RGB SWD over 8 views around the orbit)
-6. the temporal loss on vs off
+6. the temporal loss on vs off (also: flicker, the mean |V_t - W(V_{t-1})| of the albedo over 5 frames
+   of the held-out smoke64 plume, with and without the velocity warp)
 7. kernel prediction vs AdaIN-style modulation (parameter counts reported beside)
 8. the fast layer vs the path tracer (no training: ``layer_vs_pathtraced.py``'s JSON, ``--layer-json``)
 
@@ -43,6 +44,8 @@ BASE_CONFIG = REPO / "configs" / "ablation.toml"
 EVAL_DENSITIES = ("smoke64", "pyroclastic64")
 EVAL_STYLES = ("hokusai_great_wave", "munch_the_scream", "photo_nasa_carina_pillar", "texture_rusty_metal")
 SPREAD_VIEWS = 8
+FLICKER_FRAMES = 5  # consecutive frames of the held-out smoke64 plume, from its benchmark frame on
+FLICKER_STYLES = ("hokusai_great_wave", "munch_the_scream")
 
 
 @dataclass(frozen=True)
@@ -50,6 +53,7 @@ class Claim:
     title: str
     arms: dict  # arm name -> config overrides (SECTION.KEY=VALUE); the first arm is the paper's choice
     view_spread: bool = False
+    flicker: bool = False
 
 
 CLAIMS = {
@@ -63,7 +67,7 @@ CLAIMS = {
     3: Claim("number of stylizing kernels", {"4": ["model.kernels=4"], "2": ["model.kernels=2"], "1": ["model.kernels=1"]}),
     4: Claim("predicted kernel size", {"1x1x1": ["model.kernel_size=1"], "3x3x3": ["model.kernel_size=3"]}),
     5: Claim("views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True),
-    6: Claim("temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}),
+    6: Claim("temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}, flicker=True),
     7: Claim("kernel prediction vs AdaIN", {"kernels": ['model.stylize="kernel"'], "AdaIN": ['model.stylize="adain"']}),
 }
 LAYER_CLAIM = 8
@@ -125,7 +129,11 @@ def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path
     if not (out / "final.pt").exists():
         Trainer(config, out, resume=(out / "last.pt").exists()).run()
     train_seconds = float(torch.load(out / "final.pt", map_location="cpu", weights_only=True)["seconds"])
-    for row in score_run(out / "final.pt", CLAIMS[number].view_spread, args):
+    rows = score_run(out / "final.pt", CLAIMS[number].view_spread, args)
+    if CLAIMS[number].flicker:
+        flicker = sequence_flicker(out / "final.pt", args)
+        rows = [{**row, **flicker} for row in rows]
+    for row in rows:
         append(jsonl, {"claim": number, "arm": arm, "seed": seed, "overrides": overrides,
                        "steps": config.optim.steps, "train_seconds": train_seconds, **row})
 
@@ -169,6 +177,48 @@ def score_run(checkpoint: Path, view_spread: bool, args) -> list[dict]:
             rows.append(row)
             print(json.dumps({key: (round(v, 4) if isinstance(v, float) else v) for key, v in row.items()}), flush=True)
     return rows
+
+
+def sequence_flicker(checkpoint: Path, args) -> dict:
+    """Albedo flicker of a checkpoint on the held-out smoke64 plume's frames, mean over ``FLICKER_STYLES``:
+    ``flicker`` with the velocity warp (``objective.metrics.temporal_flicker``), ``flicker_unwarped``
+    without it."""
+    import numpy as np
+
+    from mistyle.api import Stylizer
+    from mistyle.data.heldout import held_out_styles
+    from mistyle.io import load_style
+    from mistyle.objective.metrics import temporal_flicker
+
+    densities, velocities = held_out_sequence(args.cache)
+    stylizer = Stylizer(checkpoint)
+    styles = held_out_styles()
+    warped, unwarped = [], []
+    for name in FLICKER_STYLES:
+        style = load_style(styles[name]["path"])
+        albedos = np.stack([stylizer(density, style) for density in densities])
+        warped.append(temporal_flicker(albedos, velocities))
+        unwarped.append(float(np.abs(np.diff(albedos, axis=0)).mean()))
+    return {"flicker": float(np.mean(warped)), "flicker_unwarped": float(np.mean(unwarped))}
+
+
+def held_out_sequence(cache: str):
+    """``FLICKER_FRAMES`` densities ``(T, Z, Y, X)`` and velocities ``(T, Z, Y, X, 3)`` of the held-out smoke64
+    plume from its benchmark frame on (simulated once, cached beside the held-out densities)."""
+    import numpy as np
+
+    from mistyle.data.heldout import HELD_OUT_DENSITIES
+    from mistyle.data.smoke import PlumeConfig, simulate
+
+    path = Path(cache) / f"smoke64_sequence{FLICKER_FRAMES}.npz"
+    if not path.exists():
+        spec = next(s for s in HELD_OUT_DENSITIES if s.name == "smoke64")
+        config = PlumeConfig.random((spec.resolution,) * 3, np.random.default_rng([spec.seed, 0]))
+        frames = [(d, v) for t, d, v in simulate(config, spec.frame + FLICKER_FRAMES, seed=spec.seed) if t >= spec.frame]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, densities=np.stack([d for d, _ in frames]), velocities=np.stack([v for _, v in frames]))
+    data = np.load(path)
+    return data["densities"].astype(np.float32), data["velocities"].astype(np.float32)
 
 
 _UNIFORM: dict = {}
@@ -220,7 +270,7 @@ def report(rows: list[dict]) -> str:
                       f"{r['speedup_at_equal_error']:,.0f}x |", ""]
             continue
         claim = CLAIMS[number]
-        extra = ["rgb_swd_view_spread"] if claim.view_spread else []
+        extra = (["rgb_swd_view_spread"] if claim.view_spread else []) + (["flicker", "flicker_unwarped"] if claim.flicker else [])
         columns = ["rgb_swd_x_uniform", "patch_swd_x_uniform", "hue_coverage", *extra]
         lines += [f"## Claim {number}: {claim.title}", "",
                   "| arm | seeds | steps | " + " | ".join(columns) + " | parameters |",

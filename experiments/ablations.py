@@ -284,7 +284,7 @@ def report(rows: list[dict]) -> str:
             cells = []
             for column in columns:
                 per_seed = [statistics.median(r[column] for r in arm_rows if r["seed"] == s) for s in seeds]
-                cells.append(f"{statistics.mean(per_seed):.3f} ± {max(per_seed) - min(per_seed):.3f}")
+                cells.append(f"{statistics.mean(per_seed):.3g} ± {max(per_seed) - min(per_seed):.2g}")
             lines.append(f"| {arm} | {len(seeds)} | {arm_rows[0]['steps']} | " + " | ".join(cells)
                          + f" | {arm_rows[0]['parameters']:,} |")
         lines.append("")

@@ -17,7 +17,7 @@ Prints one JSON line: ``{"noise": ..., "rows": [{"K", "method", "ls_grid", "ls",
 "brightness"}]}``.
 
     python experiments/layer_error_budget.py            # 64^3 pyroclastic sphere, 2 views at 128^2, 2 x 8192 spp (~15 min)
-    python experiments/layer_error_budget.py --density data/heldout/smoke64.npy --reference-cache /tmp/smoke64_ref.npz
+    python experiments/layer_error_budget.py --density data/heldout/smoke64.npy --reference-cache runs/smoke64_ref.npz
     python experiments/layer_error_budget.py --quick    # 24^3, 32^2
 """
 

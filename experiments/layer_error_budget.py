@@ -42,13 +42,11 @@ def main() -> None:
     from mistyle.backend import use_variant
     from mistyle.conventions import DEFAULT_DENSITY_SCALE
     from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
-    from mistyle.integrators import PreparedDensity, layer_scene
+    from mistyle.integrators import PreparedDensity, layer_scene, prepare_density
     from mistyle.integrators.inscatter import (
         inscattered_radiance,
         inscattered_radiance_at,
         layer_reads_ls,
-        resample_trilinear,
-        trilinear_nodes,
     )
     from mistyle.pathtrace import (
         net_rel_rmse,
@@ -83,9 +81,7 @@ def main() -> None:
         return split_views(mi.render(mi.load_dict(scene)), 2)
 
     def nodes(ls: np.ndarray) -> np.ndarray:
-        factor = ls.shape[0] // density.shape[0]
-        fine_sigma_t = sigma_t if factor == 1 else resample_trilinear(sigma_t, factor)
-        return trilinear_nodes(ls, valid=layer_reads_ls(fine_sigma_t))
+        return prepare_density(density, scale, ls=ls).ls  # what the layer gets for these samples
 
     def fine_ls(factor: int, directions: int) -> np.ndarray:
         used = layer_reads_ls(sigma_t)

@@ -6,20 +6,24 @@ that training never saw and scores them as ``style_fidelity.py`` does: path trac
 multiple scattering, the training light) from 3 views around the orbit, RGB SWD, patch SWD and hue
 coverage, each also as a ratio to the must-beat uniform baseline of that pair. Claims:
 
-1. DAIN vs plain instance normalisation
+1. DAIN vs plain instance normalisation (also: RGB SWD and hue coverage on the thin and the dense
+   parts of each render, split by the opacity of the medium along each pixel's ray)
 2. the histogram feature loss vs Gram matrices vs mean/std, and the fidelity study's sliced objective
 3. four stylizing kernels vs two and one
 4. 1x1x1 predicted kernels vs 3x3x3
 5. four views per training step vs one (also: the spread of RGB SWD over 8 views around the orbit)
 6. the temporal loss on vs off (also: flicker, the mean |V_t - W(V_{t-1})| of the albedo over 5 frames
    of the held-out smoke64 plume, with and without the velocity warp)
-7. kernel prediction vs AdaIN-style modulation (parameter counts reported beside)
+7. kernel prediction vs AdaIN-style modulation, at its own size and widened to the same parameter count
 8. the fast layer vs the path tracer (no training: ``layer_vs_pathtraced.py``'s JSON, ``--layer-json``)
 
 Runs are kept under ``--runs``, one per setting and seed (the paper's arm of every claim is one run
 per seed, shared; a finished run is reused),
-results are appended to ``docs/ablations.jsonl`` (one line per claim, arm, seed and pair), and
-``docs/ablations_table.md`` holds the per-arm means and spreads over seeds.
+results are appended to ``docs/ablations.jsonl`` (one line per claim, arm, seed and pair),
+``docs/ablations_table.md`` holds the per-arm means and spreads over seeds, and
+``docs/ablations_claim<N>.jpg`` is each claim's contact sheet: a row per arm (its first seed's
+network), three held-out pairs path traced from the held-out view, under the styles and the uniform
+baseline.
 
     python experiments/ablations.py --claims 4                 # one claim, 2 seeds per arm
     python experiments/ablations.py --claims all               # every claim (hours on 2 cores)
@@ -46,6 +50,10 @@ EVAL_STYLES = ("hokusai_great_wave", "munch_the_scream", "photo_nasa_carina_pill
 SPREAD_VIEWS = 8
 FLICKER_FRAMES = 5  # consecutive frames of the held-out smoke64 plume, from its benchmark frame on
 FLICKER_STYLES = ("hokusai_great_wave", "munch_the_scream")
+SHEET_PAIRS = (("smoke64", "hokusai_great_wave"), ("smoke64", "munch_the_scream"), ("pyroclastic64", "photo_nasa_carina_pillar"))
+SHEET_TILE, SHEET_SPP = 128, 32
+THIN_OPACITY = 0.5  # a pixel is thin where less than half the light from behind is absorbed or scattered away
+DENSE_OPACITY = 0.9  # and dense where more than 90% is
 
 
 @dataclass(frozen=True)
@@ -54,10 +62,11 @@ class Claim:
     arms: dict  # arm name -> config overrides (SECTION.KEY=VALUE); the first arm is the paper's choice
     view_spread: bool = False
     flicker: bool = False
+    regions: bool = False
 
 
 CLAIMS = {
-    1: Claim("DAIN vs instance normalisation", {"DAIN": [], "instance norm": ['model.norm="in"']}),
+    1: Claim("DAIN vs instance normalisation", {"DAIN": [], "instance norm": ['model.norm="in"']}, regions=True),
     2: Claim("style loss", {
         "histogram": ['loss.style="histogram"'],
         "Gram": ['loss.style="gram"'],
@@ -68,15 +77,28 @@ CLAIMS = {
     4: Claim("predicted kernel size", {"1x1x1": ["model.kernel_size=1"], "3x3x3": ["model.kernel_size=3"]}),
     5: Claim("views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True),
     6: Claim("temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}, flicker=True),
-    7: Claim("kernel prediction vs AdaIN", {"kernels": ['model.stylize="kernel"'], "AdaIN": ['model.stylize="adain"']}),
+    7: Claim("kernel prediction vs AdaIN", {
+        "kernels": ['model.stylize="kernel"'],
+        "AdaIN": ['model.stylize="adain"'],
+        # A wider style predictor brings AdaIN to the kernel arm's parameter count (321,623 vs 321,707).
+        "AdaIN, same parameters": ['model.stylize="adain"', "model.style_hidden=177"],
+    }),
 }
 LAYER_CLAIM = 8
+BASES = {
+    "paper": [],
+    # The paper's design trained with the objective mistyle's fidelity study chose (claim 2's best arm),
+    # so each design choice is also measured where the network beats the uniform baseline.
+    "sliced": ['loss.objective="sliced"', 'loss.mask="body"'],
+}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--claims", default="all", help="comma-separated claim numbers 1-8, or all")
     parser.add_argument("--seeds", default="0,1")
+    parser.add_argument("--base", choices=sorted(BASES), default="paper",
+                        help="what every arm starts from: the paper's design, or it with mistyle's sliced objective")
     parser.add_argument("--steps", type=int, default=None, help="training steps per run (default: the config's)")
     parser.add_argument("--runs", type=Path, default=REPO / "runs" / "ablations")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "ablations")
@@ -84,12 +106,16 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=16, help="metric renders' paths per pixel")
     parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
     parser.add_argument("--layer-json", type=Path, default=None, help="claim 8: layer_vs_pathtraced.py's output line")
+    parser.add_argument("--rescore", action="store_true",
+                        help="score finished runs again (new rows replace old ones in the table)")
     parser.add_argument("--report-only", action="store_true")
     args = parser.parse_args()
     claims = sorted(set(CLAIMS) | {LAYER_CLAIM}) if args.claims == "all" else [int(c) for c in args.claims.split(",")]
     unknown = [c for c in claims if c not in CLAIMS and c != LAYER_CLAIM]
     if unknown:
         parser.error(f"no claim {unknown}; the claims are 1-8")
+    if args.base != "paper" and 2 in claims:
+        parser.error("claim 2 compares objectives, so it runs on the paper's base only")
     jsonl = args.out.with_suffix(".jsonl")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     if not args.report_only:
@@ -105,41 +131,50 @@ def main() -> None:
                 continue
             for arm, overrides in CLAIMS[number].arms.items():
                 for seed in seeds:
-                    run_arm(number, arm, overrides, seed, args, jsonl)
-    rows = [json.loads(line) for line in jsonl.read_text().splitlines()] if jsonl.exists() else []
+                    run_arm(number, arm, BASES[args.base] + overrides, seed, args, jsonl)
+            contact_sheet(number, seeds[0], args)
+    rows = newest_rows(read_rows(jsonl))
     table = args.out.parent / f"{args.out.name}_table.md"
     table.write_text(report(rows))
     print(f"wrote {table}")
 
 
-def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path) -> None:
-    """Train one (claim, arm, seed) unless its run finished before, then score it unless already scored."""
-    done = {(r["claim"], r["arm"], r["seed"]) for r in read_rows(jsonl)}
-    if (number, arm, seed) in done:
-        return
-    import torch
-
+def run_folder(overrides: list, seed: int, args):
+    """``(config, folder)`` of one arm's run: arms with the same effective settings (the paper's arm of
+    every claim) share one run per seed."""
     from mistyle.model.config import load_config
-    from mistyle.train.trainer import Trainer
 
     settings = [*overrides, f"run.seed={seed}"] + ([f"optim.steps={args.steps}"] if args.steps else [])
     config = load_config(BASE_CONFIG, settings)
-    # Arms with the same effective settings (the paper's arm of every claim) share one run per seed.
-    out = args.runs / run_name(overrides) / f"steps{config.optim.steps}_seed{seed}"
+    return config, args.runs / run_name(overrides) / f"steps{config.optim.steps}_seed{seed}"
+
+
+def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path) -> None:
+    """Train one (claim, arm, seed) on ``args.base`` unless its run finished before, then score it unless
+    already scored."""
+    done = {(r["claim"], r.get("base", "paper"), r["arm"], r["seed"]) for r in read_rows(jsonl)}
+    if (number, args.base, arm, seed) in done and not args.rescore:
+        return
+    import torch
+
+    from mistyle.train.trainer import Trainer
+
+    config, out = run_folder(overrides, seed, args)
     if not (out / "final.pt").exists():
         Trainer(config, out, resume=(out / "last.pt").exists()).run()
     train_seconds = float(torch.load(out / "final.pt", map_location="cpu", weights_only=True)["seconds"])
-    rows = score_run(out / "final.pt", CLAIMS[number].view_spread, args)
+    rows = score_run(out / "final.pt", CLAIMS[number], args)
     if CLAIMS[number].flicker:
         flicker = sequence_flicker(out / "final.pt", args)
         rows = [{**row, **flicker} for row in rows]
     for row in rows:
-        append(jsonl, {"claim": number, "arm": arm, "seed": seed, "overrides": overrides,
+        append(jsonl, {"claim": number, "base": args.base, "arm": arm, "seed": seed, "overrides": overrides,
                        "steps": config.optim.steps, "train_seconds": train_seconds, **row})
 
 
-def score_run(checkpoint: Path, view_spread: bool, args) -> list[dict]:
-    """Fidelity metrics of a checkpoint on the held-out pairs, each with its uniform baseline's ratio."""
+def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
+    """Fidelity metrics of a checkpoint on the held-out pairs, each with its uniform baseline's ratio,
+    and the claim's extra metrics (view spread, thin/dense regions)."""
     from fidelity_core import metric_views, score
 
     from mistyle.api import Stylizer
@@ -163,12 +198,15 @@ def score_run(checkpoint: Path, view_spread: bool, args) -> list[dict]:
         for style_name in EVAL_STYLES:
             style = load_style(styles[style_name]["path"])
             albedo = stylizer(density, style)
-            metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
-                               radiance=radiance)
-            uniform = uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args)
+            metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
+                                    radiance=radiance)
+            uniform = uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args, claim.regions)
+            if claim.regions:
+                metrics.update(region_fidelity(images, view_opacity(density, views, args.res, scale), style))
+            ratios = [key for key in metrics if key in uniform and (key.endswith("rgb_swd") or key == "patch_swd")]
             row = {"density": density_name, "style": style_name, "parameters": parameters, **metrics,
-                   **{f"{key}_x_uniform": metrics[key] / uniform[key] for key in ("rgb_swd", "patch_swd")}}
-            if view_spread:
+                   **{f"{key}_x_uniform": metrics[key] / uniform[key] for key in ratios}}
+            if claim.view_spread:
                 around = metric_views(stylizer.config.render.camera_distance, SPREAD_VIEWS)
                 _, images = score(density, albedo, style, around, res=args.res, spp=args.spp, density_scale=scale,
                                   radiance=radiance)
@@ -177,6 +215,90 @@ def score_run(checkpoint: Path, view_spread: bool, args) -> list[dict]:
             rows.append(row)
             print(json.dumps({key: (round(v, 4) if isinstance(v, float) else v) for key, v in row.items()}), flush=True)
     return rows
+
+
+def contact_sheet(number: int, seed: int, args) -> None:
+    """``<out>_claim<N>.jpg``: the styles, the uniform baseline, then a row per arm (its ``seed`` run) on
+    ``SHEET_PAIRS``, path traced from the held-out view."""
+    from fidelity_core import metric_views, uniform_baseline
+
+    from mistyle.api import Stylizer, display, path_trace
+    from mistyle.data.heldout import (
+        HELD_OUT_DENSITIES,
+        held_out_density,
+        held_out_styles,
+    )
+    from mistyle.io import load_style
+    from mistyle.model.features import square_style
+    from mistyle.pages import write_grid
+
+    claim = CLAIMS[number]
+    checkpoints = {arm: run_folder(BASES[args.base] + overrides, seed, args)[1] / "final.pt"
+                   for arm, overrides in claim.arms.items()}
+    missing = [arm for arm, path in checkpoints.items() if not path.exists()]
+    if missing:
+        print(f"claim {number}: no contact sheet, arms {missing} have no seed-{seed} run", file=sys.stderr)
+        return
+    specs = {spec.name: spec for spec in HELD_OUT_DENSITIES}
+    records = held_out_styles()
+    densities = {name: held_out_density(specs[name], args.cache) for name, _ in SHEET_PAIRS}
+    styles = {name: load_style(records[name]["path"]) for _, name in SHEET_PAIRS}
+    stylizers = {arm: Stylizer(path) for arm, path in checkpoints.items()}
+    first = next(iter(stylizers.values()))
+    scale, radiance = first.density_scale, first.config.render.radiance
+    views = metric_views(first.config.render.camera_distance)
+
+    def tile(density, albedo):
+        image = path_trace(density, albedo, views[:1], res=SHEET_TILE, spp=SHEET_SPP, density_scale=scale,
+                           light=f"constant:{radiance}")[0][0]
+        return display(image)
+
+    rows = [[(square_style(styles[style], SHEET_TILE).permute(1, 2, 0).numpy(), f"{style[:18]}") for _, style in SHEET_PAIRS],
+            [(tile(densities[d], uniform_baseline(densities[d], styles[s], views, density_scale=scale, radiance=radiance)),
+              f"uniform: {d}") for d, s in SHEET_PAIRS]]
+    for arm, stylizer in stylizers.items():
+        rows.append([(tile(densities[d], stylizer(densities[d], styles[s])), f"{arm}: {d}") for d, s in SHEET_PAIRS])
+    suffix = "" if args.base == "paper" else f"_{args.base}"
+    path = write_grid(args.out.parent / f"{args.out.name}_claim{number}{suffix}.jpg", rows, SHEET_TILE)
+    print(f"wrote {path}")
+
+
+def view_opacity(density, views, res: int, density_scale: float) -> list:
+    """``[(res, res)]`` opacity ``1 - T`` of the medium along each pixel's ray, per view (the torch
+    reference march with unit albedo, in-scattering and radiance sums ``T_before - T_after`` to it)."""
+    import torch
+
+    from mistyle.reference_torch import render_views_torch
+
+    sigma_t = torch.from_numpy(density).double() * density_scale
+    ones = torch.ones((1, 1, *density.shape), dtype=torch.float64)
+    opacity = render_views_torch(ones, sigma_t, torch.ones_like(sigma_t), views, (res, res), steps=4 * max(density.shape),
+                                 radiance=1.0)
+    return list(opacity[0, :, 0].numpy())
+
+
+def region_fidelity(images: list, opacities: list, style) -> dict:
+    """RGB SWD and hue coverage of the foreground pixels that are thin (opacity < ``THIN_OPACITY``) and
+    dense (opacity > ``DENSE_OPACITY``), pooled over views: ``thin_rgb_swd``, ``thin_hue_coverage``,
+    ``dense_...``, and each region's share of the foreground."""
+    import numpy as np
+
+    from mistyle.display import display
+    from mistyle.objective.metrics import (
+        foreground_mask,
+        hue_coverage,
+        sliced_wasserstein,
+    )
+
+    style = np.asarray(style, dtype=np.float32)
+    masks = [foreground_mask(image) for image in images]
+    result = {}
+    for region, inside in (("thin", lambda a: a < THIN_OPACITY), ("dense", lambda a: a > DENSE_OPACITY)):
+        pixels = np.concatenate([display(image)[mask & inside(alpha)] for image, mask, alpha in zip(images, masks, opacities)])
+        result[f"{region}_share"] = len(pixels) / sum(int(mask.sum()) for mask in masks)
+        result[f"{region}_rgb_swd"] = sliced_wasserstein(pixels, style.reshape(-1, 3), order=1) if len(pixels) else float("nan")
+        result[f"{region}_hue_coverage"] = hue_coverage(pixels, style)
+    return result
 
 
 def sequence_flicker(checkpoint: Path, args) -> dict:
@@ -224,18 +346,21 @@ def held_out_sequence(cache: str):
 _UNIFORM: dict = {}
 
 
-def uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args) -> dict:
-    """The uniform baseline's metrics for one pair (computed once per process and cached on disk)."""
+def uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args, regions: bool = False) -> dict:
+    """The uniform baseline's metrics for one pair, with ``region_fidelity``'s if ``regions`` (computed
+    once per process and cached on disk)."""
     from fidelity_core import score, uniform_baseline
 
     key = f"{density_name}/{style_name}/{args.res}/{args.spp}"
     cache = args.runs / "uniform.json"
     if not _UNIFORM and cache.exists():
         _UNIFORM.update(json.loads(cache.read_text()))
-    if key not in _UNIFORM:
+    if key not in _UNIFORM or (regions and "thin_rgb_swd" not in _UNIFORM[key]):
         albedo = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
-        metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
-                           radiance=radiance)
+        metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
+                                radiance=radiance)
+        if regions:
+            metrics.update(region_fidelity(images, view_opacity(density, views, args.res, scale), style))
         _UNIFORM[key] = metrics
         cache.parent.mkdir(parents=True, exist_ok=True)
         cache.write_text(json.dumps(_UNIFORM, indent=1))
@@ -270,25 +395,49 @@ def report(rows: list[dict]) -> str:
                       f"{r['speedup_at_equal_error']:,.0f}x |", ""]
             continue
         claim = CLAIMS[number]
-        extra = (["rgb_swd_view_spread"] if claim.view_spread else []) + (["flicker", "flicker_unwarped"] if claim.flicker else [])
+        extra = ((["rgb_swd_view_spread"] if claim.view_spread else [])
+                 + (["flicker", "flicker_unwarped"] if claim.flicker else [])
+                 + ([f"{region}_{metric}" for region in ("thin", "dense") for metric in ("rgb_swd_x_uniform", "hue_coverage")]
+                    if claim.regions else []))
         columns = ["rgb_swd_x_uniform", "patch_swd_x_uniform", "hue_coverage", *extra]
-        lines += [f"## Claim {number}: {claim.title}", "",
-                  "| arm | seeds | steps | " + " | ".join(columns) + " | parameters |",
-                  "| --- | --- | --- | " + " | ".join("---" for _ in columns) + " | --- |"]
-        for arm in claim.arms:
-            arm_rows = [r for r in claim_rows if r["arm"] == arm]
-            seeds = sorted({r["seed"] for r in arm_rows})
-            if not seeds:
-                lines.append(f"| {arm} | not run | | " + " | ".join("" for _ in columns) + " | |")
+        for base in BASES:
+            base_rows = [r for r in claim_rows if r.get("base", "paper") == base]
+            if not base_rows:
                 continue
-            cells = []
-            for column in columns:
-                per_seed = [statistics.median(r[column] for r in arm_rows if r["seed"] == s) for s in seeds]
-                cells.append(f"{statistics.mean(per_seed):.3g} ± {max(per_seed) - min(per_seed):.2g}")
-            lines.append(f"| {arm} | {len(seeds)} | {arm_rows[0]['steps']} | " + " | ".join(cells)
-                         + f" | {arm_rows[0]['parameters']:,} |")
-        lines.append("")
+            on = "" if base == "paper" else f" (on the {base} objective)"
+            lines += [f"## Claim {number}: {claim.title}{on}", "",
+                      "| arm | seeds | steps | " + " | ".join(columns) + " | rgb_swd_x_uniform per seed | parameters |",
+                      "| --- | --- | --- | " + " | ".join("---" for _ in columns) + " | --- | --- |"]
+            for arm in claim.arms:
+                lines.append(arm_line(arm, [r for r in base_rows if r["arm"] == arm], columns))
+            lines.append("")
     return "\n".join(lines) + "\n"
+
+
+def arm_line(arm: str, rows: list[dict], columns: list[str]) -> str:
+    """One table row: per column, the mean ± spread over seeds of each seed's median over pairs."""
+    seeds = sorted({r["seed"] for r in rows})
+    if not seeds:
+        return f"| {arm} | not run | | " + " | ".join("" for _ in columns) + " | | |"
+
+    def per_seed(column):
+        return [statistics.median(values) for s in seeds
+                if (values := [r[column] for r in rows if r["seed"] == s and column in r])]
+
+    cells = []
+    for column in columns:
+        values = per_seed(column)
+        # Empty: a metric that older runs were not scored with.
+        cells.append(f"{statistics.mean(values):.3g} ± {max(values) - min(values):.2g}" if values else "")
+    each = ", ".join(f"{v:.2f}" for v in per_seed("rgb_swd_x_uniform"))
+    return (f"| {arm} | {len(seeds)} | {rows[0]['steps']} | " + " | ".join(cells)
+            + f" | {each} | {rows[0]['parameters']:,} |")
+
+
+def newest_rows(rows: list[dict]) -> list[dict]:
+    """The last row of each (claim, arm, seed, density, style): a rescore replaces what came before."""
+    newest = {(r["claim"], r.get("base", "paper"), r["arm"], r["seed"], r.get("density"), r.get("style")): r for r in rows}
+    return list(newest.values())
 
 
 def read_rows(jsonl: Path) -> list[dict]:

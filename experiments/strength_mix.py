@@ -17,9 +17,7 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
-from mistyle.pages import EXPERIMENTS_TITLE, write_index
+from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
 
 LEVELS = (0.0, 0.25, 0.5, 0.75, 1.0)
 
@@ -31,8 +29,6 @@ def main() -> None:
     parser.add_argument("--res", type=int, default=128)
     parser.add_argument("--spp", type=int, default=32)
     args = parser.parse_args()
-
-    from PIL import Image, ImageDraw
 
     from mistyle.api import Stylizer, display, path_trace, style_target
     from mistyle.data.heldout import held_out_styles
@@ -72,15 +68,7 @@ def main() -> None:
         numbers["mix"].append({"weights": [1.0 - weight, weight], **metrics})
     rows.append([(swatch(first), "style A")] + mix_tiles + [(swatch(second), "style B")])
 
-    size, label = args.res, 14
-    sheet = Image.new("RGB", (size * len(rows[0]), (size + label) * len(rows)), "white")
-    draw = ImageDraw.Draw(sheet)
-    for r, row in enumerate(rows):
-        for c, (image, text) in enumerate(row):
-            sheet.paste(Image.fromarray((np.clip(image, 0, 1) * 255 + 0.5).astype(np.uint8)), (c * size, r * (size + label) + label))
-            draw.text((c * size + 3, r * (size + label) + 1), text, fill="black")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    sheet.save(args.out)
+    write_grid(args.out, rows, args.res)
     args.out.with_suffix(".json").write_text(json.dumps(numbers, indent=1) + "\n")
     write_index(args.out.parent, EXPERIMENTS_TITLE)
     print(json.dumps(numbers))

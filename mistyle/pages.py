@@ -1,7 +1,7 @@
 """Pictures and pages a person looks at: a render's ``sheet.png`` and a folder's ``index.html``.
 
 ``write_sheet``: style | fast layer | final render side by side, with lines of text (the metrics)
-under them. ``write_index``: one HTML page for a batch of renders or an experiment's output folder,
+under them. ``write_grid``: the experiments' figures, rows of labelled tiles. ``write_index``: one HTML page for a batch of renders or an experiment's output folder,
 listing what is in it -- each sub-folder's ``sheet.png`` with its ``report.json`` metrics, then the
 folder's images, videos, tables (``*_table.md``, shown) and data files and notes (linked) -- all as
 relative links, so the folder can be moved or served as it is. The experiments write one for their
@@ -56,6 +56,27 @@ def write_sheet(path, panels: list[tuple[str, np.ndarray]], lines: list[str], si
         draw.text((4, top + size + 4 + row * line_height), line, fill="black")
     with atomic_output(path) as tmp:
         sheet.save(tmp, format="PNG")
+    return Path(path)
+
+
+def write_grid(path, rows: list[list[tuple[np.ndarray, str]]], size: int = 128) -> Path:
+    """Rows of ``(display image in [0, 1], label)`` tiles, each fitted into a ``size`` square with its
+    label above it; PNG, or JPEG (quality 88) when ``path`` ends in ``.jpg``."""
+    from PIL import Image, ImageDraw
+
+    from .io import atomic_output
+
+    label = 14
+    columns = max(len(row) for row in rows)
+    sheet = Image.new("RGB", (size * columns, (size + label) * len(rows)), "white")
+    draw = ImageDraw.Draw(sheet)
+    for r, row in enumerate(rows):
+        for c, (image, text) in enumerate(row):
+            sheet.paste(_panel(image, size), (c * size, r * (size + label) + label))
+            draw.text((c * size + 3, r * (size + label) + 1), text, fill="black")
+    jpeg = Path(path).suffix.lower() in (".jpg", ".jpeg")
+    with atomic_output(path) as tmp:
+        sheet.save(tmp, format="JPEG" if jpeg else "PNG", **({"quality": 88} if jpeg else {}))
     return Path(path)
 
 

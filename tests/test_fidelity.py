@@ -9,6 +9,7 @@ import torch
 from mistyle.objective.losses import masked_patches, sliced_wasserstein_loss
 from mistyle.objective.masks import body_mask
 from mistyle.objective.metrics import (
+    correlation_length,
     hue_coverage,
     image_patches,
     kmeans,
@@ -177,3 +178,20 @@ def test_the_temporal_anchor_holds_a_refined_frame_near_the_previous_one(mi, blo
     held, _ = refine_albedo(blob_density, 20.0, start, style, replace(settings, temporal_weight=1e4), radiance=8.0,
                             anchor=start)
     assert np.abs(held - start).mean() < 0.5 * np.abs(free - start).mean()
+
+
+def test_correlation_length_of_gaussian_smoothed_noise_is_analytic():
+    # White noise smoothed by a Gaussian of width s has autocorrelation exp(-r^2 / (4 s^2)): it falls to
+    # 1/2 at r = 2 s sqrt(ln 2). The mask (a ball) must not count its outline as structure.
+    rng = np.random.default_rng(0)
+    shape = (48, 48, 48)
+    frequencies = np.meshgrid(*[np.fft.fftfreq(n) for n in shape], indexing="ij")
+    squared = sum(f**2 for f in frequencies)
+    ball = np.linalg.norm(np.indices(shape) - 23.5, axis=0) < 20
+    for width in (1.5, 3.0):
+        smoothing = np.exp(-2 * np.pi**2 * width**2 * squared)
+        field = np.fft.ifftn(np.fft.fftn(rng.standard_normal(shape)) * smoothing).real
+        expected = 2 * width * np.sqrt(np.log(2))
+        assert correlation_length(field, np.ones(shape, bool)) == pytest.approx(expected, rel=0.06)
+        assert correlation_length(field, ball) == pytest.approx(expected, rel=0.06)
+    assert correlation_length(rng.standard_normal(shape), ball) < 1.0  # white noise: uncorrelated at one voxel

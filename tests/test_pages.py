@@ -5,7 +5,7 @@ import json
 import numpy as np
 from PIL import Image
 
-from mistyle.pages import write_index, write_sheet
+from mistyle.pages import write_grid, write_index, write_sheet
 
 
 def test_sheet_puts_the_panels_side_by_side_with_text_under(tmp_path):
@@ -21,6 +21,23 @@ def test_sheet_puts_the_panels_side_by_side_with_text_under(tmp_path):
     assert tuple(sheet[top + 5, 5]) == (0, 0, 0)  # letterboxed above it
     assert tuple(sheet[top + 32, 64 + 32]) == (0, 255, 0)
     assert (sheet[top + 64 + 4 :] < 128).any()  # text under the panels
+
+
+def test_grid_puts_rows_of_labelled_tiles(tmp_path):
+    red, blue = np.zeros((8, 8, 3), np.float32), np.zeros((16, 8, 3), np.float32)
+    red[..., 0] = blue[..., 2] = 1.0
+    path = write_grid(tmp_path / "grid.png", [[(red, "a"), (blue, "b")], [(blue, "c")]], size=32)
+    grid = np.asarray(Image.open(path).convert("RGB"), dtype=np.int32)
+    label = 14
+    assert grid.shape == (2 * (32 + label), 64, 3)
+    assert tuple(grid[label + 16, 16]) == (255, 0, 0)
+    assert tuple(grid[label + 16, 32 + 16]) == (0, 0, 255)  # the tall tile, fitted into its square
+    assert tuple(grid[label + 16, 32 + 2]) == (0, 0, 0)  # letterboxed beside it
+    assert tuple(grid[2 * label + 32 + 16, 16]) == (0, 0, 255)
+    assert tuple(grid[2 * label + 32 + 16, 32 + 16]) == (255, 255, 255)  # a short row leaves white
+    assert (grid[:label] < 128).any()  # labels above the tiles
+    jpeg = write_grid(tmp_path / "grid.jpg", [[(red, "a")]], size=32)
+    assert Image.open(jpeg).format == "JPEG"
 
 
 def test_index_links_renders_figures_tables_and_data_relatively(tmp_path):

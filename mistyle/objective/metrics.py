@@ -220,3 +220,38 @@ def style_fidelity(renders: list[np.ndarray], style: np.ndarray) -> dict:
     return {"rgb_swd": sliced_wasserstein(pixels, style.reshape(-1, 3), order=1),
             "patch_swd": patch_swd(shown, masks, style),
             "hue_coverage": hue_coverage(pixels, style)}
+
+
+def correlation_length(field: np.ndarray, mask: np.ndarray) -> float:
+    """The lag (voxels) at which the radially averaged autocorrelation of ``field`` inside ``mask``
+    falls to 1/2, linearly interpolated between shells of lags one voxel wide (each at its mean lag).
+
+    The autocorrelation at lag r pools every pair of voxels r apart with both inside the mask
+    (zero-padded FFTs of the masked, mean-removed field and of the mask), so the medium's outline does
+    not count as structure. ``inf`` when it never falls to 1/2 within half the grid.
+    """
+    mask = np.asarray(mask, dtype=np.float64)
+    values = np.where(mask > 0, np.asarray(field, np.float64), 0.0)
+    values = (values - values.sum() / mask.sum()) * mask
+    padded = [2 * n for n in values.shape]
+
+    def autocorrelation(x):
+        spectrum = np.fft.rfftn(x, padded)
+        return np.fft.irfftn(spectrum * np.conj(spectrum), padded)
+
+    products, pairs = autocorrelation(values), autocorrelation(mask)
+    lags = np.sqrt(sum(np.minimum(i, n - i) ** 2 for i, n in
+                       zip(np.meshgrid(*[np.arange(n) for n in padded], indexing="ij"), padded)))
+    shells = np.rint(lags).astype(int)
+    limit = min(values.shape) // 2
+    keep = (shells <= limit) & (pairs > 0.5)  # lags with at least one pair of voxels inside the mask
+    pooled = np.bincount(shells[keep], products[keep], minlength=limit + 1)
+    counted = np.bincount(shells[keep], pairs[keep], minlength=limit + 1)
+    curve = pooled / np.maximum(counted, 1e-12)
+    curve = curve / curve[0]
+    mean_lag = np.bincount(shells[keep], (lags * pairs)[keep], minlength=limit + 1) / np.maximum(counted, 1e-12)
+    below = np.nonzero(curve < 0.5)[0]
+    if len(below) == 0:
+        return float("inf")
+    r = int(below[0])
+    return float(np.interp(0.5, [curve[r], curve[r - 1]], [mean_lag[r], mean_lag[r - 1]]))

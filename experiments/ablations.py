@@ -11,7 +11,8 @@ coverage, each also as a ratio to the must-beat uniform baseline of that pair. C
 2. the histogram feature loss vs Gram matrices vs mean/std, and the fidelity study's sliced objective
 3. four stylizing kernels vs two and one
 4. 1x1x1 predicted kernels vs 3x3x3
-5. four views per training step vs one (also: the spread of RGB SWD over 8 views around the orbit)
+5. four views per training step vs one (also: the spread of RGB SWD over 8 views around the orbit,
+   and RGB SWD from 2 views above and below the elevations training ever renders from)
 6. the temporal loss on vs off (also: flicker, the mean |V_t - W(V_{t-1})| of the albedo over 5 frames
    of the held-out smoke64 plume, with and without the velocity warp)
 7. kernel prediction vs AdaIN-style modulation, at its own size and widened to the same parameter count
@@ -25,8 +26,9 @@ results are appended to ``docs/ablations.jsonl`` (one line per claim, arm, seed 
 network), three held-out pairs path traced from the held-out view, under the styles and the uniform
 baseline.
 
-    python experiments/ablations.py --claims 4                 # one claim, 2 seeds per arm
+    python experiments/ablations.py --claims 4                 # one claim, 3 seeds per arm
     python experiments/ablations.py --claims all               # every claim (hours on 2 cores)
+    python experiments/ablations.py --claims 1,3 --base sliced  # the same arms on mistyle's sliced objective
     python experiments/ablations.py --claims 8 --layer-json out.json   # claim 8 from layer_vs_pathtraced.py
     python experiments/ablations.py --report-only              # rewrite the table from the jsonl
 """
@@ -48,6 +50,9 @@ BASE_CONFIG = REPO / "configs" / "ablation.toml"
 EVAL_DENSITIES = ("smoke64", "pyroclastic64")
 EVAL_STYLES = ("hokusai_great_wave", "munch_the_scream", "photo_nasa_carina_pillar", "texture_rusty_metal")
 SPREAD_VIEWS = 8
+# Training draws views on CameraPath's orbit, whose elevation stays within 10 +- 20 degrees; these two
+# (elevation in degrees, orbit position) lie outside it, seeing the medium from well above and below.
+OFF_ORBIT_VIEWS = ((60.0, 0.1), (-45.0, 0.6))
 FLICKER_FRAMES = 5  # consecutive frames of the held-out smoke64 plume, from its benchmark frame on
 FLICKER_STYLES = ("hokusai_great_wave", "munch_the_scream")
 SHEET_PAIRS = (("smoke64", "hokusai_great_wave"), ("smoke64", "munch_the_scream"), ("pyroclastic64", "photo_nasa_carina_pillar"))
@@ -96,7 +101,7 @@ BASES = {
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--claims", default="all", help="comma-separated claim numbers 1-8, or all")
-    parser.add_argument("--seeds", default="0,1")
+    parser.add_argument("--seeds", default="0,1,2")
     parser.add_argument("--base", choices=sorted(BASES), default="paper",
                         help="what every arm starts from: the paper's design, or it with mistyle's sliced objective")
     parser.add_argument("--steps", type=int, default=None, help="training steps per run (default: the config's)")
@@ -200,7 +205,8 @@ def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
             albedo = stylizer(density, style)
             metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
                                     radiance=radiance)
-            uniform = uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args, claim.regions)
+            uniform = uniform_metrics(f"{density_name}/{style_name}", density, style, views, scale, radiance, args,
+                                      claim.regions)
             if claim.regions:
                 metrics.update(region_fidelity(images, view_opacity(density, views, args.res, scale), style))
             ratios = [key for key in metrics if key in uniform and (key.endswith("rgb_swd") or key == "patch_swd")]
@@ -212,9 +218,23 @@ def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
                                   radiance=radiance)
                 per_view = [style_fidelity([image], style)["rgb_swd"] for image in images]
                 row["rgb_swd_view_spread"] = multiview_spread(per_view)["relative_std"]
+                unseen = off_orbit_views(stylizer.config.render.camera_distance)
+                off, _ = score(density, albedo, style, unseen, res=args.res, spp=args.spp, density_scale=scale,
+                               radiance=radiance)
+                off_uniform = uniform_metrics(f"{density_name}/{style_name}/off_orbit", density, style, unseen, scale,
+                                              radiance, args, colour_views=views)
+                row["off_orbit_rgb_swd_x_uniform"] = off["rgb_swd"] / off_uniform["rgb_swd"]
             rows.append(row)
             print(json.dumps({key: (round(v, 4) if isinstance(v, float) else v) for key, v in row.items()}), flush=True)
     return rows
+
+
+def off_orbit_views(camera_distance: float) -> list:
+    """``OFF_ORBIT_VIEWS`` as ``View``s at the orbit's distance."""
+    from mistyle.scenes import CameraPath
+
+    return [CameraPath(distance=camera_distance, elevation_deg=elevation, elevation_wobble_deg=0.0).view(u)
+            for elevation, u in OFF_ORBIT_VIEWS]
 
 
 def contact_sheet(number: int, seed: int, args) -> None:
@@ -253,11 +273,12 @@ def contact_sheet(number: int, seed: int, args) -> None:
                            light=f"constant:{radiance}")[0][0]
         return display(image)
 
-    rows = [[(square_style(styles[style], SHEET_TILE).permute(1, 2, 0).numpy(), f"{style[:18]}") for _, style in SHEET_PAIRS],
+    rows = [[(square_style(styles[style], SHEET_TILE).permute(1, 2, 0).numpy(), style[:20]) for _, style in SHEET_PAIRS],
             [(tile(densities[d], uniform_baseline(densities[d], styles[s], views, density_scale=scale, radiance=radiance)),
-              f"uniform: {d}") for d, s in SHEET_PAIRS]]
+              f"uniform, {d}") for d, s in SHEET_PAIRS]]
     for arm, stylizer in stylizers.items():
-        rows.append([(tile(densities[d], stylizer(densities[d], styles[s])), f"{arm}: {d}") for d, s in SHEET_PAIRS])
+        rows.append([(tile(densities[d], stylizer(densities[d], styles[s])), arm[:20] if column == 0 else "")
+                     for column, (d, s) in enumerate(SHEET_PAIRS)])
     suffix = "" if args.base == "paper" else f"_{args.base}"
     path = write_grid(args.out.parent / f"{args.out.name}_claim{number}{suffix}.jpg", rows, SHEET_TILE)
     print(f"wrote {path}")
@@ -346,17 +367,21 @@ def held_out_sequence(cache: str):
 _UNIFORM: dict = {}
 
 
-def uniform_metrics(density_name, style_name, density, style, views, scale, radiance, args, regions: bool = False) -> dict:
-    """The uniform baseline's metrics for one pair, with ``region_fidelity``'s if ``regions`` (computed
-    once per process and cached on disk)."""
+def uniform_metrics(name: str, density, style, views, scale, radiance, args, regions: bool = False,
+                    colour_views=None) -> dict:
+    """The uniform baseline's metrics for one pair seen from ``views`` (``name``: the pair and, for other
+    than the scoring views, which), with ``region_fidelity``'s if ``regions``; computed once per
+    process and cached on disk. The baseline's colour is matched in ``colour_views`` (default:
+    ``views``), so pass the scoring views to score the same baseline from elsewhere."""
     from fidelity_core import score, uniform_baseline
 
-    key = f"{density_name}/{style_name}/{args.res}/{args.spp}"
+    key = f"{name}/{args.res}/{args.spp}"
     cache = args.runs / "uniform.json"
     if not _UNIFORM and cache.exists():
         _UNIFORM.update(json.loads(cache.read_text()))
     if key not in _UNIFORM or (regions and "thin_rgb_swd" not in _UNIFORM[key]):
-        albedo = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
+        albedo = uniform_baseline(density, style, views if colour_views is None else colour_views, density_scale=scale,
+                                  radiance=radiance)
         metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
                                 radiance=radiance)
         if regions:
@@ -395,7 +420,7 @@ def report(rows: list[dict]) -> str:
                       f"{r['speedup_at_equal_error']:,.0f}x |", ""]
             continue
         claim = CLAIMS[number]
-        extra = ((["rgb_swd_view_spread"] if claim.view_spread else [])
+        extra = ((["rgb_swd_view_spread", "off_orbit_rgb_swd_x_uniform"] if claim.view_spread else [])
                  + (["flicker", "flicker_unwarped"] if claim.flicker else [])
                  + ([f"{region}_{metric}" for region in ("thin", "dense") for metric in ("rgb_swd_x_uniform", "hue_coverage")]
                     if claim.regions else []))

@@ -16,7 +16,8 @@ coverage, each also as a ratio to the must-beat uniform baseline of that pair. C
 6. the temporal loss on vs off (also: flicker, the mean |V_t - W(V_{t-1})| of the albedo over 5 frames
    of the held-out smoke64 plume, with and without the velocity warp)
 7. kernel prediction vs AdaIN-style modulation, at its own size and widened to the same parameter count
-8. the fast layer vs the path tracer (no training: ``layer_vs_pathtraced.py``'s JSON, ``--layer-json``)
+8. the fast layer vs the path tracer (no training: ``layer_vs_pathtraced.py``'s JSON, ``--layer-json``;
+   its contact sheet: the layer beside volpath at 1, 16 and 256 spp on that experiment's scene, timed)
 
 Runs are kept under ``--runs``, one per setting and seed (the paper's arm of every claim is one run
 per seed, shared; a finished run is reused),
@@ -41,6 +42,8 @@ import statistics
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -68,6 +71,7 @@ class Claim:
     view_spread: bool = False
     flicker: bool = False
     regions: bool = False
+    unit: str = ""  # what a bare-number arm counts, for the contact sheet's labels
 
 
 CLAIMS = {
@@ -78,15 +82,17 @@ CLAIMS = {
         "mean/std": ['loss.style="meanstd"'],
         "sliced (fidelity study)": ['loss.objective="sliced"', 'loss.mask="body"'],
     }),
-    3: Claim("number of stylizing kernels", {"4": ["model.kernels=4"], "2": ["model.kernels=2"], "1": ["model.kernels=1"]}),
+    3: Claim("number of stylizing kernels", {"4": ["model.kernels=4"], "2": ["model.kernels=2"], "1": ["model.kernels=1"]},
+                unit="kernels"),
     4: Claim("predicted kernel size", {"1x1x1": ["model.kernel_size=1"], "3x3x3": ["model.kernel_size=3"]}),
-    5: Claim("views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True),
+    5: Claim("views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True,
+                unit="views"),
     6: Claim("temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}, flicker=True),
     7: Claim("kernel prediction vs AdaIN", {
         "kernels": ['model.stylize="kernel"'],
         "AdaIN": ['model.stylize="adain"'],
         # A wider style predictor brings AdaIN to the kernel arm's parameter count (321,623 vs 321,707).
-        "AdaIN, same parameters": ['model.stylize="adain"', "model.style_hidden=177"],
+        "AdaIN, same size": ['model.stylize="adain"', "model.style_hidden=177"],
     }),
 }
 LAYER_CLAIM = 8
@@ -133,6 +139,7 @@ def main() -> None:
                 kept = [r for r in read_rows(jsonl) if r["claim"] != LAYER_CLAIM]  # one layer row, the newest
                 jsonl.write_text("".join(json.dumps(r) + "\n" for r in kept))
                 append(jsonl, layer_row(args.layer_json))
+                layer_sheet(args, read_rows(jsonl)[-1]["rel_rmse_single"])
                 continue
             for arm, overrides in CLAIMS[number].arms.items():
                 for seed in seeds:
@@ -141,6 +148,7 @@ def main() -> None:
     rows = newest_rows(read_rows(jsonl))
     table = args.out.parent / f"{args.out.name}_table.md"
     table.write_text(report(rows))
+    write_index(table.parent, EXPERIMENTS_TITLE)
     print(f"wrote {table}")
 
 
@@ -277,10 +285,60 @@ def contact_sheet(number: int, seed: int, args) -> None:
             [(tile(densities[d], uniform_baseline(densities[d], styles[s], views, density_scale=scale, radiance=radiance)),
               f"uniform, {d}") for d, s in SHEET_PAIRS]]
     for arm, stylizer in stylizers.items():
-        rows.append([(tile(densities[d], stylizer(densities[d], styles[s])), arm[:20] if column == 0 else "")
+        label = f"{arm} {claim.unit}".strip()[:21]
+        rows.append([(tile(densities[d], stylizer(densities[d], styles[s])), label if column == 0 else "")
                      for column, (d, s) in enumerate(SHEET_PAIRS)])
     suffix = "" if args.base == "paper" else f"_{args.base}"
     path = write_grid(args.out.parent / f"{args.out.name}_claim{number}{suffix}.jpg", rows, SHEET_TILE)
+    print(f"wrote {path}")
+
+
+def layer_sheet(args, layer_error: float) -> None:
+    """``<out>_claim8.jpg``: one view of ``layer_vs_pathtraced.py``'s scene (its pyroclastic sphere and
+    colour-noise albedo, 64^3) from the fast layer, then volpath (single scattering, pixel centres
+    like the layer) at 1, 16 and 256 spp, each with its render time and its relative RMSE to a
+    volpath reference (2 x 1024 spp, its own noise taken out: ``pathtrace.net_rel_rmse``). The
+    layer's error is below that reference's noise, so its label gives ``layer_error``, which
+    ``layer_vs_pathtraced.py`` measured against 2 x 4096 spp."""
+    import time
+
+    from mistyle.api import display
+    from mistyle.backend import use_variant
+    from mistyle.conventions import DEFAULT_DENSITY_SCALE
+    from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
+    from mistyle.integrators import layer_scene, prepare_density
+    from mistyle.pages import write_grid
+    from mistyle.pathtrace import (
+        net_rel_rmse,
+        pixel_centre_estimate,
+        two_seed_reference,
+    )
+    from mistyle.scenes import CameraPath, pathtraced_scene, split_views
+
+    mi = use_variant("cpu")
+    density = pyroclastic_sphere((64,) * 3, seed=7)
+    albedo = colour_noise_albedo(density.shape, seed=11)
+    views = CameraPath().turntable(2, offset=0.125)[:1]
+    layer = mi.load_dict(layer_scene(prepare_density(density, DEFAULT_DENSITY_SCALE, 128), albedo, views, res=SHEET_TILE))
+    split_views(mi.render(layer), 1)  # compile
+    started = time.perf_counter()
+    fast = split_views(mi.render(layer), 1)[0]
+    tiles = [(fast, f"layer, {time.perf_counter() - started:.3f} s")]
+    volpath = mi.load_dict(pathtraced_scene(density, albedo, views, res=SHEET_TILE, density_scale=DEFAULT_DENSITY_SCALE,
+                                            max_depth=2, batch=True))
+    reference, noise_var = two_seed_reference(lambda spp, seed: pixel_centre_estimate(volpath, spp, seed, 1)[0], 1024)
+
+    def error(image):
+        return 100 * net_rel_rmse(image, reference, noise_var)
+
+    tiles[0] = (tiles[0][0], f"{tiles[0][1]}, {100 * layer_error:.2f}%")
+    for spp in (1, 16, 256):
+        started = time.perf_counter()
+        image = pixel_centre_estimate(volpath, spp, 100 + spp, 1)[0]
+        tiles.append((image, f"{spp} spp, {time.perf_counter() - started:.2f} s, {error(image):.0f}%"))
+    tiles.append((reference, "volpath, 2 x 1024 spp"))
+    path = write_grid(args.out.parent / f"{args.out.name}_claim8.jpg", [[(display(image), label) for image, label in tiles]],
+                      SHEET_TILE)
     print(f"wrote {path}")
 
 

@@ -83,10 +83,10 @@ CLAIMS = {
         "sliced (fidelity study)": ['loss.objective="sliced"', 'loss.mask="body"'],
     }),
     3: Claim("number of stylizing kernels", {"4": ["model.kernels=4"], "2": ["model.kernels=2"], "1": ["model.kernels=1"]},
-                unit="kernels"),
+             unit="kernels"),
     4: Claim("predicted kernel size", {"1x1x1": ["model.kernel_size=1"], "3x3x3": ["model.kernel_size=3"]}),
     5: Claim("views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True,
-                unit="views"),
+             unit="views"),
     6: Claim("temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}, flicker=True),
     7: Claim("kernel prediction vs AdaIN", {
         "kernels": ['model.stylize="kernel"'],
@@ -323,7 +323,7 @@ def layer_sheet(args, layer_error: float) -> None:
     split_views(mi.render(layer), 1)  # compile
     started = time.perf_counter()
     fast = split_views(mi.render(layer), 1)[0]
-    tiles = [(fast, f"layer, {time.perf_counter() - started:.3f} s")]
+    tiles = [(fast, f"layer, {time.perf_counter() - started:.3f} s, {100 * layer_error:.2f}%")]
     volpath = mi.load_dict(pathtraced_scene(density, albedo, views, res=SHEET_TILE, density_scale=DEFAULT_DENSITY_SCALE,
                                             max_depth=2, batch=True))
     reference, noise_var = two_seed_reference(lambda spp, seed: pixel_centre_estimate(volpath, spp, seed, 1)[0], 1024)
@@ -331,7 +331,6 @@ def layer_sheet(args, layer_error: float) -> None:
     def error(image):
         return 100 * net_rel_rmse(image, reference, noise_var)
 
-    tiles[0] = (tiles[0][0], f"{tiles[0][1]}, {100 * layer_error:.2f}%")
     for spp in (1, 16, 256):
         started = time.perf_counter()
         image = pixel_centre_estimate(volpath, spp, 100 + spp, 1)[0]

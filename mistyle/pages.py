@@ -1,11 +1,12 @@
 """Pictures and pages a person looks at: a render's ``sheet.png`` and a folder's ``index.html``.
 
 ``write_sheet``: style | fast layer | final render side by side, with lines of text (the metrics)
-under them. ``write_grid``: the experiments' figures, rows of labelled tiles. ``write_index``: one HTML page for a batch of renders or an experiment's output folder,
-listing what is in it -- each sub-folder's ``sheet.png`` with its ``report.json`` metrics, then the
-folder's images, videos, tables (``*_table.md``, shown) and data files and notes (linked) -- all as
-relative links, so the folder can be moved or served as it is. The experiments write one for their
-output folder (``docs/index.html`` by default).
+under them. ``write_grid``: the experiments' figures, rows of labelled tiles. ``write_index``: one
+HTML page for a batch of renders or an experiment's output folder, listing what is in it -- each
+sub-folder's ``sheet.png`` with its ``report.json`` metrics, then the folder's images, videos,
+tables (``*_table.md``, shown) and data files and notes (linked) -- all as relative links, so the
+folder can be moved or served as it is. The experiments write one for their output folder
+(``docs/index.html`` by default).
 """
 
 from __future__ import annotations

@@ -195,3 +195,5 @@ def test_correlation_length_of_gaussian_smoothed_noise_is_analytic():
         assert correlation_length(field, np.ones(shape, bool)) == pytest.approx(expected, rel=0.06)
         assert correlation_length(field, ball) == pytest.approx(expected, rel=0.06)
     assert correlation_length(rng.standard_normal(shape), ball) < 1.0  # white noise: uncorrelated at one voxel
+    with pytest.raises(ValueError, match="non-empty mask"):
+        correlation_length(field, np.zeros(shape, bool))

@@ -231,6 +231,9 @@ def correlation_length(field: np.ndarray, mask: np.ndarray) -> float:
     not count as structure. ``inf`` when it never falls to 1/2 within half the grid.
     """
     mask = np.asarray(mask, dtype=np.float64)
+    if mask.shape != np.shape(field) or not mask.any():
+        raise ValueError(f"correlation_length: need a non-empty mask of the field's shape {np.shape(field)}, "
+                         f"got {mask.shape} with {int(np.count_nonzero(mask))} voxels inside.")
     values = np.where(mask > 0, np.asarray(field, np.float64), 0.0)
     values = (values - values.sum() / mask.sum()) * mask
     padded = [2 * n for n in values.shape]

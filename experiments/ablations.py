@@ -136,10 +136,9 @@ def main() -> None:
                 if args.layer_json is None:
                     print("claim 8 needs --layer-json (run experiments/layer_vs_pathtraced.py > out.json)", file=sys.stderr)
                     continue
-                kept = [r for r in read_rows(jsonl) if r["claim"] != LAYER_CLAIM]  # one layer row, the newest
-                jsonl.write_text("".join(json.dumps(r) + "\n" for r in kept))
-                append(jsonl, layer_row(args.layer_json))
-                layer_sheet(args, read_rows(jsonl)[-1]["rel_rmse_single"])
+                row = layer_row(args.layer_json)
+                append(jsonl, row)  # the table keeps the newest layer row (newest_rows)
+                layer_sheet(args, row["rel_rmse_single"])
                 continue
             for arm, overrides in CLAIMS[number].arms.items():
                 for seed in seeds:
@@ -208,15 +207,16 @@ def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
     rows = []
     for density_name in EVAL_DENSITIES:
         density = held_out_density(specs[density_name], args.cache)
+        opacities = view_opacity(density, views, args.res, scale) if claim.regions else None
         for style_name in EVAL_STYLES:
             style = load_style(styles[style_name]["path"])
             albedo = stylizer(density, style)
             metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
                                     radiance=radiance)
             uniform = uniform_metrics(f"{density_name}/{style_name}", density, style, views, scale, radiance, args,
-                                      claim.regions)
-            if claim.regions:
-                metrics.update(region_fidelity(images, view_opacity(density, views, args.res, scale), style))
+                                      opacities)
+            if opacities is not None:
+                metrics.update(region_fidelity(images, opacities, style))
             ratios = [key for key in metrics if key in uniform and (key.endswith("rgb_swd") or key == "patch_swd")]
             row = {"density": density_name, "style": style_name, "parameters": parameters, **metrics,
                    **{f"{key}_x_uniform": metrics[key] / uniform[key] for key in ratios}}
@@ -302,10 +302,11 @@ def layer_sheet(args, layer_error: float) -> None:
     ``layer_vs_pathtraced.py`` measured against 2 x 4096 spp."""
     import time
 
+    from layer_vs_pathtraced import scene_inputs
+
     from mistyle.api import display
     from mistyle.backend import use_variant
     from mistyle.conventions import DEFAULT_DENSITY_SCALE
-    from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
     from mistyle.integrators import layer_scene, prepare_density
     from mistyle.pages import write_grid
     from mistyle.pathtrace import (
@@ -313,12 +314,11 @@ def layer_sheet(args, layer_error: float) -> None:
         pixel_centre_estimate,
         two_seed_reference,
     )
-    from mistyle.scenes import CameraPath, pathtraced_scene, split_views
+    from mistyle.scenes import pathtraced_scene, split_views
 
     mi = use_variant("cpu")
-    density = pyroclastic_sphere((64,) * 3, seed=7)
-    albedo = colour_noise_albedo(density.shape, seed=11)
-    views = CameraPath().turntable(2, offset=0.125)[:1]
+    density, albedo, views = scene_inputs(64, view_count=2)
+    views = views[:1]
     layer = mi.load_dict(layer_scene(prepare_density(density, DEFAULT_DENSITY_SCALE, 128), albedo, views, res=SHEET_TILE))
     split_views(mi.render(layer), 1)  # compile
     started = time.perf_counter()
@@ -424,11 +424,11 @@ def held_out_sequence(cache: str):
 _UNIFORM: dict = {}
 
 
-def uniform_metrics(name: str, density, style, views, scale, radiance, args, regions: bool = False,
+def uniform_metrics(name: str, density, style, views, scale, radiance, args, opacities=None,
                     colour_views=None) -> dict:
     """The uniform baseline's metrics for one pair seen from ``views`` (``name``: the pair and, for other
-    than the scoring views, which), with ``region_fidelity``'s if ``regions``; computed once per
-    process and cached on disk. The baseline's colour is matched in ``colour_views`` (default:
+    than the scoring views, which), with ``region_fidelity``'s when given the views' ``opacities``
+    (``view_opacity``); computed once per process and cached on disk. The baseline's colour is matched in ``colour_views`` (default:
     ``views``), so pass the scoring views to score the same baseline from elsewhere."""
     from fidelity_core import score, uniform_baseline
 
@@ -436,13 +436,13 @@ def uniform_metrics(name: str, density, style, views, scale, radiance, args, reg
     cache = args.runs / "uniform.json"
     if not _UNIFORM and cache.exists():
         _UNIFORM.update(json.loads(cache.read_text()))
-    if key not in _UNIFORM or (regions and "thin_rgb_swd" not in _UNIFORM[key]):
+    if key not in _UNIFORM or (opacities is not None and "thin_rgb_swd" not in _UNIFORM[key]):
         albedo = uniform_baseline(density, style, views if colour_views is None else colour_views, density_scale=scale,
                                   radiance=radiance)
         metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
                                 radiance=radiance)
-        if regions:
-            metrics.update(region_fidelity(images, view_opacity(density, views, args.res, scale), style))
+        if opacities is not None:
+            metrics.update(region_fidelity(images, opacities, style))
         _UNIFORM[key] = metrics
         cache.parent.mkdir(parents=True, exist_ok=True)
         cache.write_text(json.dumps(_UNIFORM, indent=1))

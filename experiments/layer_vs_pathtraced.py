@@ -55,7 +55,6 @@ def main() -> None:
     from mistyle.backend import use_variant
     from mistyle.conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
     from mistyle.conventions import LAYER_SCHEMES as SCHEMES
-    from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
     from mistyle.integrators import PreparedDensity, layer_scene, prepare_density
     from mistyle.integrators.inscatter import inscattered_radiance
     from mistyle.pathtrace import (
@@ -63,13 +62,11 @@ def main() -> None:
         pixel_centre_estimate,
         two_seed_reference,
     )
-    from mistyle.scenes import CameraPath, pathtraced_scene, split_views
+    from mistyle.scenes import pathtraced_scene, split_views
 
     mi = use_variant("cpu")
 
-    density = pyroclastic_sphere((args.res,) * 3, seed=7)
-    albedo = colour_noise_albedo(density.shape, seed=11)
-    views = CameraPath().turntable(args.views, offset=0.125)
+    density, albedo, views = scene_inputs(args.res, args.views)
     size = (args.image, args.image)
     scenes = {
         depth: mi.load_dict(pathtraced_scene(density, albedo, views, res=size, density_scale=args.density_scale,
@@ -172,6 +169,17 @@ def main() -> None:
         "machine": {"cpu_count": os.cpu_count(), "load_avg_1m": os.getloadavg()[0]},
     }
     print(json.dumps(result))
+
+
+def scene_inputs(res: int, view_count: int):
+    """The experiment's scene: ``(density (res^3), albedo (res^3, 3), views)``, a pyroclastic sphere with
+    a colour-noise albedo seen from ``view_count`` views around the orbit (also ``ablations.py``'s
+    claim-8 contact sheet)."""
+    from mistyle.data.procedural import colour_noise_albedo, pyroclastic_sphere
+    from mistyle.scenes import CameraPath
+
+    density = pyroclastic_sphere((res,) * 3, seed=7)
+    return density, colour_noise_albedo(density.shape, seed=11), CameraPath().turntable(view_count, offset=0.125)
 
 
 def forward_backward_seconds(mi, scene) -> float:

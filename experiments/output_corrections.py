@@ -1,0 +1,201 @@
+"""Closed-form stages after the network: can any of them close the gap to direct optimisation? (#13)
+
+The bundled network places a style's structures but mutes its colours next to direct optimisation
+(docs/training.md). Each arm below takes the network's albedo, changes it without a gradient step,
+and is scored like the benchmark (path traced from the metric views, ``fidelity_core.score``) on the
+validation split only (``train.dataset.validation_paintings`` x ``val_smoke64``), never the
+benchmark's held-out pairs:
+
+* ``network``: the albedo as the network predicts it (strength 1).
+* ``transport s=<sigma>``: colour transport onto the style's pixel colours. Each albedo value is
+  mapped to the colour a uniform medium of that albedo shows (``volpath`` at grey levels, one view,
+  per density), that colour field is low-passed with a density-weighted Gaussian of ``sigma`` voxels
+  (0: none), an iterated sliced optimal transport (Pitie et al. 2007) carries the low-passed colours,
+  each voxel counted in proportion to its density, onto the style's pixels, every voxel moves by
+  its low-passed colour's displacement, and the result is mapped back to albedo.
+* ``defringe``: below 5% of the peak density the albedo is blended (linearly in density) towards the
+  density-weighted local mean colour (Gaussian, 3 voxels): are the thin fringes' colours the problem?
+* ``strength 1.3``: the stylizing kernels extrapolated past full strength, ``K_neutral + 1.3 (K -
+  K_neutral)`` (``SKPN.neutral_kernels``; ``--strength`` stops at 1): is the network's style too weak?
+
+Writes ``<out>.jsonl`` (a line per pair), ``<out>.md`` (medians over pairs of each arm's ratio to the
+uniform baseline of the same pair) and ``<out>.jpg`` (style | arms, first four pairs, held-out view).
+
+    python experiments/output_corrections.py                 # 13 pairs: about 8 min on 2 cores
+    python experiments/output_corrections.py --quick         # 1 pair, small renders
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+ARMS = ("network", "transport s=0", "transport s=2", "defringe", "strength 1.3")
+RESPONSE_LEVELS = tuple(np.geomspace(1e-2, 1.0, 9))
+TRANSPORT_ROUNDS = 12
+TRANSPORT_SAMPLES = 16384
+SHEET_PAIRS = 4
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", default="docs/output_corrections")
+    parser.add_argument("--checkpoint", default=None, help="default: the bundled network")
+    parser.add_argument("--res", type=int, default=128)
+    parser.add_argument("--spp", type=int, default=16)
+    parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    if args.quick:
+        args.res, args.spp, args.out = 32, 4, str(Path(tempfile.mkdtemp()) / "output_corrections")
+
+    from fidelity_core import metric_views, score, uniform_baseline
+
+    from mistyle.api import Stylizer
+    from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
+    from mistyle.display import display
+    from mistyle.io import load_style
+    from mistyle.train.dataset import validation_paintings
+
+    stylizer = Stylizer(args.checkpoint)
+    scale, radiance = stylizer.density_scale, stylizer.config.render.radiance
+    views = metric_views(stylizer.config.render.camera_distance)
+    paintings = validation_paintings()[:1 if args.quick else None]
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    rows, sheet = [], []
+    for spec in VALIDATION_DENSITIES:
+        density = held_out_density(spec, args.cache)
+        response = uniform_response(density, scale, radiance, views[0])
+        for painting in paintings:
+            style = load_style(painting)
+            network = stylizer(density, style)
+            albedos = {"network": network,
+                       "transport s=0": transported(network, density, style, response, sigma=0.0),
+                       "transport s=2": transported(network, density, style, response, sigma=2.0),
+                       "defringe": defringed(network, density),
+                       "strength 1.3": extrapolated(stylizer, density, style, 1.3)}
+            albedos["uniform"] = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
+            row, tiles = {"density": spec.name, "style": painting.stem}, [(style, painting.stem[:18])]
+            for arm, albedo in albedos.items():
+                metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp,
+                                        density_scale=scale, radiance=radiance)
+                row[arm] = metrics
+                tiles.append((display(images[0]), arm))
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+            if len(sheet) < SHEET_PAIRS:
+                sheet.append(tiles)
+    out.with_suffix(".jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    out.with_suffix(".md").write_text(table(rows))
+    write_grid(out.with_suffix(".jpg"), sheet)
+    write_index(out.parent, EXPERIMENTS_TITLE)
+    print(table(rows))
+
+
+def table(rows: list[dict]) -> str:
+    """Medians over pairs: RGB and patch SWD as ratios to the same pair's uniform baseline, hue coverage."""
+    lines = [f"Medians over {len(rows)} validation pairs (ratios to the uniform baseline of the same pair; lower "
+             "is better, hue coverage higher is better).", "",
+             "| arm | RGB SWD x uniform | patch SWD x uniform | hue coverage |", "|---|---|---|---|"]
+    for arm in ARMS + ("uniform",):
+        ratio = {key: float(np.median([r[arm][key] / r["uniform"][key] for r in rows])) for key in ("rgb_swd", "patch_swd")}
+        coverage = float(np.median([r[arm]["hue_coverage"] for r in rows]))
+        lines.append(f"| {arm} | {ratio['rgb_swd']:.3f} | {ratio['patch_swd']:.3f} | {coverage:.3f} |")
+    return "\n".join(lines) + "\n"
+
+
+def uniform_response(density: np.ndarray, scale: float, radiance: float, view) -> tuple[np.ndarray, np.ndarray]:
+    """``(levels, shown)``: the mean display value of the path-traced foreground of a uniform medium at
+    each grey albedo level (channels render independently under the white light), made monotone."""
+    from mistyle.conventions import FOREGROUND_THRESHOLD
+    from mistyle.correct import uniform_albedo_renders
+    from mistyle.display import display
+
+    renders = uniform_albedo_renders(density, scale, radiance, [view], RESPONSE_LEVELS, res=32, spp=4)
+    mask = renders[-1].max(axis=-1) > FOREGROUND_THRESHOLD
+    shown = np.maximum.accumulate([float(display(images[mask]).mean()) for images in renders])
+    return np.log(RESPONSE_LEVELS), shown + np.arange(len(shown)) * 1e-9
+
+
+def transported(albedo, density, style, response, sigma: float, seed: int = 0) -> np.ndarray:
+    """The ``transport`` arm (module docstring)."""
+    log_levels, shown_levels = response
+    shown = np.interp(np.log(np.clip(albedo, RESPONSE_LEVELS[0], 1.0)), log_levels, shown_levels)
+    weight = density.astype(np.float64)
+    low = weighted_lowpass(shown, weight, sigma)
+    rng = np.random.default_rng(seed)
+    voxels = rng.choice(weight.size, TRANSPORT_SAMPLES, p=weight.ravel() / weight.sum())
+    pixels = np.asarray(style, np.float64).reshape(-1, 3)
+    stages = fit_sliced_transport(low.reshape(-1, 3)[voxels], pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng)
+    inside = weight > 0
+    moved = shown.copy()
+    moved[inside] += apply_sliced_transport(stages, low[inside]) - low[inside]
+    result = np.array(albedo, dtype=np.float32)
+    result[inside] = np.exp(np.interp(np.clip(moved[inside], shown_levels[0], shown_levels[-1]), shown_levels, log_levels))
+    return result
+
+
+def fit_sliced_transport(source: np.ndarray, target: np.ndarray, rng) -> list:
+    """Iterated sliced optimal transport of ``source (N, 3)`` onto ``target (M, 3)``: stages ``(d, q_source,
+    q_target)``, each a monotone 1-D map along the unit direction ``d`` between 65 quantiles."""
+    current, levels, stages = source.copy(), np.linspace(0, 1, 65), []
+    for _ in range(TRANSPORT_ROUNDS):
+        basis, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        for direction in basis.T:
+            stage = (direction, np.quantile(current @ direction, levels), np.quantile(target @ direction, levels))
+            stages.append(stage)
+            current = apply_sliced_transport([stage], current)
+    return stages
+
+
+def apply_sliced_transport(stages: list, colours: np.ndarray) -> np.ndarray:
+    current = colours.copy()
+    for direction, source, target in stages:
+        projected = current @ direction
+        current += (np.interp(projected, source, target) - projected)[:, None] * direction
+    return current
+
+
+def weighted_lowpass(field: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian low-pass of ``field (Z, Y, X, C)`` weighted by ``weight (Z, Y, X)``, normalised."""
+    if sigma == 0:
+        return field
+    from scipy.ndimage import gaussian_filter
+
+    total = np.maximum(gaussian_filter(weight, sigma), 1e-12)
+    return np.stack([gaussian_filter(field[..., c] * weight, sigma) / total for c in range(field.shape[-1])], -1)
+
+
+def defringed(albedo, density, threshold: float = 0.05, sigma: float = 3.0) -> np.ndarray:
+    """The ``defringe`` arm (module docstring)."""
+    local = weighted_lowpass(albedo.astype(np.float64), density.astype(np.float64), sigma)
+    body = np.clip(density / (threshold * density.max()), 0.0, 1.0)[..., None]
+    return (body * albedo + (1.0 - body) * local).astype(np.float32)
+
+
+def extrapolated(stylizer, density, style, strength: float) -> np.ndarray:
+    """The network's albedo with its kernels at ``strength`` > 1 (module docstring)."""
+    from mistyle.api import LUMA_WEIGHTS
+    from mistyle.model.skpn import StylizingKernels
+
+    kernels = stylizer.kernels(style)
+    full = stylizer._one(density, kernels, 1.0)
+    grey = float(np.tensordot(density / density.sum(), full, axes=3) @ LUMA_WEIGHTS)  # as Stylizer.weakened
+    neutral = stylizer.trained.model.neutral_kernels(kernels, grey)
+    sites = {site: {key: neutral.sites[site][key] + strength * (kernels.sites[site][key] - neutral.sites[site][key])
+                    for key in kernels.sites[site]} for site in kernels.sites}
+    return stylizer._one(density, StylizingKernels(sites), 1.0)
+
+
+if __name__ == "__main__":
+    main()

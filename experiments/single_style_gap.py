@@ -20,6 +20,9 @@ Writes ``<out>.jsonl`` (a line per density and style) and ``<out>.md``.
 
     python experiments/single_style_gap.py            # 2 styles x 400 steps (15 min each) + scoring: about 45 min
     python experiments/single_style_gap.py --quick    # 1 style, 4 steps, small renders
+    python experiments/single_style_gap.py --styles seurat_circus_sideshow --steps 1200 \
+        --checkpoint seurat_circus_sideshow=runs/single_seurat_long/steps/step_000800.pt --out docs/single_style_gap_1200
+        # score a one-style network trained elsewhere (here: 800 more steps, learning rate decayed)
 """
 
 from __future__ import annotations
@@ -47,7 +50,9 @@ def main() -> None:
     parser.add_argument("--styles", default="congo_raffia_textiles,seurat_circus_sideshow",
                         help="validation paintings (stems of train.dataset.validation_paintings)")
     parser.add_argument("--densities", default="val_smoke64,smoke64", help="names in mistyle.data.heldout")
-    parser.add_argument("--steps", type=int, default=400)
+    parser.add_argument("--steps", type=int, default=400, help="one-style training steps (of --checkpoint: as labelled)")
+    parser.add_argument("--checkpoint", action="append", default=[], metavar="STYLE=PATH",
+                        help="score this one-style network for STYLE instead of training one (repeatable)")
     parser.add_argument("--runs", default="runs", help="where the one-style runs go (kept: a rerun scores them again)")
     parser.add_argument("--out", default="docs/single_style_gap")
     parser.add_argument("--res", type=int, default=128)
@@ -78,7 +83,9 @@ def main() -> None:
     unknown = [name for name in args.styles.split(",") if name not in paintings]
     if unknown:
         raise SystemExit(f"Not validation paintings: {', '.join(unknown)}; choose from {', '.join(sorted(paintings))}.")
-    networks = {name: one_style_network(paintings[name], Path(args.runs), args.steps) for name in args.styles.split(",")}
+    given = dict(item.split("=", 1) for item in args.checkpoint)
+    networks = {name: Path(given[name]) if name in given else one_style_network(paintings[name], Path(args.runs), args.steps)
+                for name in args.styles.split(",")}
     bundled = Stylizer(None)
     scale, radiance = bundled.density_scale, bundled.config.render.radiance
     views = metric_views(bundled.config.render.camera_distance)

@@ -115,15 +115,11 @@ def table(rows: list[dict]) -> str:
 
 
 def uniform_response(density: np.ndarray, scale: float, radiance: float, view) -> tuple[np.ndarray, np.ndarray]:
-    """``(levels, shown)``: the mean display value of the path-traced foreground of a uniform medium at
-    each grey albedo level (channels render independently under the white light), made monotone."""
-    from mistyle.conventions import FOREGROUND_THRESHOLD
-    from mistyle.correct import uniform_albedo_renders
-    from mistyle.display import display
+    """``(log levels, shown)``: ``correct.uniform_display_response`` at ``RESPONSE_LEVELS`` from one view,
+    nudged to strictly increasing so that it inverts."""
+    from mistyle.correct import uniform_display_response
 
-    renders = uniform_albedo_renders(density, scale, radiance, [view], RESPONSE_LEVELS, res=32, spp=4)
-    mask = renders[-1].max(axis=-1) > FOREGROUND_THRESHOLD
-    shown = np.maximum.accumulate([float(display(images[mask]).mean()) for images in renders])
+    shown = uniform_display_response(density, scale, radiance, [view], RESPONSE_LEVELS, res=32, spp=4)
     return np.log(RESPONSE_LEVELS), shown + np.arange(len(shown)) * 1e-9
 
 
@@ -185,13 +181,10 @@ def defringed(albedo, density, threshold: float = 0.05, sigma: float = 3.0) -> n
 
 def extrapolated(stylizer, density, style, strength: float) -> np.ndarray:
     """The network's albedo with its kernels at ``strength`` > 1 (module docstring)."""
-    from mistyle.api import LUMA_WEIGHTS
     from mistyle.model.skpn import StylizingKernels
 
     kernels = stylizer.kernels(style)
-    full = stylizer._one(density, kernels, 1.0)
-    grey = float(np.tensordot(density / density.sum(), full, axes=3) @ LUMA_WEIGHTS)  # as Stylizer.weakened
-    neutral = stylizer.trained.model.neutral_kernels(kernels, grey)
+    neutral = stylizer.neutral(kernels, density)
     sites = {site: {key: neutral.sites[site][key] + strength * (kernels.sites[site][key] - neutral.sites[site][key])
                     for key in kernels.sites[site]} for site in kernels.sites}
     return stylizer._one(density, StylizingKernels(sites), 1.0)

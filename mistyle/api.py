@@ -159,11 +159,14 @@ class Stylizer:
 
         if validate_strength(strength) == 1.0:
             return kernels
+        return StylizingKernels.blend([(kernels, strength), (self.neutral(kernels, grid), 1.0 - strength)])
+
+    def neutral(self, kernels, grid: np.ndarray):
+        """``SKPN.neutral_kernels`` of ``kernels`` whose grey is the luma of the density-weighted mean of
+        the albedo ``kernels`` give on ``grid`` (what ``weakened`` fades towards)."""
         full = self._one(grid, kernels, 1.0)
-        weights = grid / grid.sum()
-        grey = float(np.tensordot(weights, full, axes=3) @ LUMA_WEIGHTS)
-        neutral = self.trained.model.neutral_kernels(kernels, grey)
-        return StylizingKernels.blend([(kernels, strength), (neutral, 1.0 - strength)])
+        grey = float(np.tensordot(grid / grid.sum(), full, axes=3) @ LUMA_WEIGHTS)
+        return self.trained.model.neutral_kernels(kernels, grey)
 
     def __call__(self, density, style, scale_structures: float = 1.0, notes: list | None = None,
                  strength: float = 1.0) -> np.ndarray:

@@ -95,6 +95,20 @@ def uniform_albedo_renders(density: np.ndarray, density_scale: float, radiance: 
 MATCH_LEVELS = tuple(np.geomspace(1e-4, 1.0, 17))
 
 
+def uniform_display_response(density: np.ndarray, density_scale: float, radiance: float, views, levels, *,
+                             res: int, spp: int) -> np.ndarray:
+    """``f(a)`` at each of ``levels``: the mean display value of the path-traced foreground (the pixels
+    that see the medium at the top level) of ``density`` with uniform grey albedo ``a``, made monotone
+    against noise. Under a white light every channel renders independently, so ``f`` serves each."""
+    from .display import display
+
+    renders = uniform_albedo_renders(density, density_scale, radiance, views, levels, res=res, spp=spp)
+    mask = renders[-1].max(axis=-1) > FOREGROUND_THRESHOLD
+    if not mask.any():
+        raise ValueError("The medium is not visible from the matching views.")
+    return np.maximum.accumulate([float(display(images[mask]).mean()) for images in renders])
+
+
 def matched_uniform_albedo(density: np.ndarray, density_scale: float, radiance: float, style: np.ndarray, views, *,
                            res: int = 64, spp: int = 16) -> np.ndarray:
     """The uniform RGB albedo ``(3,)`` whose path-traced foreground has the style's mean display colour.
@@ -105,13 +119,7 @@ def matched_uniform_albedo(density: np.ndarray, density_scale: float, radiance: 
     the medium at full albedo); each channel is ``f^{-1}`` of the style's mean in that channel
     (``f`` is monotone; interpolated in log albedo).
     """
-    from .display import display
-
-    renders = uniform_albedo_renders(density, density_scale, radiance, views, MATCH_LEVELS, res=res, spp=spp)
-    mask = renders[-1].max(axis=-1) > FOREGROUND_THRESHOLD
-    if not mask.any():
-        raise ValueError("The medium is not visible from the matching views.")
-    means = np.maximum.accumulate([float(display(images[mask]).mean()) for images in renders])
+    means = uniform_display_response(density, density_scale, radiance, views, MATCH_LEVELS, res=res, spp=spp)
     target = np.asarray(style, dtype=np.float64).reshape(-1, 3).mean(axis=0)
     log_albedo = np.interp(target, means, np.log(MATCH_LEVELS))
     return np.exp(log_albedo).astype(np.float32)

@@ -58,7 +58,9 @@ def use_variant(device: str = "cpu"):
 
 
 def active_variant():
-    """The Mitsuba module in the variant already chosen by ``use_variant``, else in the CPU one.
+    """The Mitsuba module in the variant already chosen by ``use_variant``, else in the one of the
+    ``MISTYLE_DEVICE`` environment variable (``cpu``, the default, or ``cuda``), so a machine without
+    libLLVM can run code that calls this first (``MISTYLE_DEVICE=cuda``).
 
     For code that computes with Mitsuba; scene-dictionary builders use ``require_variant``.
     """
@@ -66,7 +68,10 @@ def active_variant():
 
     if mi.variant() in VARIANTS:
         return mi
-    return use_variant("cpu")
+    device = os.environ.get("MISTYLE_DEVICE", "cpu")
+    if device not in ("cpu", "cuda"):
+        raise ValueError(f"MISTYLE_DEVICE={device!r}: set it to 'cpu' or 'cuda', or unset it (cpu).")
+    return use_variant(device)
 
 
 def require_variant():

@@ -50,6 +50,9 @@ def main(argv=None) -> int:
     smoke.add_argument("--density-scale", type=float, default=20.0, help="extinction scale the cached Ls is made for")
     smoke.add_argument("--directions", type=int, default=128, help="K for the cached Ls")
     smoke.add_argument("--shard", type=_shard, default=(0, 1), help="i/n: this process's share of the plumes")
+    smoke.add_argument("--device", choices=("cpu", "cuda"), default=None,
+                       help="Mitsuba variant of the Ls precompute: cpu (llvm_ad_rgb) or cuda (cuda_ad_rgb); "
+                            "default: $MISTYLE_DEVICE, else cpu")
     smoke.add_argument("--out", type=Path, required=True)
     fire = commands.add_parser("fire", help="simulate a burning plume and write its flame density frames")
     fire.add_argument("--res", type=int, default=64)
@@ -62,6 +65,7 @@ def main(argv=None) -> int:
     styles.add_argument("--seed", type=int, default=0)
     styles.add_argument("--out", type=Path, required=True)
     tiny = commands.add_parser("tiny", help="the tiny fixed dataset for tests and CI (seconds)")
+    tiny.add_argument("--device", choices=("cpu", "cuda"), default=None, help="as for smoke")
     tiny.add_argument("--out", type=Path, required=True)
     mesh = commands.add_parser("mesh", help="voxelize a closed .ply/.obj mesh into a density (.vol or .npy)")
     mesh.add_argument("--mesh", type=Path, default=None, help="closed triangle mesh; default: a generated icosphere")
@@ -75,6 +79,14 @@ def main(argv=None) -> int:
     set_quiet(args.quiet)
     if args.command == "mesh":
         return _mesh_command(args)
+    if getattr(args, "device", None):
+        from ..backend import BackendError, use_variant
+
+        try:
+            use_variant(args.device)
+        except BackendError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
     if args.command == "tiny":
         from .tiny import make_tiny_dataset
 
@@ -112,9 +124,11 @@ def main(argv=None) -> int:
         crop=args.crop, crops_per_frame=args.crops_per_frame, seed=args.seed,
         density_scale=args.density_scale, directions=args.directions,
     )
+    from ..backend import BackendError
+
     try:
         manifest = generate_smoke(spec, args.out, args.shard)
-    except ValueError as error:
+    except (ValueError, BackendError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except OSError as error:

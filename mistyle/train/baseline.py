@@ -33,14 +33,15 @@ GREY = 0.5
 
 
 def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | None, steps: int, style_count: int) -> int:
-    device_for(config)
+    device = device_for(config)  # the layer runs in the variant of the albedo's device: keep tensors there
     network = None
     if checkpoint is not None:  # the network from the checkpoint; data, light and views from --config/--set
         network, trained = model_from_checkpoint(load_checkpoint(checkpoint), checkpoint)
+        network = network.to(device)
         config.model = trained.model
     data = SmokePairs(config.data.smoke, config.data.val_plumes, config.data.make)
     styles = StyleSet(config.data.styles, config.data.style_size)
-    extractor = make_extractor(config.run.extractor, config.run.vgg_weights or None)
+    extractor = make_extractor(config.run.extractor, config.run.vgg_weights or None).to(device)
     print(f"feature extractor: {extractor.name}", file=sys.stderr)
     if network is not None and tuple(extractor.channels) != tuple(config.model.style_channels):
         raise ValueError(f"{checkpoint} was trained with another feature extractor than {extractor.name}; "
@@ -51,7 +52,7 @@ def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | N
     held_out_views = orbit.held_out(4)
     frame = data.load(data.val[len(data.val) // 2])
     prepared = prepare_density(frame["density0"], data.density_scale, ls=frame["ls0"])
-    density = torch.from_numpy(frame["density0"])[None, None]
+    density = torch.from_numpy(frame["density0"])[None, None].to(device)
 
     def layer(albedo, views, seed=0):
         return render_views(albedo, prepared, views, render.image_size, steps=render.steps, radiance=render.radiance)
@@ -59,15 +60,15 @@ def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | N
     def quality(albedo, style_np):
         with torch.no_grad():
             images = layer(albedo, held_out_views)
-        return float(np.mean([style_distance(image.permute(1, 2, 0).numpy(), style_np)["swd"] for image in images]))
+        return float(np.mean([style_distance(image.permute(1, 2, 0).cpu().numpy(), style_np)["swd"] for image in images]))
 
     settings = FitSettings(steps=steps, views_per_step=render.views, tv_weight=config.loss.tv_weight,
                            camera_distance=render.camera_distance)
     rows = []
     for index in styles.comparison_styles(min(style_count, len(styles.val))):
-        style = styles.val[index]
-        style_np = style.permute(1, 2, 0).numpy()
-        grey = torch.full((3,) + prepared.shape, GREY)
+        style = styles.val[index].to(device)
+        style_np = style.permute(1, 2, 0).cpu().numpy()
+        grey = torch.full((3,) + prepared.shape, GREY, device=device)
         row = {"style": styles.val_names[index], "swd_grey": quality(grey, style_np)}
         if network is not None:
             started = time.perf_counter()

@@ -12,9 +12,10 @@ to the uniform baseline (computed once per pair). The benchmark's held-out split
     python experiments/validation_curve.py runs/cpu_sliced/steps --out docs/validation_curve
     python experiments/validation_curve.py a.pt b.pt --res 64 --styles 4        # quicker
 
-Writes ``<out>.jsonl`` (a line per checkpoint and pair), prints a summary line per checkpoint
-(medians over pairs) and draws ``<out>.png`` (median RGB / patch SWD ratios and hue coverage against
-the training step; ``--offset`` adds the steps of the run an ``--init`` started from).
+Writes ``<out>.jsonl`` (a line per checkpoint and pair, with the albedo's density-weighted level and
+spread: ``albedo_statistics``), prints a summary line per checkpoint (medians over pairs) and draws
+``<out>.png`` (median RGB / patch SWD ratios and hue coverage against the training step; ``--offset``
+adds the steps of the run an ``--init`` started from).
 """
 
 from __future__ import annotations
@@ -44,7 +45,10 @@ def main() -> None:
     parser.add_argument("--out", default="docs/validation_curve")
     parser.add_argument("--res", type=int, default=128)
     parser.add_argument("--spp", type=int, default=16)
-    parser.add_argument("--styles", type=int, default=0, help="use only this many validation paintings (0: all)")
+    parser.add_argument("--styles", type=int, default=0, help="use only this many paintings (0: all of the split)")
+    parser.add_argument("--paintings", choices=("validation", "training"), default="validation",
+                        help="score on the held-out validation paintings (choosing checkpoints), or on as many "
+                             "training paintings, evenly spaced (how much of the network's skill carries to unseen styles)")
     parser.add_argument("--offset", type=int, default=0, help="steps trained before the run's --init")
     parser.add_argument("--cache", default="data/heldout")
     args = parser.parse_args()
@@ -56,10 +60,14 @@ def main() -> None:
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style
     from mistyle.model.checkpoint import load_checkpoint
-    from mistyle.train.dataset import validation_paintings
+    from mistyle.train.dataset import training_paintings, validation_paintings
 
     torch.manual_seed(0)
-    paintings = validation_paintings()[: args.styles or None]
+    paintings = validation_paintings()
+    if args.paintings == "training":  # the same number, spread over the (sorted) training paintings
+        seen = training_paintings()
+        paintings = [seen[i] for i in np.linspace(0, len(seen) - 1, len(paintings)).round().astype(int)]
+    paintings = paintings[: args.styles or None]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     rows, baselines = [], {}
@@ -79,8 +87,10 @@ def main() -> None:
                     albedo = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
                     baselines[key] = score(density, albedo, style, views, res=args.res, spp=args.spp,
                                            density_scale=scale, radiance=radiance)[0]
-                metrics, _ = score(density, stylizer(density, style), style, views, res=args.res, spp=args.spp,
+                albedo = stylizer(density, style)
+                metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp,
                                    density_scale=scale, radiance=radiance)
+                metrics.update(albedo_statistics(albedo, density))
                 base = baselines[key]
                 row = {"checkpoint": str(path), "step": step, "density": spec.name, "style": painting.stem, **metrics,
                        "rgb_swd_ratio": metrics["rgb_swd"] / base["rgb_swd"],
@@ -90,11 +100,22 @@ def main() -> None:
         rows += mine
         summary = {"checkpoint": str(path), "step": step, "pairs": len(mine),
                    **{key: float(np.median([r[key] for r in mine]))
-                      for key in ("rgb_swd_ratio", "patch_swd_ratio", "hue_coverage", "rgb_swd", "patch_swd")}}
+                      for key in ("rgb_swd_ratio", "patch_swd_ratio", "hue_coverage", "rgb_swd", "patch_swd", "albedo_level", "albedo_spread")}}
         print(json.dumps(summary), flush=True)
     out.with_suffix(".jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     chart(out.with_suffix(".png"), rows)
     write_index(out.parent, EXPERIMENTS_TITLE)
+
+
+def albedo_statistics(albedo: np.ndarray, density: np.ndarray) -> dict:
+    """The albedo ``(Z, Y, X, 3)`` seen as the medium shows it, each voxel weighted by its density (thin fringes
+    count little): ``albedo_level``, the weighted mean, and ``albedo_spread``, the weighted standard deviation
+    (0 for a uniform albedo), each averaged over R, G and B."""
+    weight = (density / density.sum()).reshape(-1, 1)
+    colours = albedo.reshape(-1, 3)
+    mean = (weight * colours).sum(axis=0)
+    spread = np.sqrt((weight * (colours - mean) ** 2).sum(axis=0))
+    return {"albedo_level": float(mean.mean()), "albedo_spread": float(spread.mean())}
 
 
 def chart(path: Path, rows: list[dict], size=(640, 300)) -> None:

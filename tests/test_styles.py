@@ -104,6 +104,11 @@ def test_no_held_out_style_is_a_training_style(tmp_path):
     val_paintings = {name.rpartition("_")[0] for name in styles.val_names if name.startswith("painting/")}
     assert val_paintings and train_paintings and not val_paintings & train_paintings
     assert len(val_paintings) < 0.25 * len(train_paintings)
+    # The painting files the experiments score on agree with the split the trainer draws from.
+    from mistyle.train.dataset import training_paintings, validation_paintings
+
+    assert {f"painting/{path.stem}" for path in validation_paintings()} == val_paintings
+    assert {f"painting/{path.stem}" for path in training_paintings()} == train_paintings
     train = styles.train.flatten(1)
     for image in styles.val.flatten(1):
         assert not (train == image).all(dim=1).any()

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import pytest
 
 from mistyle.model.config import (
@@ -8,7 +10,7 @@ from mistyle.model.config import (
     to_toml,
 )
 
-CONFIGS = ("configs/tiny.toml", "configs/cpu.toml", "configs/cpu_sliced.toml", "configs/paper.toml")
+CONFIGS = sorted(str(path) for path in (Path(__file__).resolve().parents[1] / "configs").glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", CONFIGS)

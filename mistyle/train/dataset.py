@@ -144,6 +144,14 @@ def validation_paintings() -> list[Path]:
     return [path for path in sorted(PAINTINGS_DIR.glob("*.jpg")) if _held_out_offline(f"painting/{path.stem}_0", {})]
 
 
+def training_paintings() -> list[Path]:
+    """The paintings the offline set trains on (whole pictures): the complement of ``validation_paintings``."""
+    from ..data.styles import PAINTINGS_DIR
+
+    held_out = set(validation_paintings())
+    return [path for path in sorted(PAINTINGS_DIR.glob("*.jpg")) if path not in held_out]
+
+
 def augment_styles(styles: torch.Tensor, rng: np.random.Generator, hue_probability: float) -> torch.Tensor:
     """Styles ``(B, 3, S, S)`` with, each, probability ``hue_probability`` of a random rotation of its hues
     about the grey axis (luminance kept, values clipped to [0, 1]) and an even chance of a mirror image.

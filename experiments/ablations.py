@@ -49,6 +49,8 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(HERE))
 
+from fidelity_core import add_metric_arguments  # found through the sys.path line above
+
 BASE_CONFIG = REPO / "configs" / "ablation.toml"
 EVAL_DENSITIES = ("smoke64", "pyroclastic64")
 EVAL_STYLES = ("hokusai_great_wave", "munch_the_scream", "photo_nasa_carina_pillar", "texture_rusty_metal")
@@ -113,9 +115,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=None, help="training steps per run (default: the config's)")
     parser.add_argument("--runs", type=Path, default=REPO / "runs" / "ablations")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "ablations")
-    parser.add_argument("--res", type=int, default=128, help="metric renders' side")
-    parser.add_argument("--spp", type=int, default=16, help="metric renders' paths per pixel")
-    parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+    add_metric_arguments(parser)
     parser.add_argument("--layer-json", type=Path, default=None, help="claim 8: layer_vs_pathtraced.py's output line")
     parser.add_argument("--rescore", action="store_true",
                         help="score finished runs again (new rows replace old ones in the table)")

@@ -12,6 +12,14 @@ import numpy as np
 METRIC_VIEWS = 3
 
 
+def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:
+    """``--res`` and ``--spp`` of the metric renders and ``--cache`` of the held-out densities: one
+    spelling for every script that scores with ``score``."""
+    parser.add_argument("--res", type=int, default=res, help="metric renders' side")
+    parser.add_argument("--spp", type=int, default=spp, help="metric renders' paths per pixel")
+    parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+
+
 def metric_views(camera_distance: float, count: int = METRIC_VIEWS):
     """``count`` views evenly around the orbit, starting at the held-out view ``--view`` defaults to."""
     from mistyle.conventions import HELD_OUT_VIEW

@@ -39,6 +39,8 @@ from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from fidelity_core import add_metric_arguments  # found through the sys.path line above
+
 ARMS = ("network", "transport s=0", "transport s=2", "defringe", "strength 1.3")
 RESPONSE_LEVELS = tuple(np.geomspace(1e-2, 1.0, 9))
 TRANSPORT_ROUNDS = 12
@@ -50,9 +52,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="docs/output_corrections")
     parser.add_argument("--checkpoint", default=None, help="default: the bundled network")
-    parser.add_argument("--res", type=int, default=128)
-    parser.add_argument("--spp", type=int, default=16)
-    parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+    add_metric_arguments(parser)
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
     if args.quick:

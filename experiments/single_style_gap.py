@@ -41,6 +41,8 @@ from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from fidelity_core import add_metric_arguments  # found through the sys.path line above
+
 CONFIG = "configs/cpu_sliced_finetune.toml"
 COPIES = 20
 
@@ -55,9 +57,7 @@ def main() -> None:
                         help="score this one-style network for STYLE instead of training one (repeatable)")
     parser.add_argument("--runs", default="runs", help="where the one-style runs go (kept: a rerun scores them again)")
     parser.add_argument("--out", default="docs/single_style_gap")
-    parser.add_argument("--res", type=int, default=128)
-    parser.add_argument("--spp", type=int, default=16)
-    parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+    add_metric_arguments(parser)
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
     if args.quick:

@@ -34,11 +34,21 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from fidelity_core import add_metric_arguments  # found through the sys.path line above
 
-def separation_summary(renders: dict, styles: dict) -> dict:
+
+def paintings_apart(styles: dict) -> dict:
+    """``{(a, b): SWD(style_a, style_b)}`` for every unordered pair of names (sorted) of ``styles``: name ->
+    ``(M, 3)`` painting colours. The denominators of the separation, the same for every method."""
+    from mistyle.objective.metrics import sliced_wasserstein
+
+    return {(a, b): sliced_wasserstein(styles[a], styles[b], order=1) for a, b in itertools.combinations(sorted(styles), 2)}
+
+
+def separation_summary(renders: dict, styles: dict, apart: dict) -> dict:
     """``renders``: painting name -> ``(N, 3)`` foreground colours of its render; ``styles``: name ->
-    ``(M, 3)`` painting colours (the same names). Medians of the separation and the own-style preference
-    over the pairs, and every pair."""
+    ``(M, 3)`` painting colours (the same names); ``apart``: ``paintings_apart(styles)``. Medians of the
+    separation and the own-style preference over the pairs, and every pair."""
     from mistyle.objective.metrics import sliced_wasserstein
 
     names = sorted(renders)
@@ -47,10 +57,9 @@ def separation_summary(renders: dict, styles: dict) -> dict:
     to_style = {(a, b): sliced_wasserstein(renders[a], styles[b], order=1) for a in names for b in names}
     pairs = []
     for a, b in itertools.combinations(names, 2):
-        apart = sliced_wasserstein(renders[a], renders[b], order=1)
-        styles_apart = sliced_wasserstein(styles[a], styles[b], order=1)
-        pairs.append({"a": a, "b": b, "renders_apart": apart, "styles_apart": styles_apart,
-                      "separation": apart / styles_apart,
+        renders_apart = sliced_wasserstein(renders[a], renders[b], order=1)
+        pairs.append({"a": a, "b": b, "renders_apart": renders_apart, "styles_apart": apart[(a, b)],
+                      "separation": renders_apart / apart[(a, b)],
                       "a_prefers_own": to_style[(a, a)] < to_style[(a, b)],
                       "b_prefers_own": to_style[(b, b)] < to_style[(b, a)]})
     preference = np.mean([p["a_prefers_own"] for p in pairs] + [p["b_prefers_own"] for p in pairs])
@@ -62,12 +71,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("checkpoints", nargs="*", help="SKPN checkpoints (default: the bundled one)")
     parser.add_argument("--styles", type=int, default=8, help="the first this many validation paintings (0: all 13)")
-    parser.add_argument("--res", type=int, default=128)
-    parser.add_argument("--spp", type=int, default=16)
     parser.add_argument("--no-optimised", action="store_true", help="leave out direct optimisation (a minute per painting)")
     parser.add_argument("--optimise-factor", type=float, default=2, help="as experiments/style_fidelity.py")
     parser.add_argument("--out", default="docs/style_separation")
-    parser.add_argument("--cache", default="data/heldout")
+    add_metric_arguments(parser)
     args = parser.parse_args()
 
     import torch
@@ -112,7 +119,8 @@ def main() -> None:
         print(f"{name}: rendered", flush=True)
 
     colours = {name: style.reshape(-1, 3) for name, style in styles.items()}
-    results = {method: separation_summary(found, colours) for method, found in renders.items()}
+    apart = paintings_apart(colours)
+    results = {method: separation_summary(found, colours, apart) for method, found in renders.items()}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps({"density": VALIDATION_DENSITIES[0].name, "res": args.res, "spp": args.spp,

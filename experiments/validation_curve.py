@@ -31,6 +31,8 @@ from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from fidelity_core import add_metric_arguments  # found through the sys.path line above
+
 
 def checkpoint_files(items: list[str]) -> list[Path]:
     files = []
@@ -43,14 +45,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("checkpoints", nargs="+")
     parser.add_argument("--out", default="docs/validation_curve")
-    parser.add_argument("--res", type=int, default=128)
-    parser.add_argument("--spp", type=int, default=16)
     parser.add_argument("--styles", type=int, default=0, help="use only this many paintings (0: all of the split)")
     parser.add_argument("--paintings", choices=("validation", "training"), default="validation",
                         help="score on the held-out validation paintings (choosing checkpoints), or on as many "
                              "training paintings, evenly spaced (how much of the network's skill carries to unseen styles)")
     parser.add_argument("--offset", type=int, default=0, help="steps trained before the run's --init")
-    parser.add_argument("--cache", default="data/heldout")
+    add_metric_arguments(parser)
     args = parser.parse_args()
 
     import torch

@@ -19,7 +19,7 @@ import torch.nn as nn
 from ..conventions import DEFAULT_DENSITY_SCALE
 from ..io import atomic_output
 from ..scenes.medium import validate_density_scale
-from .config import TrainConfig, config_from_dict
+from .config import TrainConfig, apply_overrides, config_from_dict, config_to_dict
 from .features import extractor_from_name
 from .skpn import SKPN
 
@@ -99,12 +99,27 @@ def load_model(path, vgg_weights=None) -> TrainedModel:
     return TrainedModel(path, model, config, extractor, density_scale)
 
 
-def export_checkpoint(source, destination) -> Path:
+def export_checkpoint(source, destination, overrides: list[str] = (), half: bool = False) -> Path:
     """An inference checkpoint: the weights, config, extractor and provenance of a training checkpoint,
-    without the optimizer state (a third of the size). ``load_model`` and ``mistyle.stylize`` read it."""
+    without the optimizer state (a third of the size). ``load_model`` and ``mistyle.stylize`` read it.
+
+    ``overrides``: ``section.key=value`` changes to the stored config, for settings that act at
+    inference only (e.g. ``model.palette_spread``, chosen on validation after training); a change that
+    no longer fits the weights is a ``ValueError``. ``half``: store the weights as float16 (half the
+    size; they load back into the float32 network)."""
     checkpoint = load_checkpoint(source)
     payload = {key: checkpoint[key] for key in INFERENCE_KEYS if key in checkpoint}
     payload.setdefault("density_scale", DEFAULT_DENSITY_SCALE)
+    if overrides:
+        config = apply_overrides(config_from_dict(checkpoint["config"], where=str(source)), list(overrides))
+        payload["config"] = config_to_dict(config)
+        try:
+            SKPN(config.model).load_state_dict(payload["model"])
+        except RuntimeError:
+            raise ValueError(f"--set {' '.join(overrides)} changes the network {source} holds (its weights no longer fit); "
+                             "an export changes inference settings only, such as model.palette_spread.") from None
+    if half:
+        payload["model"] = {key: value.half() if value.is_floating_point() else value for key, value in payload["model"].items()}
     return save_checkpoint(destination, payload)
 
 

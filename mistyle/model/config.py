@@ -30,9 +30,9 @@ from ..conventions import (
     DEVICES,
     EXTRACTOR_KINDS,
     LAYER_SCHEMES,
-    ORBIT_DISTANCE,
     LOSS_MASKS,
     OBJECTIVES,
+    ORBIT_DISTANCE,
     PRECISIONS,
     STYLE_LOSSES,
     TEMPORAL_GRADIENTS,
@@ -165,6 +165,12 @@ def load_config(path: str | Path | None = None, overrides: list[str] = ()) -> Tr
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
             raise ConfigError(f"Config file {path} is not valid TOML: {error}") from None
         _update(config, table, where=str(path))
+    return apply_overrides(config, overrides)
+
+
+def apply_overrides(config: TrainConfig, overrides: list[str]) -> TrainConfig:
+    """``config`` updated in place by ``section.key=value`` strings (``--set``; the value in TOML
+    syntax, or a bare word for a string), then validated."""
     for override in overrides:
         key, sep, text = override.partition("=")
         if not sep or "." not in key:

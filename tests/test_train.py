@@ -106,7 +106,8 @@ def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
     # --init into the palette head: every weight but the output head's carries over, and the result
     # stylizes through the public API, at part strength too.
     palette = run(tmp_path / "palette", tiny_smoke, "--init", str(out / "best.pt"), "--set", "optim.steps=2",
-                  "--set", 'loss.objective="sliced"', "--set", 'model.style_code="quantiles"', "--set", 'model.head="palette"')
+                  "--set", 'loss.objective="sliced"', "--set", 'loss.mask="body"', "--set", 'model.style_code="quantiles"',
+                  "--set", 'model.head="palette"')
     assert "its direct output head replaced by a new palette head" in palette.stdout + palette.stderr
     import mistyle
 

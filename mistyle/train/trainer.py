@@ -44,7 +44,12 @@ from ..model.features import make_extractor
 from ..model.skpn import HEAD_KEYS, parameter_count
 from ..objective.losses import temporal_loss, tv_loss
 from ..objective.masks import body_mask, render_mask
-from ..objective.metrics import multiview_spread, style_distance, style_fidelity
+from ..objective.metrics import (
+    foreground_mask,
+    multiview_spread,
+    style_distance,
+    style_fidelity,
+)
 from ..objective.style import make_objective
 from ..progress import bar, status
 from ..scenes import CameraPath
@@ -313,7 +318,7 @@ class Trainer:
         style_ids = np.linspace(0, len(self.styles.val) - 1, min(config.run.eval_styles, len(self.styles.val))).round().astype(int)
         views = self.path.held_out(config.run.eval_views)
         self.model.eval()
-        swd, hist, spreads, rows, fidelity = [], [], [], [], []
+        swd, hist, spreads, rows, fidelity, dark = [], [], [], [], [], 0
         for pair in pairs:
             frame = self.data.load(pair)
             density = torch.from_numpy(frame["density0"])[None, None].to(self.device)
@@ -324,19 +329,27 @@ class Trainer:
                 images = self._render(albedo, [prepared], views)[0]
                 style_np = style[0].permute(1, 2, 0).cpu().numpy()
                 renders = [image.permute(1, 2, 0).cpu().numpy() for image in images]
+                rows.append(torch.cat([_fit(style[0], images.shape[-2:]), *tone_map(images)], dim=-1))
+                renders = [render for render in renders if foreground_mask(render).any()]
+                if not renders:  # no pixel bright enough to count as medium: an albedo near black, no colours to compare
+                    dark += 1
+                    continue
                 per_view = [style_distance(render, style_np) for render in renders]
                 fidelity.append(style_fidelity(renders, style_np))
                 swd += [d["swd"] for d in per_view]
                 hist += [d["hist"] for d in per_view]
                 spreads.append(multiview_spread([d["swd"] for d in per_view])["relative_std"])
-                rows.append(torch.cat([_fit(style[0], images.shape[-2:]), *tone_map(images)], dim=-1))
         self.model.train()
         if rows:
             preview = torch.cat(rows, dim=-2).permute(1, 2, 0).clamp(0, 1).cpu().numpy()
             write_png(self.out / "previews" / f"step_{self.step:06d}.png", preview, srgb=False)
             self._tb().add_image("val/preview", preview, self.step, dataformats="HWC")
+        record = {"val_dark_renders": dark} if dark else {}
+        if not fidelity:
+            self.log(f"step {self.step}: every validation render is black (albedo near zero); no validation metrics")
+            return record
         return {"val_swd": float(np.mean(swd)), "val_hist": float(np.mean(hist)), "val_view_spread": float(np.mean(spreads)),
-                **{f"val_{key}": float(np.median([row[key] for row in fidelity])) for key in fidelity[0]}}
+                **{f"val_{key}": float(np.median([row[key] for row in fidelity])) for key in fidelity[0]}, **record}
 
     # ------------------------------------------------------------------ logging
     def _log_record(self, record: dict) -> None:

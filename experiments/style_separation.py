@@ -98,6 +98,7 @@ def main() -> None:
     views = metric_views(config.render.camera_distance)
     density = held_out_density(VALIDATION_DENSITIES[0], args.cache)
     prepared = None if args.no_optimised else prepare_density(density, scale)
+    settings = refinement_settings(config).scaled(args.optimise_factor)
 
     styles = {p.stem: load_style(p) for p in paintings}
     renders: dict[str, dict] = {}
@@ -113,7 +114,6 @@ def main() -> None:
         uniform = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
         keep("uniform", name, uniform)
         if prepared is not None:
-            settings = refinement_settings(config).scaled(args.optimise_factor)
             keep("optimised", name, refine_albedo(density, scale, uniform, style, settings, radiance=radiance,
                                                   prepared=prepared)[0])
         print(f"{name}: rendered", flush=True)

@@ -17,6 +17,8 @@ import re
 import subprocess
 import sys
 
+from .conventions import DEVICES
+
 MIN_LLVM_MAJOR = 17
 VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
 
@@ -69,8 +71,8 @@ def active_variant():
     if mi.variant() in VARIANTS:
         return mi
     device = os.environ.get("MISTYLE_DEVICE", "cpu")
-    if device not in ("cpu", "cuda"):
-        raise ValueError(f"MISTYLE_DEVICE={device!r}: set it to 'cpu' or 'cuda', or unset it (cpu).")
+    if device not in DEVICES:
+        raise ValueError(f"MISTYLE_DEVICE={device!r}: set it to {' or '.join(map(repr, DEVICES))}, or unset it (cpu).")
     return use_variant(device)
 
 

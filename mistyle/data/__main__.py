@@ -15,6 +15,8 @@ import errno
 import sys
 from pathlib import Path
 
+from ..conventions import DEVICES
+
 
 def _shard(text: str) -> tuple[int, int]:
     try:
@@ -50,7 +52,7 @@ def main(argv=None) -> int:
     smoke.add_argument("--density-scale", type=float, default=20.0, help="extinction scale the cached Ls is made for")
     smoke.add_argument("--directions", type=int, default=128, help="K for the cached Ls")
     smoke.add_argument("--shard", type=_shard, default=(0, 1), help="i/n: this process's share of the plumes")
-    smoke.add_argument("--device", choices=("cpu", "cuda"), default=None,
+    smoke.add_argument("--device", choices=DEVICES, default=None,
                        help="Mitsuba variant of the Ls precompute: cpu (llvm_ad_rgb) or cuda (cuda_ad_rgb); "
                             "default: $MISTYLE_DEVICE, else cpu")
     smoke.add_argument("--out", type=Path, required=True)
@@ -65,7 +67,7 @@ def main(argv=None) -> int:
     styles.add_argument("--seed", type=int, default=0)
     styles.add_argument("--out", type=Path, required=True)
     tiny = commands.add_parser("tiny", help="the tiny fixed dataset for tests and CI (seconds)")
-    tiny.add_argument("--device", choices=("cpu", "cuda"), default=None, help="as for smoke")
+    tiny.add_argument("--device", choices=DEVICES, default=None, help="as for smoke")
     tiny.add_argument("--out", type=Path, required=True)
     mesh = commands.add_parser("mesh", help="voxelize a closed .ply/.obj mesh into a density (.vol or .npy)")
     mesh.add_argument("--mesh", type=Path, default=None, help="closed triangle mesh; default: a generated icosphere")

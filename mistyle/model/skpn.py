@@ -272,9 +272,7 @@ class SKPN(nn.Module):
         With ``head="palette"`` the kernels stay and the palette becomes one entry, the display colour
         the head maps to ``grey``: blending adds it to the style's palette with share ``1 - strength``."""
         if self.config.head == "palette":
-            level = min(max(float(grey), 1e-3), 1.0)
-            gamma, scale = float(self.palette_log_gamma.exp()), float(self.palette_log_scale.exp())
-            colour = min((level / scale) ** (1.0 / gamma), 1.0)
+            colour = min(float(self._palette_colour(torch.tensor(min(max(float(grey), 1e-3), 1.0)))), 1.0)
             palette = torch.full((kernels.palette.shape[0], 1, 4), colour).to(kernels.palette)
             palette[..., 3] = 1.0
             return StylizingKernels(kernels.sites, palette)
@@ -347,8 +345,15 @@ class SKPN(nn.Module):
                 mean = ((shares[..., None] * colours).sum(dim=1) / shares.sum(dim=1, keepdim=True).clamp(min=1e-6))
                 mean = mean[..., None, None, None]
                 mixed = mean + self.config.palette_spread * (mixed - mean)
-            albedo = self.palette_log_scale.exp() * mixed.clamp(min=1e-6) ** self.palette_log_gamma.exp()
-            return albedo.clamp(0.0, 1.0)
+            return self._palette_albedo(mixed).clamp(0.0, 1.0)
+
+    def _palette_albedo(self, colour: torch.Tensor) -> torch.Tensor:
+        """The palette head's map from display colour to albedo, ``s c^gamma`` (unclamped)."""
+        return self.palette_log_scale.exp() * colour.clamp(min=1e-6) ** self.palette_log_gamma.exp()
+
+    def _palette_colour(self, albedo: torch.Tensor) -> torch.Tensor:
+        """The inverse of ``_palette_albedo``: the display colour ``(a / s)^(1 / gamma)`` mapped to ``albedo``."""
+        return (albedo / self.palette_log_scale.exp()) ** (1.0 / self.palette_log_gamma.exp())
 
     @torch.no_grad()
     def infer(self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor],

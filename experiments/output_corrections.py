@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mistyle.colour_match import RESPONSE_LEVELS
 from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -42,8 +43,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fidelity_core import add_metric_arguments  # found through the sys.path line above
 
 ARMS = ("network", "transport s=0", "transport s=2", "defringe", "strength 1.3")
-RESPONSE_LEVELS = tuple(np.geomspace(1e-2, 1.0, 9))
-TRANSPORT_ROUNDS = 12
 TRANSPORT_SAMPLES = 16384
 SHEET_PAIRS = 4
 
@@ -124,7 +123,9 @@ def uniform_response(density: np.ndarray, scale: float, radiance: float, view) -
 
 
 def transported(albedo, density, style, response, sigma: float, seed: int = 0) -> np.ndarray:
-    """The ``transport`` arm (module docstring)."""
+    """The ``transport`` arm (module docstring); ``mistyle.colour_match`` is this arm with visibility weights."""
+    from mistyle.colour_match import apply_sliced_transport, fit_sliced_transport
+
     log_levels, shown_levels = response
     shown = np.interp(np.log(np.clip(albedo, RESPONSE_LEVELS[0], 1.0)), log_levels, shown_levels)
     weight = density.astype(np.float64)
@@ -139,27 +140,6 @@ def transported(albedo, density, style, response, sigma: float, seed: int = 0) -
     result = np.array(albedo, dtype=np.float32)
     result[inside] = np.exp(np.interp(np.clip(moved[inside], shown_levels[0], shown_levels[-1]), shown_levels, log_levels))
     return result
-
-
-def fit_sliced_transport(source: np.ndarray, target: np.ndarray, rng) -> list:
-    """Iterated sliced optimal transport of ``source (N, 3)`` onto ``target (M, 3)``: stages ``(d, q_source,
-    q_target)``, each a monotone 1-D map along the unit direction ``d`` between 65 quantiles."""
-    current, levels, stages = source.copy(), np.linspace(0, 1, 65), []
-    for _ in range(TRANSPORT_ROUNDS):
-        basis, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-        for direction in basis.T:
-            stage = (direction, np.quantile(current @ direction, levels), np.quantile(target @ direction, levels))
-            stages.append(stage)
-            current = apply_sliced_transport([stage], current)
-    return stages
-
-
-def apply_sliced_transport(stages: list, colours: np.ndarray) -> np.ndarray:
-    current = colours.copy()
-    for direction, source, target in stages:
-        projected = current @ direction
-        current += (np.interp(projected, source, target) - projected)[:, None] * direction
-    return current
 
 
 def weighted_lowpass(field: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:

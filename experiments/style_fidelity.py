@@ -3,7 +3,9 @@
 
 For every (held-out density, held-out style) pair, four methods, each through the path a user takes:
 
-* ``network``: ``api.Stylizer`` alone (``render_final --refine 0``);
+* ``network``: ``api.Stylizer`` alone (``render_final --refine 0``): the network's arrangement with the
+  style's colours (``mistyle.colour_match``), or with ``--no-colour-match`` the network's albedo as
+  predicted (rows before the colour match, e.g. ``network@b8``, are the latter);
 * ``final``: ``python -m mistyle.render_final`` at its defaults (run in-process; its refined albedo);
 * ``uniform``: the must-beat baseline, one colour whose path-traced mean matches the style's
   (``correct.matched_uniform_albedo``);
@@ -53,6 +55,8 @@ def main() -> None:
     parser.add_argument("--optimise-factor", type=float, default=2)
     parser.add_argument("--checkpoint", default=None, help="SKPN checkpoint for network and final (default: the bundled one)")
     parser.add_argument("--label", default="", help="suffix of the method names of this checkpoint's rows (network@LABEL)")
+    parser.add_argument("--no-colour-match", dest="colour_match", action="store_false",
+                        help="network and final without the colour match (render_final --no-colour-match)")
     parser.add_argument("--out", default="docs/style_fidelity")
     parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
     parser.add_argument("--resume", action="store_true", help="skip pairs already in <out>.jsonl")
@@ -114,7 +118,7 @@ def main() -> None:
             style = load_style(style_path)
             albedos, extra = {}, {}
             started = time.perf_counter()
-            albedos["network"] = stylizer(density, style)
+            albedos["network"] = stylizer(density, style, match_colours=args.colour_match)
             extra["network"] = {"seconds": time.perf_counter() - started}
             if "final" in methods:
                 albedos["final"], extra["final"] = final_albedo(density_path, style_path, args)
@@ -158,6 +162,8 @@ def final_albedo(density_path: Path, style_path: Path, args) -> tuple[np.ndarray
         argv = ["--density", str(density_path), "--style", str(style_path), "--out", str(run_out), "--res", str(args.res)]
         if args.checkpoint:
             argv += ["--checkpoint", str(args.checkpoint)]
+        if not args.colour_match:
+            argv += ["--no-colour-match"]
         if args.quick:
             argv += ["--spp", "4", "--refine", "4", "--refine-path", "1"]
         if render_final.main(argv) != 0:

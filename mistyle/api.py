@@ -169,9 +169,13 @@ class Stylizer:
         return self.trained.model.neutral_kernels(kernels, grey)
 
     def __call__(self, density, style, scale_structures: float = 1.0, notes: list | None = None,
-                 strength: float = 1.0) -> np.ndarray:
+                 strength: float = 1.0, match_colours: bool = True) -> np.ndarray:
         """Albedo ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) of ``density`` for ``style`` (see ``kernels``)
-        at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame)."""
+        at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame).
+
+        ``match_colours``: give the network's arrangement the style's colours (``colour_match``; for a
+        mix, the colours of ``style_target``), moved ``strength`` of the way; a sequence shares the map
+        fitted on its first frame. False: the network's albedo as predicted."""
         from .volume import validate_density
 
         array = np.asarray(density)
@@ -179,8 +183,9 @@ class Stylizer:
         frames = array if sequence else array[None]
         validate_scale_structures(scale_structures)
         validate_strength(strength)
-        inputs = self.kernels(style, notes)
-        albedos = []
+        parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
+        inputs = self.kernels(parts)
+        grids, albedos = [], []
         for index, frame in enumerate(frames):
             grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
             if not grid.any():
@@ -188,7 +193,16 @@ class Stylizer:
                                  "there is no medium to stylize.")
             if index == 0:
                 inputs = self.weakened(inputs, grid, strength)
+            grids.append(grid)
             albedos.append(self._one(grid, inputs, scale_structures))
+        if match_colours and strength > 0:
+            from .colour_match import fit_colour_match
+
+            render = self.config.render
+            match = fit_colour_match(albedos[0], grids[0], style_target([image for image, _ in parts], [w for _, w in parts]),
+                                     density_scale=self.density_scale, radiance=render.radiance,
+                                     camera_distance=render.camera_distance)
+            albedos = [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
         return np.stack(albedos) if sequence else albedos[0]
 
     def _one(self, grid: np.ndarray, inputs, scale_structures: float) -> np.ndarray:
@@ -213,8 +227,9 @@ def _stylizer(checkpoint, device, vgg_weights) -> Stylizer:
 
 
 def stylize(density, style_image, checkpoint=None, scale_structures: float = 1.0, device: str = "cpu",
-            vgg_weights=None, strength: float = 1.0) -> np.ndarray:
-    """Albedo for ``density`` in the look of ``style_image``, feed-forward.
+            vgg_weights=None, strength: float = 1.0, match_colours: bool = True) -> np.ndarray:
+    """Albedo for ``density`` in the look of ``style_image``, feed-forward: the network's arrangement
+    with the style's colours (``colour_match``; no gradient step).
 
     Args:
         density: ``(Z, Y, X)`` or a sequence ``(T, Z, Y, X)``, finite, >= 0, not all zero.
@@ -224,12 +239,14 @@ def stylize(density, style_image, checkpoint=None, scale_structures: float = 1.0
         checkpoint: a ``python -m mistyle.train`` checkpoint; default: the bundled one.
         scale_structures: resample the density by this factor before stylizing (paper Sec. 5.5):
             > 1 makes the style's structures smaller relative to the volume.
+        match_colours: False gives the network's albedo as predicted, without the colour match.
 
     Returns:
         ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) float32 albedo in [0, 1].
     """
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
-    return _stylizer(key, device, vgg_weights)(density, style_image, scale_structures, strength=strength)
+    return _stylizer(key, device, vgg_weights)(density, style_image, scale_structures, strength=strength,
+                                               match_colours=match_colours)
 
 
 def render(density, albedo, view: float = HELD_OUT_VIEW, res: int = 256, spp: int = 64, max_depth: int = -1,

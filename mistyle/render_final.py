@@ -19,7 +19,8 @@ One output per (density, style) pair (``mistyle.batch``): a single pair into ``-
   the density is the voxelized mesh; per frame ``*_frameNNNN.*`` for sequences;
 - ``volume.vdb`` (OpenVDB: ``density`` and the albedo as ``Cd``) when the density came from a
   ``.vdb`` -- with that file's transform, so it drops back into Houdini or Blender -- or with
-  ``--vdb``; ``albedo.npy`` (the network's albedo);
+  ``--vdb``; ``albedo.npy`` (the feed-forward albedo: the network's, with the style's colours unless
+  ``--no-colour-match``);
 - per image ``*.exr`` (linear) and ``*.png`` (the training tone curve) and ``*_network_layer.png``
   (the fast layer's image of the network's albedo under the training light: what the network was
   trained to produce), ``turntable.mp4``/``.gif`` or ``sequence.mp4``/``.gif``;
@@ -33,8 +34,9 @@ predicted stylizing kernels (``api.Stylizer.kernels``); a mix is measured and re
 mosaic of its styles with areas in proportion to the weights (``api.style_target``). By default a
 single frame at full strength is refined against the style (``--refine``: fast-layer steps,
 ``--refine-path``: path-traced steps; ``fit.refine_albedo``), which is what makes the medium take
-on the style's hues and patterns (``docs/style_fidelity.md``); ``--refine 0`` renders the network's
-albedo as predicted. Each output is written into a hidden staging folder beside it that replaces
+on the style's hues and patterns (``docs/style_fidelity.md``); ``--refine 0`` renders the feed-forward
+albedo: the network's arrangement with the style's colours (``mistyle.colour_match``, no gradient
+step; ``--no-colour-match`` keeps the network's own colours). Each output is written into a hidden staging folder beside it that replaces
 it only when complete, so a failed or interrupted run leaves nothing half-written, and a second
 run into the same output is refused while one is in progress. Progress bars (rates, time left)
 appear on a terminal only; ``--quiet`` keeps only errors and the final line.
@@ -113,6 +115,9 @@ def parser() -> argparse.ArgumentParser:
                         f"{DEFAULT_BRICK}; 0: one medium; always 0 with --coat)")
     p.add_argument("--scale-structures", type=float, default=1.0, help="resample the density by f before stylizing")
     p.add_argument("--mesh-res", type=int, default=64, help="voxels along the mesh's longest side")
+    p.add_argument("--no-colour-match", dest="colour_match", action="store_false",
+                   help="keep the network's own colours (default: its arrangement gets the style's colours, "
+                        "mistyle.colour_match)")
     p.add_argument("--correct", choices=CORRECTIONS, default="none",
                    help="calibrate: map the albedo so its multiply-scattered brightness matches single scattering")
     p.add_argument("--refine", type=int, default=None, metavar="STEPS",
@@ -355,7 +360,8 @@ def _inputs_record(job: Job) -> dict:
             "style": job.output.style.describe(), "strength": args.strength, "frames": len(job.densities),
             "shape_zyx": list(job.densities[0].shape), "checkpoint": str(job.stylizer.path), "light": args.light,
             "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": job.density_scale,
-            "coat_ior": args.coat, "scale_structures": args.scale_structures, "correction": args.correct,
+            "coat_ior": args.coat, "scale_structures": args.scale_structures, "colour_match": args.colour_match,
+            "correction": args.correct,
             "refine_steps": job.refine_steps, "refine_path_steps": job.refine_path_steps, "views": len(job.views)}
 
 
@@ -374,7 +380,8 @@ def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
     started = time.perf_counter()
     frames = np.stack(job.densities) if job.sequence else job.densities[0]
     style = job.style_parts if len(job.style_parts) > 1 else job.style_parts[0][0]
-    stylized = job.stylizer(frames, style, job.args.scale_structures, strength=job.args.strength)
+    stylized = job.stylizer(frames, style, job.args.scale_structures, strength=job.args.strength,
+                            match_colours=job.args.colour_match)
     albedos = list(stylized) if job.sequence else [stylized]
     report["stylize_seconds"] = time.perf_counter() - started
     check_finite("The network's albedo of frame", albedos)

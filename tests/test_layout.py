@@ -16,6 +16,7 @@ LAYERS = [
     {"bridge_torch", "reference_torch", "pathtrace"},
     {"model", "objective"},
     {"fit", "correct", "data"},
+    {"colour_match"},
     {"api"},
     {"render_final", "train"},
     {"demo"},

@@ -1,4 +1,7 @@
-"""Style strength and style mixing: both act on the predicted stylizing kernels (``api.Stylizer``)."""
+"""Style strength and style mixing: both act on the predicted stylizing kernels (``api.Stylizer``).
+
+These tests look at the network's albedo (``match_colours=False``); the colour match after it is
+tested in tests/test_colour_match.py."""
 
 import numpy as np
 import pytest
@@ -10,9 +13,22 @@ from mistyle.io import load_style
 from mistyle.model.skpn import SKPN, SKPNConfig, StylizingKernels
 
 
+class NetworkOnly:
+    """The bundled ``Stylizer`` whose calls leave out the colour match."""
+
+    def __init__(self):
+        self.inner = Stylizer()
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    def __call__(self, *args, **kwargs):
+        return self.inner(*args, match_colours=False, **kwargs)
+
+
 @pytest.fixture(scope="module")
 def stylizer():
-    return Stylizer()
+    return NetworkOnly()
 
 
 @pytest.fixture(scope="module")

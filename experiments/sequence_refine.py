@@ -3,7 +3,9 @@
 A held-out smoke plume (``mistyle.data.heldout``'s smoke64 seed) is simulated and ``--frames``
 consecutive frames with their velocities are stylized with the network, then refined three ways:
 
-* ``network``: not refined (``render_final``'s default for sequences);
+* ``network``: not refined (``render_final``'s default for sequences): the network with the colour
+  match, whose map the frames share (``api.Stylizer`` on the whole sequence);
+* ``network alone``: the same without the colour match (``--no-colour-match``);
 * ``independent``: every frame refined on its own from its network albedo (no temporal term);
 * ``coherent``: ``render_final --refine`` on the sequence: each frame starts from the previous
   refined frame warped by its velocity and is held near it by the temporal term.
@@ -32,7 +34,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=4)
     parser.add_argument("--styles", default="hokusai_great_wave,gauguin_te_fare")
     parser.add_argument("--res", type=int, default=128)
-    parser.add_argument("--arms", default="network,independent,coherent")
+    parser.add_argument("--arms", default="network,network alone,independent,coherent")
     parser.add_argument("--temporal-weights", default=None, help="coherent arm: comma-separated weights (default: render_final's)")
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
@@ -64,13 +66,16 @@ def main() -> None:
     styles = held_out_styles()
     for name in args.styles.split(","):
         style = load_style(styles[name]["path"])
-        network = [stylizer(d, style) for d in densities]
-        arms = {"network": network} if "network" in args.arms else {}
-        if "independent" in args.arms:
+        network = list(stylizer(np.stack(densities), style))
+        chosen = args.arms.split(",")
+        arms = {"network": network} if "network" in chosen else {}
+        if "network alone" in chosen:
+            arms["network alone"] = list(stylizer(np.stack(densities), style, match_colours=False))
+        if "independent" in chosen:
             arms["independent"] = [refine_albedo(d, scale, a, style, settings, radiance=radiance)[0]
                                    for d, a in zip(densities, network)]
         weights = [settings.temporal_weight] if args.temporal_weights is None else map(float, args.temporal_weights.split(","))
-        for weight in weights if "coherent" in args.arms else ():
+        for weight in weights if "coherent" in chosen else ():
             coherent, weighted = [], replace(settings, temporal_weight=weight)
             for index, (density, albedo) in enumerate(zip(densities, network)):
                 anchor = None if index == 0 else warp_grid(coherent[-1], velocities[index - 1])

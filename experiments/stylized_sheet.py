@@ -1,8 +1,10 @@
-"""A contact sheet of the shipped network on unseen styles: style | fast layer | path traced, per row.
+"""A contact sheet of the shipped network on unseen styles: style | fast layer | path traced | path traced
+with the colour match, per row.
 
 The bundled 64^3 smoke frame (never trained on) is stylized with each held-out offline style and
 rendered from one orbit view with the fast layer and with ``volpath`` (multiple scattering, the
-training light, the network's albedo as predicted). PNGs use the training tone curve.
+training light), first the network's albedo as predicted, then with the colour match that
+``mistyle.stylize`` applies by default (``mistyle.colour_match``). PNGs use the training tone curve.
 
     python experiments/stylized_sheet.py --out docs/stylized_unseen.png
 """
@@ -45,14 +47,15 @@ def main() -> None:
     rows = []
     for index in picks:
         style = styles.val[index].permute(1, 2, 0).numpy()
-        albedo = stylizer(density, style)
+        albedo = stylizer(density, style, match_colours=False)
         with torch.no_grad():
             layer = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2), prepared, view, args.res,
                                  radiance=config.render.radiance)[0].permute(1, 2, 0).numpy()
-        traced = path_trace(density, albedo, view, res=args.res, spp=args.spp, density_scale=stylizer.density_scale,
-                            light=f"constant:{config.render.radiance}")[0][0]
+        traced = [path_trace(density, grid, view, res=args.res, spp=args.spp, density_scale=stylizer.density_scale,
+                             light=f"constant:{config.render.radiance}")[0][0]
+                  for grid in (albedo, stylizer(density, style))]
         swatch = square_style(style, args.res).permute(1, 2, 0).numpy()
-        rows.append(np.concatenate([swatch, display(layer), display(traced)], axis=1))
+        rows.append(np.concatenate([swatch, display(layer)] + [display(image) for image in traced], axis=1))
         print(styles.val_names[index], flush=True)
     write_png(args.out, np.concatenate(rows, axis=0), srgb=False)
     write_index(args.out.parent, EXPERIMENTS_TITLE)

@@ -175,7 +175,8 @@ class Stylizer:
 
         ``match_colours``: give the network's arrangement the style's colours (``colour_match``; for a
         mix, the colours of ``style_target``), moved ``strength`` of the way; a sequence shares the map
-        fitted on its first frame. False: the network's albedo as predicted."""
+        fitted on its first frame. A medium too thin to be seen keeps the network's colours (said in
+        ``notes``). False: the network's albedo as predicted."""
         from .volume import validate_density
 
         array = np.asarray(density)
@@ -196,13 +197,18 @@ class Stylizer:
             grids.append(grid)
             albedos.append(self._one(grid, inputs, scale_structures))
         if match_colours and strength > 0:
-            from .colour_match import fit_colour_match
+            from .colour_match import InvisibleMedium, fit_colour_match
 
             render = self.config.render
-            match = fit_colour_match(albedos[0], grids[0], style_target([image for image, _ in parts], [w for _, w in parts]),
-                                     density_scale=self.density_scale, radiance=render.radiance,
-                                     camera_distance=render.camera_distance)
-            albedos = [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
+            try:
+                match = fit_colour_match(albedos[0], grids[0], style_target([image for image, _ in parts], [w for _, w in parts]),
+                                         density_scale=self.density_scale, radiance=render.radiance,
+                                         camera_distance=render.camera_distance)
+                albedos = [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
+            except InvisibleMedium:
+                if notes is not None:
+                    notes.append("colour match skipped: the medium is too thin to be seen at this density scale, "
+                                 "so the network's own colours are kept")
         return np.stack(albedos) if sequence else albedos[0]
 
     def _one(self, grid: np.ndarray, inputs, scale_structures: float) -> np.ndarray:

@@ -84,6 +84,10 @@ def apply_sliced_transport(stages: list, colours: np.ndarray) -> np.ndarray:
     return current
 
 
+class InvisibleMedium(ValueError):
+    """The response render sees no medium (a density too thin for its scale): there are no colours to match."""
+
+
 @dataclass
 class ColourMatch:
     """A fitted colour match: the grey response ``f`` (``log_levels`` -> ``shown_levels``) and the transport."""
@@ -111,7 +115,11 @@ class ColourMatch:
 def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray, *, density_scale: float,
                      radiance: float, camera_distance: float, seed: int = 0) -> ColourMatch:
     """The ``ColourMatch`` carrying the colours ``albedo (Z, Y, X, 3)`` shows on ``density (Z, Y, X)``
-    onto ``style (H, W, 3)``'s (module docstring)."""
+    onto ``style (H, W, 3)``'s (module docstring).
+
+    Raises:
+        ValueError: an albedo of another shape than the density's.
+        InvisibleMedium: a medium no pixel of the response render sees, even at albedo 1."""
     from .correct import uniform_display_response
     from .scenes import CameraPath
 
@@ -121,7 +129,10 @@ def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray,
         raise ValueError(f"albedo must be the density's shape plus 3 channels {density.shape + (3,)}, got {albedo.shape}.")
     pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
     view = CameraPath(distance=camera_distance).view(RESPONSE_VIEW)
-    shown_levels = uniform_display_response(density, density_scale, radiance, [view], RESPONSE_LEVELS, res=32, spp=4)
+    try:
+        shown_levels = uniform_display_response(density, density_scale, radiance, [view], RESPONSE_LEVELS, res=32, spp=4)
+    except ValueError as error:  # no pixel sees the medium
+        raise InvisibleMedium(f"{error} The colour match needs a visible medium.") from None
     shown_levels = shown_levels + np.arange(len(shown_levels)) * 1e-9  # strictly increasing, so that it inverts
     match = ColourMatch(np.log(RESPONSE_LEVELS), shown_levels, [])
     weight = visible_weight(density, density_scale).ravel()

@@ -22,8 +22,7 @@ One output per (density, style) pair (``mistyle.batch``): a single pair into ``-
   ``--vdb``; ``albedo.npy`` (the feed-forward albedo: the network's, with the style's colours unless
   ``--no-colour-match``);
 - per image ``*.exr`` (linear) and ``*.png`` (the training tone curve) and ``*_network_layer.png``
-  (the fast layer's image of the network's albedo under the training light: what the network was
-  trained to produce), ``turntable.mp4``/``.gif`` or ``sequence.mp4``/``.gif``;
+  (the fast layer's image of the feed-forward albedo under the training light), ``turntable.mp4``/``.gif`` or ``sequence.mp4``/``.gif``;
 - ``report.json`` with timings and the style metrics of the path-traced images against the style:
   ``rgb_swd``, ``patch_swd`` and ``hue_coverage`` (the fidelity benchmark's,
   ``objective.metrics.style_fidelity``), ``swd_final`` (sliced W2 of colours), ``swd_layer`` (the
@@ -34,12 +33,13 @@ predicted stylizing kernels (``api.Stylizer.kernels``); a mix is measured and re
 mosaic of its styles with areas in proportion to the weights (``api.style_target``). By default a
 single frame at full strength is refined against the style (``--refine``: fast-layer steps,
 ``--refine-path``: path-traced steps; ``fit.refine_albedo``), which is what makes the medium take
-on the style's hues and patterns (``docs/style_fidelity.md``); ``--refine 0`` renders the feed-forward
-albedo: the network's arrangement with the style's colours (``mistyle.colour_match``, no gradient
-step; ``--no-colour-match`` keeps the network's own colours). Each output is written into a hidden staging folder beside it that replaces
-it only when complete, so a failed or interrupted run leaves nothing half-written, and a second
-run into the same output is refused while one is in progress. Progress bars (rates, time left)
-appear on a terminal only; ``--quiet`` keeps only errors and the final line.
+on the style's hues and patterns (``docs/style_fidelity.md``); ``--refine 0`` renders the
+feed-forward albedo: the network's arrangement with the style's colours (``mistyle.colour_match``,
+no gradient step; ``--no-colour-match`` keeps the network's own colours). Each output is written
+into a hidden staging folder beside it that replaces it only when complete, so a failed or
+interrupted run leaves nothing half-written, and a second run into the same output is refused while
+one is in progress. Progress bars (rates, time left) appear on a terminal only; ``--quiet`` keeps
+only errors and the final line.
 """
 
 from __future__ import annotations
@@ -380,7 +380,7 @@ def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
     started = time.perf_counter()
     frames = np.stack(job.densities) if job.sequence else job.densities[0]
     style = job.style_parts if len(job.style_parts) > 1 else job.style_parts[0][0]
-    stylized = job.stylizer(frames, style, job.args.scale_structures, strength=job.args.strength,
+    stylized = job.stylizer(frames, style, job.args.scale_structures, notes=job.notes, strength=job.args.strength,
                             match_colours=job.args.colour_match)
     albedos = list(stylized) if job.sequence else [stylized]
     report["stylize_seconds"] = time.perf_counter() - started

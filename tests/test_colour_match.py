@@ -136,3 +136,17 @@ def test_a_sequence_shares_its_first_frames_map(mi, blob_density):
     sequence = stylizer(frames, style)
     np.testing.assert_allclose(sequence[1], first.apply(network[1], frames[1]), atol=1e-6)
     assert not np.allclose(sequence[1], own.apply(network[1], frames[1]), atol=1e-3)
+
+
+def test_a_medium_too_thin_to_see_keeps_the_networks_colours_with_a_note(mi, blob_density):
+    from mistyle.api import Stylizer
+    from mistyle.colour_match import InvisibleMedium
+
+    faint = (blob_density * 1e-7).astype(np.float32)
+    with pytest.raises(InvisibleMedium, match="needs a visible medium"):
+        fit_colour_match(np.full(faint.shape + (3,), 0.5, np.float32), faint, _two_colour_style(), density_scale=20.0,
+                         radiance=1.0, camera_distance=1.7)
+    stylizer, notes = Stylizer(), []
+    albedo = stylizer(faint, _two_colour_style(), notes=notes)
+    np.testing.assert_array_equal(albedo, stylizer(faint, _two_colour_style(), match_colours=False))
+    assert any("colour match skipped" in note for note in notes)

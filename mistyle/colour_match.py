@@ -1,8 +1,8 @@
 """Colour matching: the network's arrangement, the style's colours (a closed-form stage after the SKPN).
 
 The SKPN decides where colours go in the medium, but it gives every style much the same colours:
-it stores all the styles it trained on in one set of weights (docs/training.md, "Where optimisation's
-lead sits"). This stage keeps the network's arrangement and gives it the style's colours, without a
+it stores all the styles it trained on in one set of weights (docs/training.md, "A colour match
+after the network", measured with experiments/gap_decomposition.py). This stage keeps the network's arrangement and gives it the style's colours, without a
 gradient step or a render of the stylized medium:
 
 1. **Response.** Under a white light every colour channel renders independently, so one sweep of
@@ -11,7 +11,7 @@ gradient step or a render of the stylized medium:
    Each voxel's albedo is mapped to the colour ``f(albedo)`` a medium of that albedo would show.
 2. **Weights.** A voxel counts in proportion to how much of it the orbit's cameras see: its density
    times its mean transmittance from the four horizontal sides of the box (``visible_weight``). On
-   the 13 validation pairs this weighting took the stage from 1.26x to 1.12x direct optimisation's
+   the 13 validation pairs this weighting took the stage from 1.26x to 1.08x direct optimisation's
    RGB SWD, against density weights (median of per-pair ratios).
 3. **Transport.** An iterated sliced optimal transport (Pitie et al. 2007, "Automated colour grading
    using colour distribution transfer") carries the weighted distribution of shown colours onto
@@ -20,9 +20,10 @@ gradient step or a render of the stylized medium:
 4. Each occupied voxel moves by its transport displacement times ``strength`` and maps back through
    ``f^{-1}`` (interpolated in log albedo). Empty voxels keep their albedo.
 
-The map is fitted once (``fit_colour_match``) and is a function of colour only, so a sequence shares
-the first frame's map (``ColourMatch.apply``) and keeps the network's frame-to-frame coherence.
-Everything is seeded: the same inputs give the same albedo.
+The map is fitted once (``fit_colour_match``) and is a function of colour only, so a sequence's
+frames share the first frame's map (``ColourMatch.apply``); the albedo flicker still rises with the
+contrast the match adds (docs/training.md). Everything is seeded: the same inputs give the same
+albedo.
 
 Shapes: density ``(Z, Y, X)``, albedo ``(Z, Y, X, 3)`` in [0, 1], style ``(H, W, 3)`` display values
 in [0, 1].

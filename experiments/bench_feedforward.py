@@ -6,7 +6,7 @@ For each density, after one warm-up call of each, ``--repeats`` alternating call
 predicted inside every call, as users get them); the medians, their difference (the colour match's
 cost) and the load average before and after are printed as one JSON line per density.
 
-    python experiments/bench_feedforward.py                  # smoke64 and the bundled smoke_64.vol, 5 repeats
+    python experiments/bench_feedforward.py                  # smoke64, the bundled smoke_64.vol, smoke128; 5 repeats
     python experiments/bench_feedforward.py --repeats 2
 """
 
@@ -35,8 +35,10 @@ def main() -> None:
 
     stylizer = Stylizer()
     style = load_style(STYLE)
-    densities = {"smoke64": held_out_density({s.name: s for s in HELD_OUT_DENSITIES}["smoke64"], args.cache),
-                 "examples/smoke_64.vol": load_density(ROOT / "examples" / "smoke_64.vol")}
+    specs = {spec.name: spec for spec in HELD_OUT_DENSITIES}
+    densities = {"smoke64": held_out_density(specs["smoke64"], args.cache),
+                 "examples/smoke_64.vol": load_density(ROOT / "examples" / "smoke_64.vol"),
+                 "smoke128": held_out_density(specs["smoke128"], args.cache)}
     for name, density in densities.items():
         load_before = os.getloadavg()[0]
         times = {False: [], True: []}

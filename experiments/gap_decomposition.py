@@ -59,11 +59,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fidelity_core import add_metric_arguments  # found through the sys.path line above
 from output_corrections import transported, uniform_response, weighted_lowpass
 
-from mistyle.colour_match import apply_sliced_transport, fit_sliced_transport
+from mistyle.colour_match import TRANSPORT_SAMPLES, apply_sliced_transport, fit_sliced_transport
 
 ARMS = ("network", "optimised", "net place, opt colours", "opt place, net colours", "opt low-pass 1", "opt low-pass 2",
         "net + opt detail", "opt coarse + net detail", "colour match, density weights", "colour match", "uniform")
-TRANSPORT_SAMPLES = 16384
 SHEET_PAIRS = 4
 ALBEDO_FLOOR = 1e-3
 
@@ -129,7 +128,7 @@ def main() -> None:
                        "net + opt detail": network + (optimised - low["optimised", 1.0]),
                        "opt coarse + net detail": low["optimised", 2.0] + (network - low["network", 2.0]),
                        "colour match, density weights": transported(network, density, style, response, sigma=0.0),
-                       "colour match": stylizer(density, style)}
+                       "colour match": stylizer.match_colours([network], [density], style)[0]}
             albedos = {arm: np.clip(albedo, 0.0, 1.0).astype(np.float32) for arm, albedo in albedos.items()}
             row = {"density": spec.name, "style": painting.stem,
                    "detail_rms": {name: detail_rms(albedo, low[name, 1.0], weight)
@@ -182,8 +181,9 @@ def report(rows: list[dict], out: Path, args) -> None:
         style = load_style(paintings[r["style"]])
         tiles = [(style, r["style"][:18])]
         for name in ("network", "colour match", "optimised"):
-            albedo = (stylizer(density, style) if name == "colour match"
-                      else albedos[r["density"], r["style"]][name].astype(np.float32))
+            stored = albedos[r["density"], r["style"]]
+            albedo = (stylizer.match_colours([stored["network"].astype(np.float32)], [density], style)[0]
+                      if name == "colour match" else stored[name].astype(np.float32))
             _, images = score(density, albedo, style, views[:1], res=args.res, spp=args.spp, density_scale=scale,
                               radiance=radiance)
             middle = albedo.shape[0] // 2  # the slice through the volume's centre, black where there is no medium

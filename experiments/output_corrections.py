@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mistyle.colour_match import RESPONSE_LEVELS
+from mistyle.colour_match import RESPONSE_LEVELS, TRANSPORT_SAMPLES
 from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -43,7 +43,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fidelity_core import add_metric_arguments  # found through the sys.path line above
 
 ARMS = ("network", "transport s=0", "transport s=2", "defringe", "strength 1.3")
-TRANSPORT_SAMPLES = 16384
 SHEET_PAIRS = 4
 
 

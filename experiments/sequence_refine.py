@@ -66,11 +66,12 @@ def main() -> None:
     styles = held_out_styles()
     for name in args.styles.split(","):
         style = load_style(styles[name]["path"])
-        network = list(stylizer(np.stack(densities), style))
+        alone = list(stylizer(np.stack(densities), style, match_colours=False))
+        network = stylizer.match_colours(alone, densities, style)
         chosen = args.arms.split(",")
         arms = {"network": network} if "network" in chosen else {}
         if "network alone" in chosen:
-            arms["network alone"] = list(stylizer(np.stack(densities), style, match_colours=False))
+            arms["network alone"] = alone
         if "independent" in chosen:
             arms["independent"] = [refine_albedo(d, scale, a, style, settings, radiance=radiance)[0]
                                    for d, a in zip(densities, network)]

@@ -53,7 +53,7 @@ def main() -> None:
                                  radiance=config.render.radiance)[0].permute(1, 2, 0).numpy()
         traced = [path_trace(density, grid, view, res=args.res, spp=args.spp, density_scale=stylizer.density_scale,
                              light=f"constant:{config.render.radiance}")[0][0]
-                  for grid in (albedo, stylizer(density, style))]
+                  for grid in (albedo, stylizer.match_colours([albedo], [density], style)[0])]
         swatch = square_style(style, args.res).permute(1, 2, 0).numpy()
         rows.append(np.concatenate([swatch, display(layer)] + [display(image) for image in traced], axis=1))
         print(styles.val_names[index], flush=True)

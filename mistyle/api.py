@@ -197,19 +197,27 @@ class Stylizer:
             grids.append(grid)
             albedos.append(self._one(grid, inputs, scale_structures))
         if match_colours and strength > 0:
-            from .colour_match import InvisibleMedium, fit_colour_match
-
-            render = self.config.render
-            try:
-                match = fit_colour_match(albedos[0], grids[0], style_target([image for image, _ in parts], [w for _, w in parts]),
-                                         density_scale=self.density_scale, radiance=render.radiance,
-                                         camera_distance=render.camera_distance)
-                albedos = [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
-            except InvisibleMedium:
-                if notes is not None:
-                    notes.append("colour match skipped: the medium is too thin to be seen at this density scale, "
-                                 "so the network's own colours are kept")
+            target = style_target([image for image, _ in parts], [weight for _, weight in parts])
+            albedos = self.match_colours(albedos, grids, target, strength, notes)
         return np.stack(albedos) if sequence else albedos[0]
+
+    def match_colours(self, albedos: list, grids: list, target: np.ndarray, strength: float = 1.0,
+                      notes: list | None = None) -> list:
+        """The frames' albedos ``[(Z, Y, X, 3)]`` on ``grids`` with the colours of the picture ``target (H, W, 3)``
+        (``colour_match``), through the map fitted on the first frame, moved ``strength`` of the way. A medium
+        too thin to be seen keeps its albedos (said in ``notes``)."""
+        from .colour_match import InvisibleMedium, fit_colour_match
+
+        render = self.config.render
+        try:
+            match = fit_colour_match(albedos[0], grids[0], target, density_scale=self.density_scale,
+                                     radiance=render.radiance, camera_distance=render.camera_distance)
+        except InvisibleMedium:
+            if notes is not None:
+                notes.append("colour match skipped: the medium is too thin to be seen at this density scale, "
+                             "so the network's own colours are kept")
+            return albedos
+        return [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
 
     def _one(self, grid: np.ndarray, inputs, scale_structures: float) -> np.ndarray:
         import torch

@@ -64,31 +64,37 @@ def measure_calibration(density: np.ndarray, density_scale: float, radiance: flo
     if not mask.any():
         raise ValueError("The medium is not visible from the calibration views.")
     single = float(layer.transpose(0, 2, 3, 1)[mask].mean())
-    multiple = [0.0] + [float(images[mask].mean()) for images in uniform_albedo_renders(
+    multiple = [0.0] + [float(images[mask].mean()) for images in albedo_renders(
         density, density_scale, radiance, views, levels, res=res, spp=spp)]
     multiple = np.maximum.accumulate(np.array(multiple))  # monotone despite noise
     return ScatteringCalibration(np.array((0.0,) + tuple(levels)), multiple, single, time.perf_counter() - started)
 
 
-def uniform_albedo_renders(density: np.ndarray, density_scale: float, radiance: float, views, levels, *,
-                           res: int, spp: int, max_depth: int = -1) -> list[np.ndarray]:
-    """``volpath`` renders ``(V, res, res, 3)`` of ``density`` with a uniform albedo at each of ``levels``
-    (one scene; only the albedo changes between levels)."""
+def albedo_renders(density: np.ndarray, density_scale: float, radiance: float, views, albedos, *, res: int,
+                   spp: int, max_depth: int = -1, batch: bool = False) -> list[np.ndarray]:
+    """``volpath`` renders ``(V, res, res, 3)`` of ``density`` with each albedo of ``albedos`` (grids
+    ``(Z, Y, X, 3)``, or grey levels for a uniform albedo), in one scene: only the albedo changes
+    between renders. ``batch``: all views in one launch (faster, other noise than one sensor each)."""
     from .backend import active_variant
-    from .scenes import LightSpec, albedo_parameter, pathtraced_scene
+    from .scenes import LightSpec, albedo_parameter, pathtraced_scene, split_views
 
     mi = active_variant()
     shape = density.shape
     scene = mi.load_dict(pathtraced_scene(density, np.zeros(shape + (3,), np.float32), views, res=res,
                                           density_scale=density_scale, spp=spp, max_depth=max_depth,
-                                          light=LightSpec("constant", radiance), seed=17))
+                                          light=LightSpec("constant", radiance), seed=17, batch=batch))
     params = mi.traverse(scene)
     albedo_key = albedo_parameter(params)
     renders = []
-    for level in levels:
-        params[albedo_key] = mi.TensorXf(np.full(shape + (3,), level, np.float32))
+    for albedo in albedos:
+        grid = np.broadcast_to(np.asarray(albedo, np.float32), shape + (3,))
+        params[albedo_key] = mi.TensorXf(np.ascontiguousarray(grid))
         params.update()
-        renders.append(np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32) for index in range(len(views))]))
+        if batch:
+            renders.append(split_views(mi.render(scene), len(views)))
+        else:
+            renders.append(np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32)
+                                     for index in range(len(views))]))
     return renders
 
 
@@ -96,17 +102,28 @@ MATCH_LEVELS = tuple(np.geomspace(1e-4, 1.0, 17))
 
 
 def uniform_display_response(density: np.ndarray, density_scale: float, radiance: float, views, levels, *,
-                             res: int, spp: int) -> np.ndarray:
+                             res: int, spp: int, pack_channels: bool = False) -> np.ndarray:
     """``f(a)`` at each of ``levels``: the mean display value of the path-traced foreground (the pixels
     that see the medium at the top level) of ``density`` with uniform grey albedo ``a``, made monotone
-    against noise. Under a white light every channel renders independently, so ``f`` serves each."""
+    against noise. Under a white light every channel renders independently, so ``f`` serves each.
+
+    ``pack_channels``: render three levels at a time, one in each colour channel, for the same
+    expectation from a third of the renders (the noise of the levels in one render is correlated)."""
     from .display import display
 
-    renders = uniform_albedo_renders(density, density_scale, radiance, views, levels, res=res, spp=spp)
-    mask = renders[-1].max(axis=-1) > FOREGROUND_THRESHOLD
+    levels = np.asarray(levels, dtype=np.float64)
+    if pack_channels:
+        count = -(-len(levels) // 3)  # renders; render r holds levels r, r + count, r + 2 count
+        packed = np.concatenate([levels, np.full(3 * count - len(levels), levels[-1])]).reshape(3, count).T
+        renders = albedo_renders(density, density_scale, radiance, views, packed, res=res, spp=spp)
+        per_level = [renders[i % count][..., i // count] for i in range(len(levels))]  # (V, H, W) each
+    else:
+        per_level = albedo_renders(density, density_scale, radiance, views, levels, res=res, spp=spp)
+    top = per_level[-1]
+    mask = (top if pack_channels else top.max(axis=-1)) > FOREGROUND_THRESHOLD
     if not mask.any():
         raise ValueError("The medium is not visible from the matching views.")
-    return np.maximum.accumulate([float(display(images[mask]).mean()) for images in renders])
+    return np.maximum.accumulate([float(display(images[mask]).mean()) for images in per_level])
 
 
 def matched_uniform_albedo(density: np.ndarray, density_scale: float, radiance: float, style: np.ndarray, views, *,

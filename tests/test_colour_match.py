@@ -8,6 +8,7 @@ from mistyle.colour_match import (
     apply_sliced_transport,
     fit_colour_match,
     fit_sliced_transport,
+    quantiles,
     visible_weight,
 )
 
@@ -50,16 +51,16 @@ def _two_colour_style(size: int = 32) -> np.ndarray:
 
 def test_the_match_gives_the_arrangement_the_styles_colours(mi, blob_density):
     """A grey albedo ramp along X on a real density, matched onto a half-red, half-blue style: the
-    visible voxels split into a red and a blue group, each about half of the weight, one at each end
-    of the ramp (the arrangement is kept), and the same inputs give the same albedo."""
+    transport (without the feedback step, which weighs pixels rather than voxels) splits the visible
+    voxels into a red and a blue group, each about half of the weight, one at each end of the ramp
+    (the arrangement is kept); and the same inputs give the same albedo."""
     ramp = np.linspace(0.2, 0.8, blob_density.shape[2], dtype=np.float32)
     albedo = np.broadcast_to(ramp[None, None, :, None], blob_density.shape + (3,)).copy()
     style = _two_colour_style()
     settings = dict(density_scale=20.0, radiance=1.0, camera_distance=1.7)
-    match = fit_colour_match(albedo, blob_density, style, **settings)
-    matched = match.apply(albedo, blob_density)
-    again = fit_colour_match(albedo, blob_density, style, **settings).apply(albedo, blob_density)
-    np.testing.assert_array_equal(matched, again)
+    fed = fit_colour_match(albedo, blob_density, style, **settings).apply(albedo, blob_density)
+    np.testing.assert_array_equal(fed, fit_colour_match(albedo, blob_density, style, **settings).apply(albedo, blob_density))
+    matched = fit_colour_match(albedo, blob_density, style, feedback=False, **settings).apply(albedo, blob_density)
 
     inside = blob_density > 0
     np.testing.assert_array_equal(matched[~inside], albedo[~inside])  # empty voxels keep their albedo
@@ -97,8 +98,9 @@ def test_the_match_refuses_an_albedo_of_another_shape(blob_density):
 
 
 def test_stylize_matches_colours_by_default_and_it_brings_the_render_closer_to_the_style(mi):
-    """The bundled network on a held-out smoke and painting, path traced: the colour match lowers the
-    RGB sliced Wasserstein distance to the painting; ``match_colours=False`` is the network alone."""
+    """The bundled network on a held-out smoke and painting, path traced from views the feedback render
+    does not use: the colour match lowers the RGB sliced Wasserstein distance to the painting, and
+    its feedback step lowers it further; ``match_colours=False`` is the network alone."""
     from pathlib import Path
 
     import mistyle
@@ -113,12 +115,16 @@ def test_stylize_matches_colours_by_default_and_it_brings_the_render_closer_to_t
     network = stylizer(density, style, match_colours=False)
     matched = mistyle.stylize(density, style)
     assert not np.allclose(network, matched)
+    unfed = fit_colour_match(network, density, style, density_scale=stylizer.density_scale,
+                             radiance=stylizer.config.render.radiance,
+                             camera_distance=stylizer.config.render.camera_distance, feedback=False)
     scores = {}
-    for name, albedo in (("network", network), ("matched", matched)):
+    for name, albedo in (("network", network), ("matched", matched), ("no feedback", unfed.apply(network, density))):
         images = [mistyle.render(density, albedo, view=view, res=48, spp=8, density_scale=stylizer.density_scale)
                   for view in (0.1, 0.45)]
         scores[name] = style_fidelity(np.stack(images), style)["rgb_swd"]
     assert scores["matched"] < 0.8 * scores["network"], scores
+    assert scores["matched"] < 0.9 * scores["no feedback"], scores
 
 
 def test_a_sequence_shares_its_first_frames_map(mi, blob_density):
@@ -150,3 +156,41 @@ def test_a_medium_too_thin_to_see_keeps_the_networks_colours_with_a_note(mi, blo
     albedo = stylizer(faint, _two_colour_style(), notes=notes)
     np.testing.assert_array_equal(albedo, stylizer(faint, _two_colour_style(), match_colours=False))
     assert any("colour match skipped" in note for note in notes)
+
+
+def test_quantiles_are_numpys():
+    values = np.random.default_rng(3).normal(size=1001)
+    levels = np.linspace(0, 1, 65)
+    np.testing.assert_allclose(quantiles(values, levels), np.quantile(values, levels), rtol=0, atol=1e-12)
+
+
+def test_apply_is_the_map_voxel_by_voxel():
+    """``apply`` (evaluated once per distinct colour) against the map written out for each voxel."""
+    from mistyle.colour_match import ColourMatch
+
+    rng = np.random.default_rng(5)
+    levels = np.linspace(0.05, 0.9, 9)
+    stages = fit_sliced_transport(rng.uniform(0.1, 0.5, size=(400, 3)), rng.uniform(0.2, 0.9, size=(400, 3)), rng, rounds=3)
+    match = ColourMatch(np.log(RESPONSE_LEVELS), levels, tuple(stages))
+    albedo = rng.choice([0.02, 0.1, 0.3, 0.7], size=(6, 5, 4, 3)).astype(np.float32)  # colours repeat
+    albedo[0, 0, 0] = [0.123, 0.456, 0.789]
+    density = rng.uniform(-0.5, 1.0, size=(6, 5, 4))
+    inside = density > 0
+    shown = match.shown(albedo[inside].astype(np.float64))
+    moved = np.clip(shown + 0.7 * (apply_sliced_transport(stages, shown) - shown), levels[0], levels[-1])
+    expected = albedo.copy()
+    expected[inside] = np.exp(np.interp(moved, levels, np.log(RESPONSE_LEVELS)))
+    np.testing.assert_allclose(match.apply(albedo, density, 0.7), expected, rtol=1e-6)
+
+
+def test_three_levels_a_render_give_the_same_response(mi, blob_density):
+    """Packing three grey levels into the colour channels of one render changes the response by no more
+    than its noise (the channels render independently under a white light)."""
+    from mistyle.correct import uniform_display_response
+    from mistyle.scenes import CameraPath
+
+    view = [CameraPath(distance=1.7).view(0.0)]
+    one = uniform_display_response(blob_density, 20.0, 1.0, view, RESPONSE_LEVELS, res=32, spp=4)
+    packed = uniform_display_response(blob_density, 20.0, 1.0, view, RESPONSE_LEVELS, res=32, spp=4, pack_channels=True)
+    np.testing.assert_allclose(packed, one, atol=0.01)
+    assert np.all(np.diff(packed) > 0)

@@ -43,7 +43,10 @@ in [0, 1].
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -55,6 +58,8 @@ TRANSPORT_ROUNDS = 12
 TRANSPORT_QUANTILES = 65
 TRANSPORT_SAMPLES = 16384
 """Voxels (drawn by weight) and style pixels the transport is fitted on."""
+PARALLEL_CHUNK = 20000
+"""Colours per thread below which ``apply_sliced_transport`` stays on one thread."""
 FEEDBACK_VIEWS = 8
 """Views of the feedback render, evenly around the orbit from position 0."""
 FEEDBACK_RES = 32
@@ -104,8 +109,18 @@ def quantiles(values: np.ndarray, levels: np.ndarray) -> np.ndarray:
 
 
 def apply_sliced_transport(stages: list, colours: np.ndarray) -> np.ndarray:
-    """``colours (N, 3)`` carried through ``stages`` (``fit_sliced_transport``)."""
+    """``colours (N, 3)`` carried through ``stages`` (``fit_sliced_transport``). Each colour moves on its
+    own, so a long list is split into consecutive chunks carried on one thread per core (numpy
+    releases the interpreter lock in these loops)."""
     current = np.array(colours, dtype=np.float64)
+    workers = min(os.cpu_count() or 1, len(current) // PARALLEL_CHUNK)
+    if workers < 2:
+        return _carried(stages, current)
+    with ThreadPoolExecutor(workers) as pool:
+        return np.concatenate(list(pool.map(partial(_carried, stages), np.array_split(current, workers))))
+
+
+def _carried(stages: list, current: np.ndarray) -> np.ndarray:
     for direction, source, target in stages:
         projected = current @ direction
         current += (np.interp(projected, source, target) - projected)[:, None] * direction
@@ -119,11 +134,15 @@ class InvisibleMedium(ValueError):
 @dataclass(frozen=True)
 class ColourMatch:
     """A fitted colour match: the grey response ``f`` (``log_levels`` -> ``shown_levels``) and the transport
-    stages (``fit_sliced_transport``), in shown colour."""
+    stages (``fit_sliced_transport``), in shown colour. ``resume``, when given, is ``(colours (M, 3),
+    carried (M, 3), k)``: the distinct colours of the albedo the match was fitted on and their shown
+    colours carried through the first ``k`` stages, which the fit already computed; ``apply`` on that
+    albedo goes on from there (the same result, fewer stages to run)."""
 
     log_levels: np.ndarray
     shown_levels: np.ndarray
     stages: tuple
+    resume: tuple | None = field(default=None, compare=False, repr=False)
 
     def shown(self, albedo: np.ndarray) -> np.ndarray:
         """``f(albedo)`` per channel."""
@@ -133,14 +152,21 @@ class ColourMatch:
         """``albedo (Z, Y, X, 3)`` with every voxel where ``density > 0`` moved ``strength`` of the way
         along its transport displacement (module docstring); float32. The map is a function of colour,
         so it is evaluated once per distinct colour (a network's bfloat16 output repeats many)."""
+        return self.applied(albedo, density, strength)[0]
+
+    def applied(self, albedo: np.ndarray, density: np.ndarray, strength: float = 1.0) -> tuple[np.ndarray, tuple]:
+        """``apply``'s albedo, and the ``resume`` tuple of that albedo through all the stages."""
         result = np.array(albedo, dtype=np.float32)
         inside = np.asarray(density) > 0
         colours, voxel_colour = distinct_colours(result[inside])
         shown = self.shown(colours.astype(np.float64))
-        moved = shown + float(strength) * (apply_sliced_transport(self.stages, shown) - shown)
-        moved = np.clip(moved, self.shown_levels[0], self.shown_levels[-1])
+        carried, done = shown, 0
+        if self.resume is not None and np.array_equal(self.resume[0], colours):
+            _, carried, done = self.resume
+        carried = apply_sliced_transport(self.stages[done:], carried)
+        moved = np.clip(shown + float(strength) * (carried - shown), self.shown_levels[0], self.shown_levels[-1])
         result[inside] = np.exp(np.interp(moved, self.shown_levels, self.log_levels))[voxel_colour]
-        return result
+        return result, (colours, carried, len(self.stages))
 
 
 def distinct_colours(colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -192,11 +218,12 @@ def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray,
     match = replace(match, stages=tuple(fit_sliced_transport(source, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng)))
     if feedback:
         views = orbit.turntable(FEEDBACK_VIEWS)
-        (renders,) = albedo_renders(density, density_scale, radiance, views, [match.apply(albedo, density)],
+        transported, resume = match.applied(albedo, density)
+        (renders,) = albedo_renders(density, density_scale, radiance, views, [transported],
                                     res=FEEDBACK_RES, spp=FEEDBACK_SPP, batch=True)
         rendered = display(renders[renders.max(axis=-1) > FOREGROUND_THRESHOLD]).astype(np.float64)
         if len(rendered):  # the response saw the medium; a render of darker albedos may not
             stages = fit_sliced_transport(rendered, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng,
                                           rounds=FEEDBACK_ROUNDS)
-            match = replace(match, stages=match.stages + tuple(stages))
+            match = replace(match, stages=match.stages + tuple(stages), resume=resume)
     return match

@@ -194,3 +194,16 @@ def test_three_levels_a_render_give_the_same_response(mi, blob_density):
     packed = uniform_display_response(blob_density, 20.0, 1.0, view, RESPONSE_LEVELS, res=32, spp=4, pack_channels=True)
     np.testing.assert_allclose(packed, one, atol=0.01)
     assert np.all(np.diff(packed) > 0)
+
+
+def test_apply_resumes_from_the_fit_with_the_same_result(mi, blob_density):
+    """On the albedo it was fitted on, ``apply`` goes on from the colours the fit carried through the
+    first stages; the result is the one the whole map gives from the start, to the bit."""
+    from dataclasses import replace
+
+    albedo = np.random.default_rng(2).uniform(0.05, 0.9, size=blob_density.shape + (3,)).astype(np.float32)
+    match = fit_colour_match(albedo, blob_density, _two_colour_style(), density_scale=20.0, radiance=1.0,
+                             camera_distance=1.7)
+    assert match.resume is not None and 0 < match.resume[2] < len(match.stages)
+    np.testing.assert_array_equal(match.apply(albedo, blob_density, 0.8),
+                                  replace(match, resume=None).apply(albedo, blob_density, 0.8))

@@ -55,10 +55,12 @@ def main() -> None:
     from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
     from mistyle.train.dataset import validation_paintings
 
-    references = {(r["density"], r["style"]): r for r in map(json.loads, Path(args.reference).read_text().splitlines())}
+    lines = Path(args.reference).read_text().splitlines()
+    references = {(r["density"], r["style"]): r for r in map(json.loads, lines)}
     stylizer = Stylizer()
     render = stylizer.config.render
-    settings = dict(density_scale=stylizer.density_scale, radiance=render.radiance, camera_distance=render.camera_distance)
+    settings = dict(density_scale=stylizer.density_scale, radiance=render.radiance,
+                    camera_distance=render.camera_distance)
     views = metric_views(render.camera_distance)
     out = Path(args.out)
     rows, sheet = [], []
@@ -67,7 +69,8 @@ def main() -> None:
         for painting in validation_paintings():
             reference = references.get((spec.name, painting.stem))
             if reference is None:
-                raise SystemExit(f"{args.reference} has no row for {spec.name} x {painting.stem}: run gap_decomposition.py first.")
+                raise SystemExit(f"{args.reference} has no row for {spec.name} x {painting.stem}: "
+                                 "run gap_decomposition.py first.")
             style = load_style(painting)
             network = stylizer(density, style, match_colours=False)
             row = {"density": spec.name, "style": painting.stem,
@@ -75,7 +78,8 @@ def main() -> None:
             tiles = [(style, painting.stem[:18])]
             for arm, feedback in ARMS.items():
                 started = time.perf_counter()
-                albedo = fit_colour_match(network, density, style, feedback=feedback, **settings).apply(network, density)
+                match = fit_colour_match(network, density, style, feedback=feedback, **settings)
+                albedo = match.apply(network, density)
                 seconds = time.perf_counter() - started
                 row[arm], images = score(density, albedo, style, views, res=args.res, spp=args.spp,
                                          density_scale=stylizer.density_scale, radiance=render.radiance)

@@ -8,7 +8,8 @@ a grey response sweep and one low-resolution render of the matched medium.
 
 1. **Response.** Under a white light every colour channel renders independently, so one sweep of
    uniform grey albedos ``a`` (``RESPONSE_LEVELS``, path traced with ``volpath`` from one view, three
-   levels a render, one in each channel) gives ``f(a)``: the mean display value of the medium's foreground (``correct.uniform_display_response``).
+   levels a render, one in each channel) gives ``f(a)``: the mean display value of the medium's
+   foreground (``correct.uniform_display_response``).
    Each voxel's albedo is mapped to the colour ``f(albedo)`` a medium of that albedo would show.
 2. **Weights.** A voxel counts in proportion to how much of it the orbit's cameras see: its density
    times its mean transmittance from the four horizontal sides of the box (``visible_weight``). On
@@ -170,8 +171,8 @@ class ColourMatch:
 
 
 def distinct_colours(colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct rows of ``colours (N, 3)`` (float32, non-negative), sorted by red, then green, then blue, and each row's index
-    among them: ``(distinct (M, 3), index (N,))``.
+    """The distinct rows of ``colours (N, 3)`` (float32, non-negative), sorted by red, then green, then
+    blue, and each row's index among them: ``(distinct (M, 3), index (N,))``.
 
     The order is what makes a map cheap to evaluate on them: neighbours in it have near projections,
     which ``np.interp``'s search exploits (about four times faster than in voxel order)."""
@@ -215,7 +216,8 @@ def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray,
     voxels = rng.choice(weight.size, TRANSPORT_SAMPLES, p=weight / weight.sum())
     match = ColourMatch(np.log(RESPONSE_LEVELS), shown_levels, ())
     source = match.shown(albedo.reshape(-1, 3)[voxels].astype(np.float64))
-    match = replace(match, stages=tuple(fit_sliced_transport(source, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng)))
+    stages = fit_sliced_transport(source, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng)
+    match = replace(match, stages=tuple(stages))
     if feedback:
         views = orbit.turntable(FEEDBACK_VIEWS)
         transported, resume = match.applied(albedo, density)

@@ -59,7 +59,8 @@ def test_the_match_gives_the_arrangement_the_styles_colours(mi, blob_density):
     style = _two_colour_style()
     settings = dict(density_scale=20.0, radiance=1.0, camera_distance=1.7)
     fed = fit_colour_match(albedo, blob_density, style, **settings).apply(albedo, blob_density)
-    np.testing.assert_array_equal(fed, fit_colour_match(albedo, blob_density, style, **settings).apply(albedo, blob_density))
+    again = fit_colour_match(albedo, blob_density, style, **settings).apply(albedo, blob_density)
+    np.testing.assert_array_equal(fed, again)
     matched = fit_colour_match(albedo, blob_density, style, feedback=False, **settings).apply(albedo, blob_density)
 
     inside = blob_density > 0
@@ -170,7 +171,8 @@ def test_apply_is_the_map_voxel_by_voxel():
 
     rng = np.random.default_rng(5)
     levels = np.linspace(0.05, 0.9, 9)
-    stages = fit_sliced_transport(rng.uniform(0.1, 0.5, size=(400, 3)), rng.uniform(0.2, 0.9, size=(400, 3)), rng, rounds=3)
+    stages = fit_sliced_transport(rng.uniform(0.1, 0.5, size=(400, 3)), rng.uniform(0.2, 0.9, size=(400, 3)), rng,
+                                  rounds=3)
     match = ColourMatch(np.log(RESPONSE_LEVELS), levels, tuple(stages))
     albedo = rng.choice([0.02, 0.1, 0.3, 0.7], size=(6, 5, 4, 3)).astype(np.float32)  # colours repeat
     albedo[0, 0, 0] = [0.123, 0.456, 0.789]

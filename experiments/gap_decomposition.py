@@ -20,6 +20,8 @@ taken apart and put together again, each arm scored like the benchmark (``fideli
   (``mistyle.colour_match``, what ``mistyle.stylize`` does by default); ``colour match, density
   weights``: the same with every voxel counted by its density rather than by how much of it the
   cameras see (``output_corrections.py``'s ``transport s=0`` arm).
+  The committed ``docs/gap_decomposition.md`` predates the colour match's feedback step, which this
+  arm now includes; ``colour_match_feedback.py`` compares the two on the same pairs.
 
 
 Each row also records ``detail_rms``: the density-weighted RMS of each albedo's detail finer than one

@@ -95,6 +95,64 @@ def test_averaged_checkpoints_hold_the_mean_weights_and_refuse_other_architectur
         average_checkpoints([tmp_path / "a.pt", tmp_path / "wide.pt"], tmp_path / "bad.pt")
 
 
+def _training_checkpoint(path, model_table: dict | None = None):
+    """A training checkpoint of a tiny SKPN; ``model_table`` replaces the stored config's [model] table."""
+    from mistyle.model.checkpoint import CHECKPOINT_FORMAT, save_checkpoint
+    from mistyle.model.config import TrainConfig, config_to_dict
+
+    torch.manual_seed(0)
+    model = SKPN(SKPNConfig(**TINY))
+    config = TrainConfig()
+    config.model = model.config
+    table = config_to_dict(config)
+    if model_table is not None:
+        table["model"] = model_table
+    save_checkpoint(path, {"format": CHECKPOINT_FORMAT, "mistyle_version": "test", "step": 7, "config": table,
+                           "extractor": "filterbank", "model": model.state_dict(), "optimizer": {}})
+    return model, table
+
+
+def test_export_sets_a_setting_and_halves_the_weights(tmp_path):
+    from mistyle.model.checkpoint import export_checkpoint, load_checkpoint, model_from_checkpoint
+    from mistyle.train.export import main
+
+    source = tmp_path / "run.pt"
+    model, _ = _training_checkpoint(source)
+    exported = export_checkpoint(source, tmp_path / "out.pt", ["data.style_size=96"], half=True)
+    checkpoint = load_checkpoint(exported)
+    assert "optimizer" not in checkpoint and checkpoint["config"]["data"]["style_size"] == 96
+    assert all(v.dtype == torch.float16 for v in checkpoint["model"].values() if v.is_floating_point())
+    loaded, loaded_config = model_from_checkpoint(checkpoint, exported)
+    assert loaded_config.data.style_size == 96
+    torch.testing.assert_close(loaded.decoder[2].weight, model.decoder[2].weight, rtol=1e-3, atol=1e-4)
+    with pytest.raises(ValueError, match="weights no longer fit"):
+        export_checkpoint(source, tmp_path / "bad.pt", ["model.widths=[2, 4, 4]"])
+    with pytest.raises(ValueError, match="data.style_size must be >= 16"):
+        export_checkpoint(source, tmp_path / "bad.pt", ["data.style_size=8"])
+    assert not (tmp_path / "bad.pt").exists()
+    with pytest.raises(SystemExit, match="take one source"):
+        main(["--half", str(source), str(exported), str(tmp_path / "avg.pt")])
+
+
+def test_checkpoints_from_before_the_palette_heads_removal_load_and_a_palette_network_is_refused(tmp_path):
+    """The stored [model] table of a checkpoint written while the palette head existed names ``head`` and
+    ``palette_spread``: at their old defaults they load as before; a palette-head network is refused,
+    naming the decision record and a commit that still has its code."""
+    from mistyle.model.checkpoint import export_checkpoint, load_checkpoint, model_from_checkpoint
+
+    table = {**_training_checkpoint(tmp_path / "plain.pt")[1]["model"], "head": "direct", "palette_spread": 1.0}
+    model, _ = _training_checkpoint(tmp_path / "old.pt", table)
+    loaded, config = model_from_checkpoint(load_checkpoint(tmp_path / "old.pt"), tmp_path / "old.pt")
+    assert not hasattr(config.model, "head")
+    for key, value in model.state_dict().items():
+        torch.testing.assert_close(loaded.state_dict()[key], value)
+    _training_checkpoint(tmp_path / "palette.pt", {**table, "head": "palette", "palette_spread": 1.5})
+    with pytest.raises(ValueError, match="palette output head was removed.*palette-head-removed.md.*20ba671"):
+        model_from_checkpoint(load_checkpoint(tmp_path / "palette.pt"), tmp_path / "palette.pt")
+    with pytest.raises(ValueError, match="model.palette_spread = 1.5: the palette output head was removed"):
+        export_checkpoint(tmp_path / "old.pt", tmp_path / "bad.pt", ["model.palette_spread=1.5"])
+
+
 def test_occupied_window_keeps_the_stride_alignment_and_a_margin():
     from mistyle.model.skpn import occupied_window
 

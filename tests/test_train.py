@@ -103,20 +103,12 @@ def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
     assert records(again)[0]["step"] == 0 and abs(records(again)[0]["val_rgb_swd"] - best) < 1e-4
     clash = run(tmp_path / "clash", tiny_smoke, "--init", str(out / "best.pt"), "--resume", check=False)
     assert clash.returncode == 2 and "give one of them" in clash.stderr
-    # --init into the palette head: every weight but the output head's carries over, and the result
-    # stylizes through the public API, at part strength too.
-    palette = run(tmp_path / "palette", tiny_smoke, "--init", str(out / "best.pt"), "--set", "optim.steps=2",
-                  "--set", 'loss.objective="sliced"', "--set", 'loss.mask="body"', "--set", 'model.style_code="quantiles"',
-                  "--set", 'model.head="palette"')
-    assert "its direct output head replaced by a new palette head" in palette.stdout + palette.stderr
-    import mistyle
-
-    density = np.zeros((16, 16, 16), np.float32)
-    density[4:12, 4:12, 4:12] = 1.0
-    style = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
-    for strength in (1.0, 0.5):
-        albedo = mistyle.stylize(density, style, checkpoint=tmp_path / "palette" / "final.pt", strength=strength)
-        assert albedo.shape == (16, 16, 16, 3) and np.isfinite(albedo).all() and 0 <= albedo.min() <= albedo.max() <= 1
+    # --init from a palette-head network (that head was removed): refused, naming a commit that has it.
+    palette = torch.load(out / "best.pt", weights_only=True)
+    palette["config"]["model"]["head"] = "palette"
+    torch.save(palette, tmp_path / "palette.pt")
+    refused = run(tmp_path / "refused", tiny_smoke, "--init", str(tmp_path / "palette.pt"), check=False)
+    assert refused.returncode == 2 and "the palette output head was removed" in refused.stderr
 
 
 def _kill_after(out, smoke, step, sig, *extra):

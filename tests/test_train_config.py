@@ -52,6 +52,18 @@ def test_bad_overrides_name_the_key(override, message):
         load_config("configs/tiny.toml", [override])
 
 
+def test_the_removed_palette_heads_keys_load_at_their_old_defaults_and_refuse_the_palette_head(tmp_path):
+    old = tmp_path / "old.toml"
+    old.write_text('[model]\nhead = "direct"\npalette_spread = 1.0\nkernels = 2\n')
+    config = load_config(old, ["model.head=direct"])
+    assert config.model.kernels == 2 and "head" not in config_to_dict(config)["model"]
+    assert config_to_dict(config_from_dict({"model": {"head": "direct", "palette_spread": 1}})) == config_to_dict(
+        config_from_dict({}))
+    for override in ('model.head="palette"', "model.palette_spread=1.5", 'model.head="rgb"'):
+        with pytest.raises(ConfigError, match="the palette output head was removed .*20ba671"):
+            load_config(old, [override])
+
+
 def test_bad_files(tmp_path):
     with pytest.raises(ConfigError, match="does not exist"):
         load_config(tmp_path / "missing.toml")

@@ -103,10 +103,9 @@ def export_checkpoint(source, destination, overrides: list[str] = (), half: bool
     """An inference checkpoint: the weights, config, extractor and provenance of a training checkpoint,
     without the optimizer state (a third of the size). ``load_model`` and ``mistyle.stylize`` read it.
 
-    ``overrides``: ``section.key=value`` changes to the stored config, for settings that act at
-    inference only (e.g. ``model.palette_spread``, chosen on validation after training); a change that
-    no longer fits the weights is a ``ValueError``. ``half``: store the weights as float16 (half the
-    size; they load back into the float32 network)."""
+    ``overrides``: ``section.key=value`` changes to the stored config, for settings that leave the
+    network's weights as they are; a change that no longer fits the weights is a ``ValueError``.
+    ``half``: store the weights as float16 (half the size; they load back into the float32 network)."""
     checkpoint = load_checkpoint(source)
     payload = {key: checkpoint[key] for key in INFERENCE_KEYS if key in checkpoint}
     payload.setdefault("density_scale", DEFAULT_DENSITY_SCALE)
@@ -117,7 +116,7 @@ def export_checkpoint(source, destination, overrides: list[str] = (), half: bool
             SKPN(config.model).load_state_dict(payload["model"])
         except RuntimeError:
             raise ValueError(f"--set {' '.join(overrides)} changes the network {source} holds (its weights no longer fit); "
-                             "an export changes inference settings only, such as model.palette_spread.") from None
+                             "an export may change only settings that leave the weights as they are.") from None
     if half:
         payload["model"] = {key: value.half() if value.is_floating_point() else value for key, value in payload["model"].items()}
     return save_checkpoint(destination, payload)

@@ -45,6 +45,23 @@ class ConfigError(ValueError):
     """A config file or ``--set`` override that cannot be used as given."""
 
 
+PALETTE_HEAD_REMOVED = ("the palette output head was removed from the package "
+                        "(docs/decisions/2026-12-01-palette-head-removed.md); its code is available in git history "
+                        "before the commit that removed it, e.g. 20ba671")
+RETIRED_MODEL_KEYS = {"head": "direct", "palette_spread": 1.0}
+"""[model] keys of the removed palette head, with the value each held for the network that remains: configs and
+checkpoints written while the head existed store them, and load as before with that value."""
+
+
+def drop_retired_model_keys(table: dict, where: str) -> dict:
+    """``table`` (a [model] table) without ``RETIRED_MODEL_KEYS`` at their old values; ``ConfigError`` for any
+    other value of them (a palette-head network, which this version cannot build)."""
+    for key, kept in RETIRED_MODEL_KEYS.items():
+        if key in table and (isinstance(table[key], bool) or table[key] != kept):
+            raise ConfigError(f"{where}: model.{key} = {table[key]!r}: {PALETTE_HEAD_REMOVED}.")
+    return {key: value for key, value in table.items() if key not in RETIRED_MODEL_KEYS}
+
+
 @dataclass
 class DataConfig:
     smoke: str = "data/smoke32"  # a directory with manifest.json from ``python -m mistyle.data smoke``
@@ -217,6 +234,8 @@ def to_toml(table: dict) -> str:
 
 
 def _update(target, table: dict, where: str) -> None:
+    if isinstance(target, SKPNConfig):
+        table = drop_retired_model_keys(table, where)
     fields = {f.name: f for f in dataclasses.fields(target)}
     hints = typing.get_type_hints(type(target))
     for key, value in table.items():

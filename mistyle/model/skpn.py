@@ -20,33 +20,12 @@ Mixing and strength: ``SKPN.predict_kernels`` returns the SKP's output (``Styliz
 combination of predicted kernels (``StylizingKernels.blend``) is again a kernel set, and moves the
 albedo continuously from one style's to the other's.
 
-Output head: with ``head="direct"`` (the paper's) the last convolution gives the albedo's three
-channels through a tanh. With ``head="palette"`` the style supplies the colours and the network only
-says where each goes: the last convolution gives a query ``q(x)`` of ``PALETTE_QUERY`` channels per
-voxel, each palette entry ``k`` (colour ``c_k``, pixel share ``pi_k``, from ``style_palette``) a key
-``kappa(c_k)`` (a small shared MLP), and
-
-    w_k(x) = softmax_k( t q(x) . kappa(c_k) / |kappa(c_k)| + log pi_k ),
-    m(x) = c_mean + sigma (sum_k w_k(x) c_k - c_mean),        c_mean = sum_k pi_k c_k,
-    albedo(x) = clamp( s m(x)^gamma, 0, 1 ),
-
-with ``s, gamma`` two learned scalars mapping display colours to albedo (every style shares them),
-and ``t`` a learned sharpness (it starts at ``PALETTE_SHARPNESS``, so that voxels pick colours rather
-than average them into the style's mean from the first step). ``sigma = palette_spread`` (a setting,
-1 in training) pushes the mixed colours away from the palette's mean: a network trained through the
-single-scattering layer gets back, with ``sigma > 1`` at inference, the hues that multiple scattering
-and the averaging along each ray wash out of a path-traced render (chosen on validation paintings,
-docs/training.md).
-The prior ``log pi_k`` makes a style's common colours the default, and a palette is a mixture: the
-blend of two styles is the union of their palettes with the shares scaled by the blend weights.
-
-Shapes: density ``(B, 1, D, H, W)``; style levels ``[(B, C_l, H_l, W_l)]`` (4 levels), code
-``(B, CODE_SIZE)`` or None, palette ``(B, K, 4)`` or None; output albedo ``(B, 3, D, H, W)``.
+Shapes: density ``(B, 1, D, H, W)``; style levels ``[(B, C_l, H_l, W_l)]`` (4 levels) and code
+``(B, CODE_SIZE)`` or None; output albedo ``(B, 3, D, H, W)``.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -56,18 +35,10 @@ import torch.nn.functional as F
 
 from ..conventions import PRECISIONS
 from .dain import dain, density_mask
-from .style_code import CODE_SIZE, style_code, style_palette
+from .style_code import CODE_SIZE, style_code
 
 DEFAULT_CROP_MARGIN = 8
 """Voxels of empty space kept around the density's bounding box by ``SKPN.infer``."""
-
-PALETTE_QUERY = 16
-"""Channels of the palette head's per-voxel query and of each entry's key."""
-PALETTE_SHARPNESS = 8.0
-"""The palette head's initial sharpness ``t`` (module docstring)."""
-HEADS = ("direct", "palette")
-HEAD_KEYS = ("decoder.2.", "palette_")
-"""Prefixes of the state-dict keys of the output head (the part that differs between heads)."""
 
 
 @dataclass
@@ -81,8 +52,6 @@ class SKPNConfig:
     norm: str = "dain"  # or "in"
     stylize: str = "kernel"  # or "adain"
     style_code: str = "moments"  # or "quantiles": feature moments plus the style's quantile code
-    head: str = "direct"  # or "palette": the albedo mixes the style's palette colours (module docstring)
-    palette_spread: float = 1.0  # head "palette": sigma, how far mixed colours are pushed from the palette's mean
 
     def __post_init__(self):
         if self.kernels not in (1, 2, 4):
@@ -93,10 +62,6 @@ class SKPNConfig:
             raise ValueError(f"norm must be dain|in and stylize kernel|adain, got {self.norm}, {self.stylize}.")
         if self.style_code not in ("moments", "quantiles"):
             raise ValueError(f"style_code must be moments or quantiles, got {self.style_code}.")
-        if self.head not in HEADS:
-            raise ValueError(f"head must be one of {', '.join(HEADS)}, got {self.head}.")
-        if not (math.isfinite(self.palette_spread) and self.palette_spread > 0):
-            raise ValueError(f"palette_spread must be a finite number > 0 (1: the palette's own colours), got {self.palette_spread}.")
 
     @property
     def code_size(self) -> int:
@@ -104,29 +69,23 @@ class SKPNConfig:
 
 
 class StyleInputs(NamedTuple):
-    """What the SKPN reads of a batch of styles: the extractor's levels ``[(B, C_l, H_l, W_l)]``, the
-    quantile code ``(B, CODE_SIZE)`` (None for ``style_code="moments"``) and the palette ``(B, K, 4)``
-    (None for ``head="direct"``)."""
+    """What the SKPN reads of a batch of styles: the extractor's levels ``[(B, C_l, H_l, W_l)]`` and the
+    quantile code ``(B, CODE_SIZE)`` (None for ``style_code="moments"``)."""
 
     levels: list
     code: torch.Tensor | None = None
-    palette: torch.Tensor | None = None
 
     def repeat(self, times: int) -> "StyleInputs":
         """Each style ``times`` times in a row, batch-wise (``[s0, s1, s0, s1]`` for two styles twice)."""
-        def tile(tensor):
-            return None if tensor is None else torch.cat([tensor] * times)
-
-        return StyleInputs([tile(level) for level in self.levels], tile(self.code), tile(self.palette))
+        return StyleInputs([torch.cat([level] * times) for level in self.levels],
+                           None if self.code is None else torch.cat([self.code] * times))
 
 
 class StylizingKernels(NamedTuple):
     """The SKP's output for a batch of ``B`` styles: per kernel site, ``gamma`` and ``beta`` ``(B, C)``
-    and, with ``stylize="kernel"``, ``weight (B, C, C, k, k, k)`` and ``bias (B, C)``; with
-    ``head="palette"`` also the palette ``(B, K, 4)`` the head mixes."""
+    and, with ``stylize="kernel"``, ``weight (B, C, C, k, k, k)`` and ``bias (B, C)``."""
 
     sites: dict
-    palette: torch.Tensor | None = None
 
     @staticmethod
     def blend(parts: list[tuple["StylizingKernels", float]]) -> "StylizingKernels":
@@ -138,12 +97,7 @@ class StylizingKernels(NamedTuple):
         first = parts[0][0].sites
         sites = {site: {key: sum(float(w) * kernels.sites[site][key] for (kernels, _), w in zip(parts, weights))
                         for key in first[site]} for site in first}
-        if parts[0][0].palette is None:
-            return StylizingKernels(sites)
-        # A palette is a mixture of colours: the blend's is the union, each part's shares scaled by its weight.
-        palettes = [torch.cat([kernels.palette[..., :3], kernels.palette[..., 3:] * float(w)], dim=-1)
-                    for (kernels, _), w in zip(parts, weights) if w > 0]
-        return StylizingKernels(sites, torch.cat(palettes, dim=1))
+        return StylizingKernels(sites)
 
 
 class StylizingKernelPredictor(nn.Module):
@@ -216,15 +170,8 @@ class SKPN(nn.Module):
                                  *[_ResidualBlock(cout) for _ in range(config.residual_blocks)])
 
         self.encoder = nn.ModuleList([block(1, w0, 1), block(w0, w1, 2), block(w1, w2, 2)])
-        outputs = 3 if config.head == "direct" else PALETTE_QUERY
         self.decoder = nn.ModuleList([nn.Conv3d(w2 + w1, w1, 3, padding=1), nn.Conv3d(w1 + w0, w0, 3, padding=1),
-                                      nn.Conv3d(w0, outputs, 3, padding=1)])
-        if config.head == "palette":
-            self.palette_key = nn.Sequential(nn.Linear(3, 32), nn.LeakyReLU(0.2), nn.Linear(32, PALETTE_QUERY))
-            # Display colour -> albedo, s c^gamma: start from the sRGB curve (gamma 2.2, s 1).
-            self.palette_log_gamma = nn.Parameter(torch.tensor(math.log(2.2)))
-            self.palette_log_scale = nn.Parameter(torch.tensor(0.0))
-            self.palette_log_sharpness = nn.Parameter(torch.tensor(math.log(PALETTE_SHARPNESS)))
+                                      nn.Conv3d(w0, 3, 3, padding=1)])
         # Kernel sites: bottleneck (w2), before decoder convs 1, 2, 3 (inputs w2 + w1 after the skip
         # are stylized on the upsampled part only, w2; then w1; then w0).
         site_channels = [w2, w2, w1, w0]
@@ -243,20 +190,18 @@ class SKPN(nn.Module):
     def encode_style(self, images: torch.Tensor, extractor: nn.Module) -> StyleInputs:
         """``StyleInputs`` of style images ``(B, 3, S, S)`` in display [0, 1], with ``extractor``'s levels."""
         levels = list(extractor(images))
-        return StyleInputs(levels, style_code(images) if self.config.style_code == "quantiles" else None,
-                           style_palette(images) if self.config.head == "palette" else None)
+        return StyleInputs(levels, style_code(images) if self.config.style_code == "quantiles" else None)
 
     def predict_kernels(self, style: StyleInputs | list[torch.Tensor]) -> StylizingKernels:
         """The SKP: ``StylizingKernels`` of ``encode_style``'s output (or, for ``style_code="moments"``,
         the bare list of levels)."""
         if not isinstance(style, StyleInputs):
             style = StyleInputs(list(style))
-        if (style.code is None) != (self.config.style_code == "moments") or (
-                (style.palette is None) != (self.config.head == "direct")):
-            raise ValueError(f"this SKPN has style_code={self.config.style_code!r} and head={self.config.head!r}; "
+        if (style.code is None) != (self.config.style_code == "moments"):
+            raise ValueError(f"this SKPN has style_code={self.config.style_code!r}; "
                              "build its style input with encode_style.")
         return StylizingKernels({site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code)
-                                 for site in self.sites}, style.palette)
+                                 for site in self.sites})
 
     @torch.no_grad()
     def neutral_kernels(self, kernels: StylizingKernels, grey: float) -> StylizingKernels:
@@ -267,15 +212,7 @@ class SKPN(nn.Module):
         albedo; ``beta`` is the least-norm solution giving ``grey`` in every channel. Exact away
         from the grid's faces, where the convolution's zero padding enters (empty space in practice).
         Blending towards these kernels (``StylizingKernels.blend``) moves the albedo's pre-tanh
-        values linearly from the style's to the grey's: the style strength.
-
-        With ``head="palette"`` the kernels stay and the palette becomes one entry, the display colour
-        the head maps to ``grey``: blending adds it to the style's palette with share ``1 - strength``."""
-        if self.config.head == "palette":
-            colour = min(float(self._palette_colour(torch.tensor(min(max(float(grey), 1e-3), 1.0)))), 1.0)
-            palette = torch.full((kernels.palette.shape[0], 1, 4), colour).to(kernels.palette)
-            palette[..., 3] = 1.0
-            return StylizingKernels(kernels.sites, palette)
+        values linearly from the style's to the grey's: the style strength."""
         last = max(self.sites)
         if last != 3:
             raise ValueError("Style strength needs an SKPN with a kernel before its last convolution (model.kernels = 2 "
@@ -295,11 +232,7 @@ class SKPN(nn.Module):
         (or, for ``style_code="moments"``, the bare list of levels), or kernels from ``predict_kernels``."""
         if density.dim() != 5 or density.shape[1] != 1:
             raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
-        predicted = style if isinstance(style, StylizingKernels) else self.predict_kernels(style)
-        if (predicted.palette is None) != (self.config.head == "direct"):
-            raise ValueError(f"this SKPN has head={self.config.head!r}; its kernels need "
-                             f"{'no' if self.config.head == 'direct' else 'a'} palette (use predict_kernels).")
-        kernels = predicted.sites
+        kernels = (style if isinstance(style, StylizingKernels) else self.predict_kernels(style)).sites
         size = density.shape[2:]
         padded = F.pad(density, [p for n in reversed(size) for p in (0, (-n) % 4)])
         masks = {}
@@ -324,36 +257,8 @@ class SKPN(nn.Module):
         x = stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 2)
         x = F.relu(self.decoder[1](torch.cat([x, e0], dim=1)), inplace=True)
         x = stylize(x, 3)
-        if self.config.head == "palette":
-            albedo = self._mix_palette(self.decoder[2](x).float(), predicted.palette)
-        else:
-            albedo = 0.5 * (torch.tanh(self.decoder[2](x).float()) + 1.0)
+        albedo = 0.5 * (torch.tanh(self.decoder[2](x).float()) + 1.0)
         return albedo[..., : size[0], : size[1], : size[2]]
-
-    def _mix_palette(self, query: torch.Tensor, palette: torch.Tensor) -> torch.Tensor:
-        """The palette head (module docstring): albedo ``(B, 3, D, H, W)`` of ``query (B, Q, D, H, W)``
-        and ``palette (B, K, 4)``; in float32 whatever the autocast."""
-        with torch.autocast(query.device.type, enabled=False):
-            palette = palette.float()
-            colours, shares = palette[..., :3], palette[..., 3]
-            keys = self.palette_key(colours)  # (B, K, Q)
-            keys = keys / keys.norm(dim=-1, keepdim=True).clamp(min=1e-6)
-            logits = torch.einsum("bqdhw,bkq->bkdhw", query, keys) * self.palette_log_sharpness.exp()
-            logits = logits + shares.clamp(min=1e-6).log()[..., None, None, None]
-            mixed = torch.einsum("bkdhw,bkc->bcdhw", logits.softmax(dim=1), colours)
-            if self.config.palette_spread != 1.0:
-                mean = ((shares[..., None] * colours).sum(dim=1) / shares.sum(dim=1, keepdim=True).clamp(min=1e-6))
-                mean = mean[..., None, None, None]
-                mixed = mean + self.config.palette_spread * (mixed - mean)
-            return self._palette_albedo(mixed).clamp(0.0, 1.0)
-
-    def _palette_albedo(self, colour: torch.Tensor) -> torch.Tensor:
-        """The palette head's map from display colour to albedo, ``s c^gamma`` (unclamped)."""
-        return self.palette_log_scale.exp() * colour.clamp(min=1e-6) ** self.palette_log_gamma.exp()
-
-    def _palette_colour(self, albedo: torch.Tensor) -> torch.Tensor:
-        """The inverse of ``_palette_albedo``: the display colour ``(a / s)^(1 / gamma)`` mapped to ``albedo``."""
-        return (albedo / self.palette_log_scale.exp()) ** (1.0 / self.palette_log_gamma.exp())
 
     @torch.no_grad()
     def infer(self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor],

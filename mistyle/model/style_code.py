@@ -15,10 +15,6 @@ A sorted projection is the 1-D optimal-transport coordinate of a distribution, s
 styles differ by (a sampled, sliced) Wasserstein distance, and a convex mix of codes is a
 displacement interpolation of the styles' slices. Images ``(B, 3, S, S)`` in display [0, 1] give
 codes ``(B, CODE_SIZE)``.
-
-``style_palette`` is the other thing a network with ``SKPNConfig.head = "palette"`` reads of a style:
-its colours clustered into ``PALETTE_SIZE`` entries (k-means), each with the share of pixels it
-stands for, ``(B, K, 4)``.
 """
 
 from __future__ import annotations
@@ -36,8 +32,6 @@ COLOUR_DIRECTIONS = 12
 PATCH_DIRECTIONS = 16
 CODE_SIZE = COLOUR_DIRECTIONS * QUANTILES + len(PATCH_SCALES) * PATCH_DIRECTIONS * PATCH_QUANTILES
 _SEED = 20211
-PALETTE_SIZE = 12
-PALETTE_ITERATIONS = 10
 
 
 def _colour_directions() -> torch.Tensor:
@@ -84,33 +78,3 @@ def style_code(images: torch.Tensor) -> torch.Tensor:
         projected = patches @ PATCH_BASIS.to(images) * math.sqrt(PATCH_SIZE)
         parts.append(_sorted_quantiles(projected, PATCH_QUANTILES).flatten(1))
     return torch.cat(parts, dim=1).reshape(batch, CODE_SIZE)
-
-
-def style_palette(images: torch.Tensor, size: int = PALETTE_SIZE, iterations: int = PALETTE_ITERATIONS) -> torch.Tensor:
-    """The colour palette ``(B, size, 4)`` of style images ``(B, 3, S, S)`` in display [0, 1]: k-means
-    centres (RGB) and the share of pixels nearest each (summing to 1).
-
-    Deterministic: the centres start at the pixel nearest the mean colour and then, one by one, at the
-    pixel farthest from the centres so far (so a small patch of a distinct hue gets its own entry),
-    followed by ``iterations`` Lloyd steps. A centre that loses every pixel keeps its colour with share 0."""
-    if images.dim() != 4 or images.shape[1] != 3:
-        raise ValueError(f"style images must be (B, 3, S, S), got {tuple(images.shape)}.")
-    if size < 1:
-        raise ValueError(f"the palette needs at least one colour, got size={size}.")
-    pixels = images.float().flatten(2).transpose(1, 2)  # (B, N, 3)
-    batch, count = pixels.shape[:2]
-    rows = torch.arange(batch, device=pixels.device)
-    first = (pixels - pixels.mean(dim=1, keepdim=True)).square().sum(-1).argmin(dim=1)
-    centres = [pixels[rows, first]]
-    nearest = (pixels - centres[0][:, None]).square().sum(-1)  # (B, N): squared distance to the closest centre
-    for _ in range(1, size):
-        centres.append(pixels[rows, nearest.argmax(dim=1)])
-        nearest = torch.minimum(nearest, (pixels - centres[-1][:, None]).square().sum(-1))
-    centres = torch.stack(centres, dim=1)  # (B, K, 3)
-    for _ in range(iterations + 1):
-        assignment = torch.cdist(pixels, centres).argmin(dim=2)  # (B, N)
-        members = F.one_hot(assignment, size).float()  # (B, N, K)
-        counts = members.sum(dim=1)  # (B, K)
-        sums = members.transpose(1, 2) @ pixels  # (B, K, 3)
-        centres = torch.where(counts[..., None] > 0, sums / counts.clamp(min=1.0)[..., None], centres)
-    return torch.cat([centres, (counts / count)[..., None]], dim=2)

@@ -4,8 +4,8 @@ One source: strip a training checkpoint down to what inference needs. Several: t
 weights (checkpoints of one run along its trajectory, stochastic weight averaging), with the last
 one's config and step; they must share the architecture and the extractor.
 
-Options (one source): ``--set section.key=value`` changes an inference setting in the stored config
-(e.g. ``model.palette_spread=1.5``, chosen on validation paintings); ``--half`` stores float16 weights.
+Options (one source): ``--set section.key=value`` changes a setting in the stored config that leaves
+the weights as they are; ``--half`` stores float16 weights.
 """
 
 import sys
@@ -14,7 +14,7 @@ from ..model.checkpoint import average_checkpoints, export_checkpoint
 
 USAGE = ("usage: python -m mistyle.train.export runs/cpu/final.pt mistyle/checkpoints/skpn_cpu.pt\n"
          "       python -m mistyle.train.export runs/cpu/steps/step_001500.pt runs/cpu/steps/step_002000.pt averaged.pt\n"
-         "       python -m mistyle.train.export --set model.palette_spread=1.5 --half SOURCE DEST")
+         "       python -m mistyle.train.export --set section.key=value --half SOURCE DEST")
 
 
 def main(argv: list[str]) -> str:

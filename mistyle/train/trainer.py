@@ -39,9 +39,9 @@ from ..model.checkpoint import (
     load_checkpoint,
     save_checkpoint,
 )
-from ..model.config import TrainConfig, config_from_dict, config_to_dict, to_toml
+from ..model.config import TrainConfig, config_from_dict, config_to_dict, drop_retired_model_keys, to_toml
 from ..model.features import make_extractor
-from ..model.skpn import HEAD_KEYS, parameter_count
+from ..model.skpn import parameter_count
 from ..objective.losses import temporal_loss, tv_loss
 from ..objective.masks import body_mask, render_mask
 from ..objective.metrics import (
@@ -283,18 +283,13 @@ class Trainer:
         if checkpoint["extractor"] != self.extractor.name:
             raise ValueError(f"--init {path} was trained with the {checkpoint['extractor']} extractor, this run has "
                              f"{self.extractor.name}.")
-        weights, fresh = checkpoint["model"], ""
-        source_head = checkpoint.get("config", {}).get("model", {}).get("head", "direct")
-        if source_head != self.config.model.head:
-            # Another output head: every weight but the head's carries over; the head starts anew.
-            weights = {key: value for key, value in weights.items() if not key.startswith(HEAD_KEYS)}
-            weights.update({key: value for key, value in self.model.state_dict().items() if key.startswith(HEAD_KEYS)})
-            fresh = f"; its {source_head} output head replaced by a new {self.config.model.head} head"
+        # A palette-head network (the head was removed): ConfigError naming the commit that still has it.
+        drop_retired_model_keys(checkpoint.get("config", {}).get("model", {}), f"--init {path}")
         try:
-            self.model.load_state_dict(weights)
+            self.model.load_state_dict(checkpoint["model"])
         except RuntimeError as error:
             raise ValueError(f"--init {path} does not fit this run's [model] config ({str(error).splitlines()[0]}).") from None
-        self.log(f"initialised from the weights of {path} (step {checkpoint.get('step', '?')} of its run){fresh}")
+        self.log(f"initialised from the weights of {path} (step {checkpoint.get('step', '?')} of its run)")
 
     def _on_signal(self, signum, frame):
         if self.interrupted:  # a second Ctrl-C: stop at once

@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 STAMP := .venv/.mistyle-installed
 
-.PHONY: demo test test-all setup
+.PHONY: demo test test-all bench-quick setup
 
 demo: $(STAMP)
 	$(PY) -m mistyle.demo
@@ -12,6 +12,9 @@ test: $(STAMP)
 
 test-all: $(STAMP)
 	$(PY) -m pytest -q -m ''
+
+bench-quick: $(STAMP)
+	$(PY) -m pytest -q -m benchmark
 
 setup: $(STAMP)
 

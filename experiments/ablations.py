@@ -2,7 +2,7 @@
 
 Every arm trains ``configs/ablation.toml`` (the paper's design at a reduced CPU scale) with one
 change, for the same step budget, data and seeds, then stylizes held-out (density, style) pairs
-that training never saw and scores them as ``style_fidelity.py`` does: path traced (volpath,
+that training never saw and scores them as ``mistyle-bench`` does: path traced (volpath,
 multiple scattering, the training light) from 3 views around the orbit, RGB SWD, patch SWD and hue
 coverage, each also as a ratio to the must-beat uniform baseline of that pair. Claims:
 
@@ -21,9 +21,9 @@ coverage, each also as a ratio to the must-beat uniform baseline of that pair. C
 
 Runs are kept under ``--runs``, one per setting and seed (the paper's arm of every claim is one run
 per seed, shared; a finished run is reused),
-results are appended to ``docs/ablations.jsonl`` (one line per claim, arm, seed and pair),
-``docs/ablations_table.md`` holds the per-arm means and spreads over seeds, and
-``docs/ablations_claim<N>.jpg`` is each claim's contact sheet: a row per arm (its first seed's
+results are appended to ``results/ablations/ablations.jsonl`` (one line per claim, arm, seed and pair),
+``results/ablations/ablations_table.md`` holds the per-arm means and spreads over seeds, and
+``results/ablations/ablations_claim<N>.jpg`` is each claim's contact sheet: a row per arm (its first seed's
 network), three held-out pairs path traced from the held-out view, under the styles and the uniform
 baseline.
 
@@ -47,9 +47,8 @@ from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
-sys.path.insert(0, str(HERE))
 
-from fidelity_core import add_metric_arguments  # found through the sys.path line above
+from mistyle.benchmark.study import add_metric_arguments
 
 BASE_CONFIG = REPO / "configs" / "ablation.toml"
 EVAL_DENSITIES = ("smoke64", "pyroclastic64")
@@ -114,7 +113,7 @@ def main() -> None:
                         help="what every arm starts from: the paper's design, or it with mistyle's sliced objective")
     parser.add_argument("--steps", type=int, default=None, help="training steps per run (default: the config's)")
     parser.add_argument("--runs", type=Path, default=REPO / "runs" / "ablations")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "ablations")
+    parser.add_argument("--out", type=Path, default=REPO / "results" / "ablations" / "ablations")
     add_metric_arguments(parser)
     parser.add_argument("--layer-json", type=Path, default=None, help="claim 8: layer_vs_pathtraced.py's output line")
     parser.add_argument("--rescore", action="store_true",
@@ -187,7 +186,7 @@ def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path
 def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
     """Fidelity metrics of a checkpoint on the held-out pairs, each with its uniform baseline's ratio,
     and the claim's extra metrics (view spread, thin/dense regions)."""
-    from fidelity_core import metric_views, score
+    from mistyle.benchmark.study import metric_views, score
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import (
@@ -248,7 +247,7 @@ def off_orbit_views(camera_distance: float) -> list:
 def contact_sheet(number: int, seed: int, args) -> None:
     """``<out>_claim<N>.jpg``: the styles, the uniform baseline, then a row per arm (its ``seed`` run) on
     ``SHEET_PAIRS``, path traced from the held-out view."""
-    from fidelity_core import metric_views, uniform_baseline
+    from mistyle.benchmark.study import metric_views, uniform_baseline
 
     from mistyle.api import Stylizer, display, path_trace
     from mistyle.data.heldout import (
@@ -430,7 +429,7 @@ def uniform_metrics(name: str, density, style, views, scale, radiance, args, opa
     than the scoring views, which), with ``region_fidelity``'s when given the views' ``opacities``
     (``view_opacity``); computed once per process and cached on disk. The baseline's colour is matched in ``colour_views`` (default:
     ``views``), so pass the scoring views to score the same baseline from elsewhere."""
-    from fidelity_core import score, uniform_baseline
+    from mistyle.benchmark.study import score, uniform_baseline
 
     key = f"{name}/{args.res}/{args.spp}"
     cache = args.runs / "uniform.json"

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-STYLE = ROOT / "experiments" / "heldout_styles" / "hokusai_great_wave.jpg"
+STYLE = ROOT / "mistyle" / "data" / "heldout_styles" / "hokusai_great_wave.jpg"
 
 
 def main() -> None:

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import torch
 
-STYLE = Path(__file__).resolve().parent / "heldout_styles" / "hokusai_great_wave.jpg"
+STYLE = Path(__file__).resolve().parents[1] / "mistyle" / "data" / "heldout_styles" / "hokusai_great_wave.jpg"
 PAPER_SECONDS = {(64, 64, 64): 0.04, (128, 128, 128): 0.25, (128, 256, 128): 0.51}
 
 

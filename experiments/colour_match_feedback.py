@@ -4,7 +4,7 @@ On each validation pair (``train.dataset.validation_paintings`` x ``val_smoke64`
 benchmark's held-out pairs) the bundled network's albedo is colour matched with and without the
 feedback step (one path-traced render of the matched albedo from ``FEEDBACK_VIEWS`` views around the
 orbit, whose foreground colours a second transport carries onto the style's), and each arm is scored
-like the benchmark (``fidelity_core.score``), pooled over the metric views and view by view.
+like the benchmark (``mistyle.benchmark.study.score``), pooled over the metric views and view by view.
 
 The references, direct optimisation and the uniform baseline, are not rerun: their scores are read
 from ``gap_decomposition.py``'s rows (``--reference``), which scored the same pairs with the same
@@ -28,9 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fidelity_core import add_metric_arguments  # found through the sys.path line above
+from mistyle.benchmark.study import add_metric_arguments
 
 ARMS = {"no feedback": False, "feedback": True}
 SHEET_PAIRS = 4
@@ -38,13 +37,13 @@ SHEET_PAIRS = 4
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", default="docs/colour_match_feedback")
-    parser.add_argument("--reference", default="docs/gap_decomposition.jsonl",
+    parser.add_argument("--out", default="results/colour_match_feedback/colour_match_feedback")
+    parser.add_argument("--reference", default="results/gap_decomposition/gap_decomposition.jsonl",
                         help="gap_decomposition.py's rows: the optimised and uniform scores of each pair")
     add_metric_arguments(parser)
     args = parser.parse_args()
 
-    from fidelity_core import metric_views, score
+    from mistyle.benchmark.study import metric_views, score
 
     from mistyle.api import Stylizer
     from mistyle.colour_match import fit_colour_match

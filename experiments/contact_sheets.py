@@ -1,6 +1,6 @@
 """Contact sheets of mistyle's generated data: densities rendered with the fast layer, and styles.
 
-    python experiments/contact_sheets.py --out docs
+    python experiments/contact_sheets.py --out results/contact_sheets
 
 writes ``contact_densities.png`` (smoke plumes at three times, fire, pyroclastic sphere,
 noise-filled level set, spot noise, voxelized mesh; white albedo, constant light) and
@@ -20,7 +20,7 @@ import torch
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("docs"))
+    parser.add_argument("--out", type=Path, default=Path("results") / "contact_sheets")
     parser.add_argument("--res", type=int, default=64)
     parser.add_argument("--image", type=int, default=128)
     args = parser.parse_args()

@@ -3,7 +3,7 @@
 On each validation pair (``train.dataset.validation_paintings`` x ``val_smoke64``, never the
 benchmark's held-out pairs) the bundled network's albedo and direct optimisation's (the benchmark's
 ``optimised`` method: ``render_final``'s refinement at twice its steps, from the uniform baseline) are
-taken apart and put together again, each arm scored like the benchmark (``fidelity_core.score``):
+taken apart and put together again, each arm scored like the benchmark (``mistyle.benchmark.study.score``):
 
 * ``network``, ``optimised``, ``uniform``: as in the benchmark.
 * ``net place, opt colours``: the network's albedo carried by an iterated sliced optimal transport
@@ -20,7 +20,7 @@ taken apart and put together again, each arm scored like the benchmark (``fideli
   (``mistyle.colour_match``, what ``mistyle.stylize`` does by default); ``colour match, density
   weights``: the same with every voxel counted by its density rather than by how much of it the
   cameras see (``output_corrections.py``'s ``transport s=0`` arm).
-  The committed ``docs/gap_decomposition.md`` predates the colour match's feedback step, which this
+  The committed ``results/gap_decomposition/gap_decomposition.md`` predates the colour match's feedback step, which this
   arm now includes; ``colour_match_feedback.py`` compares the two on the same pairs.
 
 
@@ -56,9 +56,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fidelity_core import add_metric_arguments  # found through the sys.path line above
+from mistyle.benchmark.study import add_metric_arguments
 from output_corrections import transported, uniform_response, weighted_lowpass
 
 from mistyle.colour_match import TRANSPORT_SAMPLES, apply_sliced_transport, fit_sliced_transport
@@ -71,9 +70,9 @@ ALBEDO_FLOOR = 1e-3
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", default="docs/gap_decomposition")
+    parser.add_argument("--out", default="results/gap_decomposition/gap_decomposition")
     parser.add_argument("--checkpoint", default=None, help="default: the bundled network")
-    parser.add_argument("--optimise-factor", type=float, default=2, help="as style_fidelity.py's")
+    parser.add_argument("--optimise-factor", type=float, default=2, help="as mistyle-bench's")
     add_metric_arguments(parser)
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--report-only", action="store_true", help="rewrite the .md and .jpg from the .jsonl and the albedos")
@@ -82,7 +81,7 @@ def main() -> None:
         args.res, args.spp, args.out = 32, 4, str(Path(tempfile.mkdtemp()) / "gap_decomposition")
         args.optimise_factor = 0.05
 
-    from fidelity_core import metric_views, score, uniform_baseline
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
@@ -90,13 +89,13 @@ def main() -> None:
     from mistyle.integrators import prepare_density
     from mistyle.io import load_style
     from mistyle.objective.metrics import style_fidelity
-    from mistyle.render_final import refinement_settings
+    from mistyle.pipeline import default_refinement
     from mistyle.train.dataset import validation_paintings
 
     stylizer = Stylizer(args.checkpoint)
     scale, radiance = stylizer.density_scale, stylizer.config.render.radiance
     views = metric_views(stylizer.config.render.camera_distance)
-    settings = refinement_settings(stylizer.config).scaled(args.optimise_factor)
+    settings = default_refinement(stylizer.config).scaled(args.optimise_factor)
     paintings = validation_paintings()[:1 if args.quick else None]
     out = Path(args.out)
     kept = out.parent / f"{out.name}_albedos"
@@ -148,7 +147,7 @@ def main() -> None:
 
 def report(rows: list[dict], out: Path, args) -> None:
     """``<out>.md`` and ``<out>.jpg`` from the rows and the albedos kept in ``<out>_albedos/``."""
-    from fidelity_core import metric_views, score
+    from mistyle.benchmark.study import metric_views, score
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density

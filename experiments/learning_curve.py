@@ -1,6 +1,6 @@
 """The learning curve of a training run: a table (JSON lines) and a PNG chart from its metrics.jsonl.
 
-    python experiments/learning_curve.py runs/sliced2 --out docs/learning_curve_sliced.png
+    python experiments/learning_curve.py runs/sliced2 --out results/learning_curve/learning_curve_sliced.png
 
 Rows: the training loss averaged over windows of ``--window`` steps, with the validation metrics of
 the evaluations in that window (held-out plumes and styles, fast-layer renders): ``val_swd``, and

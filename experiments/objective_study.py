@@ -2,7 +2,7 @@
 
 Direct optimisation of an albedo grid through the fast layer (no network), from the must-beat
 baseline's uniform albedo, one arm per choice with everything else fixed; each result is path traced
-and scored with the fidelity benchmark's metrics (``fidelity_core.score``), next to the baseline.
+and scored with the fidelity benchmark's metrics (``mistyle.benchmark.study.score``), next to the baseline.
 
 Arms (``name: objective / parametrisation / mask``):
   hist-sigmoid-fringe   the training objective (filter-bank histogram + RGB histogram) / sigmoid / radiance > 1e-3
@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 ARMS = {
     "hist-sigmoid-fringe": ("histogram", "sigmoid", "fringe"),
@@ -59,7 +58,7 @@ def main() -> None:
     parser.add_argument("--arms", default=",".join(ARMS))
     parser.add_argument("--schedules", default=None, help="part 2: comma-separated SCHEDULES names, or all")
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--doc", default="docs/objective_study.md")
+    parser.add_argument("--doc", default="results/objective_study/objective_study.md")
     args = parser.parse_args()
     pairs = PAIRS
     if args.quick:
@@ -68,7 +67,7 @@ def main() -> None:
 
     import torch
 
-    from fidelity_core import metric_views, score, uniform_baseline
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.api import Stylizer
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
     from mistyle.fit import FitSettings, LayerViews, fit_albedo

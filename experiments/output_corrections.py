@@ -2,7 +2,7 @@
 
 The bundled network places a style's structures but mutes its colours next to direct optimisation
 (docs/training.md). Each arm below takes the network's albedo, changes it without a gradient step,
-and is scored like the benchmark (path traced from the metric views, ``fidelity_core.score``) on the
+and is scored like the benchmark (path traced from the metric views, ``mistyle.benchmark.study.score``) on the
 validation split only (``train.dataset.validation_paintings`` x ``val_smoke64``), never the
 benchmark's held-out pairs:
 
@@ -38,9 +38,8 @@ import numpy as np
 from mistyle.colour_match import RESPONSE_LEVELS, TRANSPORT_SAMPLES
 from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fidelity_core import add_metric_arguments  # found through the sys.path line above
+from mistyle.benchmark.study import add_metric_arguments
 
 ARMS = ("network", "transport s=0", "transport s=2", "defringe", "strength 1.3")
 SHEET_PAIRS = 4
@@ -48,7 +47,7 @@ SHEET_PAIRS = 4
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", default="docs/output_corrections")
+    parser.add_argument("--out", default="results/output_corrections/output_corrections")
     parser.add_argument("--checkpoint", default=None, help="default: the bundled network")
     add_metric_arguments(parser)
     parser.add_argument("--quick", action="store_true")
@@ -56,7 +55,7 @@ def main() -> None:
     if args.quick:
         args.res, args.spp, args.out = 32, 4, str(Path(tempfile.mkdtemp()) / "output_corrections")
 
-    from fidelity_core import metric_views, score, uniform_baseline
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density

@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def main() -> None:
@@ -43,15 +42,14 @@ def main() -> None:
 
     from dataclasses import replace
 
-    from fidelity_core import metric_views, score
+    from mistyle.benchmark.study import metric_views, score
     from mistyle.api import Stylizer
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_styles
     from mistyle.data.smoke import PlumeConfig, simulate
     from mistyle.fit import refine_albedo
     from mistyle.io import load_style
     from mistyle.objective.metrics import temporal_flicker
-    from mistyle.render_final import refinement_settings
-    from mistyle.warp import warp_grid
+    from mistyle.pipeline import Pipeline, PipelineSettings, default_refinement
 
     spec = next(s for s in HELD_OUT_DENSITIES if s.name == "smoke64")
     config = PlumeConfig.random((spec.resolution,) * 3, np.random.default_rng([spec.seed, 0]))
@@ -60,7 +58,7 @@ def main() -> None:
     stylizer = Stylizer()
     scale, radiance = stylizer.density_scale, stylizer.config.render.radiance
     views = metric_views(stylizer.config.render.camera_distance, 1)
-    settings = refinement_settings(stylizer.config)
+    settings = default_refinement(stylizer.config)
     if args.quick:
         settings = replace(settings, layer_steps=4, path_steps=1)
     styles = held_out_styles()
@@ -77,11 +75,11 @@ def main() -> None:
                                    for d, a in zip(densities, network)]
         weights = [settings.temporal_weight] if args.temporal_weights is None else map(float, args.temporal_weights.split(","))
         for weight in weights if "coherent" in chosen else ():
-            coherent, weighted = [], replace(settings, temporal_weight=weight)
-            for index, (density, albedo) in enumerate(zip(densities, network)):
-                anchor = None if index == 0 else warp_grid(coherent[-1], velocities[index - 1])
-                coherent.append(refine_albedo(density, scale, albedo if anchor is None else anchor, style, weighted,
-                                              radiance=radiance, anchor=anchor)[0])
+            # The pipeline's own sequence refinement (Pipeline.refine), with this temporal weight.
+            pipeline = Pipeline(PipelineSettings(refine_steps=settings.layer_steps,
+                                                 refine_path_steps=settings.path_steps), stylizer=stylizer)
+            frames = pipeline.frames(densities, velocities)
+            coherent, _ = pipeline.refine(frames, network, style, replace(settings, temporal_weight=weight))
             arms[f"coherent (temporal weight {weight:g})"] = coherent
         for arm, albedos in arms.items():
             metrics = [score(d, a, style, views, res=args.res, spp=16, density_scale=scale, radiance=radiance)[0]

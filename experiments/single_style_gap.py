@@ -5,7 +5,7 @@ a copy of the bundled network is trained on for ``--steps`` steps on *one* valid
 run's config, ``configs/cpu_sliced_finetune.toml``, with that painting as the whole style set, no hue
 rotation and a constant learning rate), and then scored beside the bundled network, the uniform
 baseline and direct optimisation (``render_final``'s refinement at twice its steps, from the
-baseline) on held-out densities, path traced as the benchmark scores (``fidelity_core.score``).
+baseline) on held-out densities, path traced as the benchmark scores (``mistyle.benchmark.study.score``).
 
 * What the one-style network closes is the part of the gap that comes from carrying *many* styles:
   predicting the right kernels for a style the network never saw.
@@ -21,7 +21,7 @@ Writes ``<out>.jsonl`` (a line per density and style) and ``<out>.md``.
     python experiments/single_style_gap.py            # 2 styles x 400 steps (15 min each) + scoring: about 45 min
     python experiments/single_style_gap.py --quick    # 1 style, 4 steps, small renders
     python experiments/single_style_gap.py --styles seurat_circus_sideshow --steps 1200 \
-        --checkpoint seurat_circus_sideshow=runs/single_seurat_long/steps/step_000800.pt --out docs/single_style_gap_1200
+        --checkpoint seurat_circus_sideshow=runs/single_seurat_long/steps/step_000800.pt --out results/single_style_gap_/single_style_gap_1200
         # score a one-style network trained elsewhere (here: 800 more steps, learning rate decayed)
 """
 
@@ -39,9 +39,8 @@ import numpy as np
 
 from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fidelity_core import add_metric_arguments  # found through the sys.path line above
+from mistyle.benchmark.study import add_metric_arguments
 
 CONFIG = "configs/cpu_sliced_finetune.toml"
 COPIES = 20
@@ -56,7 +55,7 @@ def main() -> None:
     parser.add_argument("--checkpoint", action="append", default=[], metavar="STYLE=PATH",
                         help="score this one-style network for STYLE instead of training one (repeatable)")
     parser.add_argument("--runs", default="runs", help="where the one-style runs go (kept: a rerun scores them again)")
-    parser.add_argument("--out", default="docs/single_style_gap")
+    parser.add_argument("--out", default="results/single_style_gap/single_style_gap")
     add_metric_arguments(parser)
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
@@ -65,7 +64,7 @@ def main() -> None:
         args.styles, args.densities, args.steps = args.styles.split(",")[0], "val_smoke64", 4
         args.res, args.spp, args.runs, args.out = 32, 4, str(temporary / "runs"), str(temporary / "single_style_gap")
 
-    from fidelity_core import metric_views, score, uniform_baseline
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import (
@@ -76,7 +75,7 @@ def main() -> None:
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
     from mistyle.io import load_style
-    from mistyle.render_final import refinement_settings
+    from mistyle.pipeline import default_refinement
     from mistyle.train.dataset import validation_paintings
 
     paintings = {path.stem: path for path in validation_paintings()}
@@ -98,7 +97,7 @@ def main() -> None:
             style = load_style(paintings[name])
             albedos = {"network": bundled(density, style), "one-style network": Stylizer(checkpoint)(density, style),
                        "uniform": uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)}
-            settings = refinement_settings(bundled.config).scaled(2 if not args.quick else 0.05)
+            settings = default_refinement(bundled.config).scaled(2 if not args.quick else 0.05)
             albedos["optimised"], _ = refine_albedo(density, scale, albedos["uniform"], style, settings, radiance=radiance,
                                                     prepared=prepared)
             row = {"density": density_name, "style": name, "steps": args.steps}

@@ -4,7 +4,7 @@ The fidelity benchmark scores each (density, style) pair on its own, so a networ
 style one shared, middling palette can still beat the uniform baseline pair by pair. This asks the
 question across styles: the validation paintings (``train.dataset.validation_paintings``) stylize
 ``val_smoke64`` one by one with each method, every albedo is path traced from the benchmark's metric
-views (``fidelity_core``), and for every pair of paintings (A, B):
+views (``mistyle.benchmark.study``), and for every pair of paintings (A, B):
 
 * **separation** = ``SWD(render_A, render_B) / SWD(style_A, style_B)``: the sliced W1 distance between
   the two renders' foreground colours over the one between the two paintings' colours. 0: the renders
@@ -16,7 +16,7 @@ Methods: each checkpoint given (default: the bundled network), the uniform basel
 colour, matched through the renderer) and direct optimisation from it (the benchmark's ``optimised``,
 about a minute per painting; ``--no-optimised`` leaves it out).
 
-    python experiments/style_separation.py --styles 8 --out docs/style_separation
+    python experiments/style_separation.py --styles 8 --out results/style_separation/style_separation
     python experiments/style_separation.py runs/a.pt --styles 4 --res 64 --no-optimised     # quicker
 
 Writes ``<out>.json`` (per method: medians and every pair) and prints a table.
@@ -32,9 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fidelity_core import add_metric_arguments  # found through the sys.path line above
+from mistyle.benchmark.study import add_metric_arguments
 
 
 def paintings_apart(styles: dict) -> dict:
@@ -72,21 +71,21 @@ def main() -> None:
     parser.add_argument("checkpoints", nargs="*", help="SKPN checkpoints (default: the bundled one)")
     parser.add_argument("--styles", type=int, default=8, help="the first this many validation paintings (0: all 13)")
     parser.add_argument("--no-optimised", action="store_true", help="leave out direct optimisation (a minute per painting)")
-    parser.add_argument("--optimise-factor", type=float, default=2, help="as experiments/style_fidelity.py")
-    parser.add_argument("--out", default="docs/style_separation")
+    parser.add_argument("--optimise-factor", type=float, default=2, help="as mistyle-bench's")
+    parser.add_argument("--out", default="results/style_separation/style_separation")
     add_metric_arguments(parser)
     args = parser.parse_args()
 
     import torch
 
-    from fidelity_core import metric_views, score, uniform_baseline
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
     from mistyle.io import load_style
     from mistyle.objective.metrics import foreground_pixels
-    from mistyle.render_final import refinement_settings
+    from mistyle.pipeline import default_refinement
     from mistyle.train.dataset import validation_paintings
 
     torch.manual_seed(0)
@@ -98,7 +97,7 @@ def main() -> None:
     views = metric_views(config.render.camera_distance)
     density = held_out_density(VALIDATION_DENSITIES[0], args.cache)
     prepared = None if args.no_optimised else prepare_density(density, scale)
-    settings = refinement_settings(config).scaled(args.optimise_factor)
+    settings = default_refinement(config).scaled(args.optimise_factor)
 
     styles = {p.stem: load_style(p) for p in paintings}
     renders: dict[str, dict] = {}

@@ -6,7 +6,7 @@ rendered from one orbit view with the fast layer and with ``volpath`` (multiple 
 training light), first the network's albedo as predicted, then with the colour match that
 ``mistyle.stylize`` applies by default (``mistyle.colour_match``). PNGs use the training tone curve.
 
-    python experiments/stylized_sheet.py --out docs/stylized_unseen.png
+    python experiments/stylized_sheet.py --out results/stylized_sheet/stylized_unseen.png
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("docs/stylized_unseen.png"))
+    parser.add_argument("--out", type=Path, default=Path("results/stylized_sheet/stylized_unseen.png"))
     parser.add_argument("--styles", type=int, default=6)
     parser.add_argument("--res", type=int, default=128)
     parser.add_argument("--spp", type=int, default=64)

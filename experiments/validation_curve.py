@@ -6,10 +6,10 @@ well, so checkpoints are chosen here instead: every checkpoint in ``CHECKPOINTS`
 of ``*.pt``, e.g. a run's ``steps/``, written with ``run.keep_checkpoints``) stylizes the validation
 pairs -- the offline set's held-out paintings (``train.dataset.validation_paintings``) on
 ``data.heldout.VALIDATION_DENSITIES`` (other seeds than the benchmark's) -- and each albedo is path
-traced and scored exactly as ``experiments/style_fidelity.py`` scores the benchmark, with the ratios
+traced and scored exactly as ``mistyle-bench`` scores the benchmark, with the ratios
 to the uniform baseline (computed once per pair). The benchmark's held-out split is never used.
 
-    python experiments/validation_curve.py runs/cpu_sliced/steps --out docs/validation_curve
+    python experiments/validation_curve.py runs/cpu_sliced/steps --out results/validation_curve/validation_curve
     python experiments/validation_curve.py a.pt b.pt --res 64 --styles 4        # quicker
 
 Writes ``<out>.jsonl`` (a line per checkpoint and pair, with the albedo's density-weighted level and
@@ -29,9 +29,8 @@ import numpy as np
 
 from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fidelity_core import add_metric_arguments  # found through the sys.path line above
+from mistyle.benchmark.study import add_metric_arguments
 
 
 def checkpoint_files(items: list[str]) -> list[Path]:
@@ -44,7 +43,7 @@ def checkpoint_files(items: list[str]) -> list[Path]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("checkpoints", nargs="+")
-    parser.add_argument("--out", default="docs/validation_curve")
+    parser.add_argument("--out", default="results/validation_curve/validation_curve")
     parser.add_argument("--styles", type=int, default=0, help="use only this many paintings (0: all of the split)")
     parser.add_argument("--paintings", choices=("validation", "training"), default="validation",
                         help="score on the held-out validation paintings (choosing checkpoints), or on as many "
@@ -55,7 +54,7 @@ def main() -> None:
 
     import torch
 
-    from fidelity_core import metric_views, score, uniform_baseline
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style

@@ -2,12 +2,14 @@
 
 ``mistyle.stylize(density, style_image) -> albedo``, ``mistyle.render(density, albedo, view=u) ->
 image``, ``mistyle.display(image)`` (the PNGs' tone curve) and ``mistyle.load_density(path)`` (see
-``mistyle.api``); they load torch and Mitsuba on first use, so ``import mistyle`` stays light.
+``mistyle.api``), and ``mistyle.Pipeline`` / ``mistyle.PipelineSettings`` (``mistyle.pipeline``: every
+setting and every stage's result); they load torch and Mitsuba on first use, so ``import mistyle``
+stays light.
 """
 
 __version__ = "0.1.0"
 
-_PUBLIC = ("stylize", "render", "display", "load_density")
+_PUBLIC = ("stylize", "render", "display", "load_density", "Pipeline", "PipelineSettings")
 
 
 def __getattr__(name):

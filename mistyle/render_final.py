@@ -1,5 +1,7 @@
 """``mistyle-render`` (``python -m mistyle.render_final``): stylize densities (or meshes, or sequences) and path-trace them.
 
+The method is ``mistyle.pipeline``; this module is argparse -> ``PipelineSettings`` -> ``Pipeline`` -> files.
+
     mistyle-render --density examples/smoke_64.vol --style examples/style_marble.png --out out/marble
     mistyle-render --density smoke.vol --style jade.png --coat dielectric:1.5 --turntable 24 --out out/jade
     mistyle-render --mesh bunny.ply --style marble.png --coat dielectric --out out/bunny
@@ -29,10 +31,10 @@ One output per (density, style) pair (``mistyle.batch``): a single pair into ``-
   ``*_network_layer`` images), and ``temporal_flicker`` for sequences.
 
 ``--strength`` (0: a uniform grey medium, 1: the full style) and ``--mix`` act on the network's
-predicted stylizing kernels (``api.Stylizer.kernels``); a mix is measured and refined against a
-mosaic of its styles with areas in proportion to the weights (``api.style_target``). By default a
+predicted stylizing kernels (``pipeline.Stylizer.kernels``); a mix is measured and refined against a
+mosaic of its styles with areas in proportion to the weights (``pipeline.style_target``). By default a
 single frame at full strength is refined against the style (``--refine``: fast-layer steps,
-``--refine-path``: path-traced steps; ``fit.refine_albedo``), which is what makes the medium take
+``--refine-path``: path-traced steps; ``Pipeline.refinement``), which is what makes the medium take
 on the style's hues and patterns (``docs/style_fidelity.md``); ``--refine 0`` renders the
 feed-forward albedo: the network's arrangement with the style's colours (``mistyle.colour_match``,
 no gradient step; ``--no-colour-match`` keeps the network's own colours). Each output is written
@@ -54,18 +56,6 @@ from pathlib import Path
 import numpy as np
 
 from .conventions import CORRECTIONS, DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
-
-def refinement_settings(config, layer_steps: int | None = None, path_steps: int | None = None,
-                        camera_distance: float | None = None):
-    """The ``fit.RefineSettings`` of ``--refine``/``--refine-path`` for a checkpoint's ``config``
-    (``None``: the defaults, chosen by experiments/objective_study.py)."""
-    from dataclasses import replace
-
-    from .fit import RefineSettings
-
-    settings = RefineSettings(tv_weight=config.loss.tv_weight, camera_distance=config.render.camera_distance)
-    changes = {"layer_steps": layer_steps, "path_steps": path_steps, "camera_distance": camera_distance}
-    return replace(settings, **{key: value for key, value in changes.items() if value is not None})
 
 
 def _coat(text: str) -> float:
@@ -156,56 +146,46 @@ def log(message: str) -> None:
     status(message)
 
 
+def settings_from(args):
+    """The ``pipeline.PipelineSettings`` that ``args`` ask for."""
+    from .pipeline import PipelineSettings, RenderSettings
+
+    render = RenderSettings(res=args.res, spp=args.spp, max_depth=args.max_depth, light=args.light,
+                            coat_ior=args.coat, bricks=args.bricks, view=args.view, turntable=args.turntable)
+    return PipelineSettings(checkpoint=args.checkpoint, device=args.device, vgg_weights=args.vgg_weights,
+                            strength=args.strength, scale_structures=args.scale_structures,
+                            colour_match=args.colour_match, correction=args.correct, refine_steps=args.refine,
+                            refine_path_steps=args.refine_path, density_scale=args.density_scale,
+                            camera_distance=args.camera_distance, render=render)
+
+
 @dataclass
 class Job:
-    """Everything a run needs, loaded and checked before any heavy work (``load``)."""
+    """One output's inputs, loaded and checked before any heavy work (``load``), and where it goes."""
 
     args: argparse.Namespace
     output: object  # batch.Output: the (density, style) pair and its folder
-    stylizer: object  # api.Stylizer
-    style: np.ndarray  # (H, W, 3) display RGB in [0, 1]: the image (or a mix's mosaic) the look is measured against
-    style_parts: list  # [(decoded image, weight)]: what the network is given (``api.Stylizer``)
-    densities: list[np.ndarray]  # frames, (Z, Y, X) each
-    velocities: list[np.ndarray] | None  # per frame (Z, Y, X, 3), when every frame has one
+    pipeline: object  # pipeline.Pipeline
+    style_parts: list  # [(decoded image, weight)]: what the pipeline is given
+    frames: object  # pipeline.Frames
     names: list[str]
     views: list  # scenes.View
-    light: object  # scenes.LightSpec
-    density_scale: float
-    camera_distance: float
-    refine_steps: int
-    refine_path_steps: int
     coat_mesh: tuple | None = None  # (vertices, faces) placed in the medium box, for --mesh with --coat
     coat_mesh_path: Path | None = None
     transforms: list | None = None  # per frame, the vdb.VdbTransform of a .vdb density
     notes: list[str] = field(default_factory=list)
     out: Path | None = None  # the staging folder of the run (``io.staged_directory``), set in ``run``
-    prepared: dict = field(default_factory=dict)  # frame -> integrators.PreparedDensity, made once
 
     @property
     def sequence(self) -> bool:
-        return len(self.densities) > 1
-
-    def prepared_frame(self, frame: int):
-        """The frame's density prepared for the fast layer (its Ls grid), computed once."""
-        from .integrators import prepare_density
-
-        if frame not in self.prepared:
-            self.prepared[frame] = prepare_density(self.densities[frame], self.density_scale)
-        return self.prepared[frame]
-
-    def render_jobs(self) -> list[tuple[int, list]]:
-        """``(frame, views)`` to path trace: a turntable of one frame, or each frame of a sequence
-        from the views in turn."""
-        if self.sequence:
-            return [(i, [self.views[i % len(self.views)]]) for i in range(len(self.densities))]
-        return [(0, self.views)]
+        return self.frames.sequence
 
 
 def run(args) -> int:
-    from .api import Stylizer
     from .backend import use_variant
     from .batch import plan_outputs
     from .io import load_style, staged_directory
+    from .pipeline import Pipeline
 
     check_options(args)
     outputs = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite)
@@ -226,25 +206,24 @@ def run(args) -> int:
 
         vdb_interpreter()  # no OpenVDB binding: say so before any work
     use_variant(args.device)
-    stylizer = Stylizer(args.checkpoint, args.device, args.vgg_weights)
+    pipeline = Pipeline(settings_from(args), log=log)
     for number, output in enumerate(outputs, 1):
         if len(outputs) > 1:
             log(f"[{number}/{len(outputs)}] {output.name}")
-        job = load(args, output, stylizer, styles)
+        job = load(args, output, pipeline, styles)
         # Everything is written into a staging folder that replaces the output only when it is complete.
         with staged_directory(output.folder) as staging:
             job.out = staging
             report = {"inputs": _inputs_record(job), "notes": job.notes}
             write_coat_mesh(job)
-            albedos = stylize_frames(job, report)
-            rendered = correct_frames(job, albedos, report)
-            images, layer_images = render_frames(job, rendered, albedos, report)
-            report["files"] = write_assets(job, albedos, rendered)
-            write_report(job, albedos, images, layer_images, report)
+            stylized = stylize_frames(job, report)
+            images, layer_images = render_frames(job, stylized, report)
+            report["files"] = write_assets(job, stylized)
+            write_report(job, stylized, images, layer_images, report)
     if len(outputs) > 1:
         from .pages import write_index
 
-        write_index(args.out, f"mistyle: {len(outputs)} renders", [f"checkpoint {stylizer.path}"])
+        write_index(args.out, f"mistyle: {len(outputs)} renders", [f"checkpoint {pipeline.stylizer.path}"])
     where = f"{args.out}/ ({len(outputs)} outputs and index.html)" if len(outputs) > 1 else f"{args.out}/"
     print(f"wrote {where}: sheet.png, density and albedo grids with scene.xml, EXR + PNG images, report.json")
     return 0
@@ -255,7 +234,7 @@ def check_options(args) -> None:
     """Every option's range, before anything is read or written; one message names the option.
 
     Options that a library function also takes are checked by that function's own validator."""
-    from .api import validate_scale_structures, validate_strength
+    from .pipeline import validate_scale_structures, validate_strength
     from .scenes import validate_density_scale
     from .scenes.cameras import validate_camera_distance, validate_orbit_position
     from .scenes.pathtraced import validate_coat_ior, validate_max_depth
@@ -288,19 +267,14 @@ def check_options(args) -> None:
 
 
 # ---------------------------------------------------------------------------- stage 1: load and check
-def load(args, output, stylizer, styles: dict) -> Job:
+def load(args, output, pipeline, styles: dict) -> Job:
     """Check and load one output's inputs (``styles``: path -> (decoded image, conversion notes));
     nothing heavy runs before this returns."""
-    from .api import style_target
     from .io import load_density_frames
-    from .scenes import CameraPath, LightSpec
 
     notes = [note for path, _ in output.style.parts for note in styles[path][1]]
     parts = [(styles[path][0], weight) for path, weight in output.style.parts]
-    style = style_target([image for image, _ in parts], [weight for _, weight in parts])
-    config = stylizer.config
-    light = LightSpec.parse(args.light, default_radiance=config.render.radiance)
-    density_scale = args.density_scale if args.density_scale is not None else stylizer.density_scale
+    pipeline.light()  # a bad --light fails here, before the density is read
     coat_mesh, transforms = None, None
     if output.density.mesh:
         from .data.mesh import fit_to_box, load_mesh, voxelize
@@ -311,31 +285,14 @@ def load(args, output, stylizer, styles: dict) -> Job:
             placed, _ = fit_to_box(np.asarray(vertices, np.float64), args.mesh_res, 0.05)
             coat_mesh = (placed, faces)
     else:
-        frames = load_density_frames(output.density.path, grid=args.grid)
-        densities, velocities, names, transforms = frames.densities, frames.velocities, frames.names, frames.transforms
+        loaded = load_density_frames(output.density.path, grid=args.grid)
+        densities, velocities, names, transforms = loaded.densities, loaded.velocities, loaded.names, loaded.transforms
     for name, grid in zip(names, densities):
         if not grid.any():
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
-    sequence = len(densities) > 1
-    # Sequences are not refined by default: even warm-started and anchored (refine_frames), refined
-    # frames flicker about twice as much as the network's, and each frame costs the refinement's time.
-    # Nor is a weakened style: refining against the style would undo the strength.
-    defaults = refinement_settings(config)
-    unrefined = sequence or args.strength < 1.0
-    refine_steps = args.refine if args.refine is not None else (0 if unrefined else defaults.layer_steps)
-    refine_path_steps = (args.refine_path if args.refine_path is not None
-                         else 0 if unrefined or args.refine == 0 else defaults.path_steps)
-    if args.strength < 1.0 and args.refine is None:
-        notes.append(f"--strength {args.strength:g}: not refined against the style (which would undo the strength); "
-                     "give --refine to refine anyway")
-    camera_distance = args.camera_distance if args.camera_distance is not None else config.render.camera_distance
-    orbit = CameraPath(distance=camera_distance)
-    views = orbit.turntable(args.turntable, offset=args.view) if args.turntable else [orbit.view(args.view)]
-    return Job(args=args, output=output, stylizer=stylizer, style=style, style_parts=parts, densities=densities,
-               velocities=velocities,
-               names=names, views=views, light=light, density_scale=density_scale, camera_distance=camera_distance,
-               refine_steps=refine_steps, refine_path_steps=refine_path_steps, coat_mesh=coat_mesh,
-               transforms=transforms, notes=notes)
+    frames = pipeline.frames(densities, velocities)
+    return Job(args=args, output=output, pipeline=pipeline, style_parts=parts, frames=frames, names=names,
+               views=pipeline.views(), coat_mesh=coat_mesh, transforms=transforms, notes=notes)
 
 
 def write_coat_mesh(job: Job) -> None:
@@ -346,23 +303,16 @@ def write_coat_mesh(job: Job) -> None:
         job.coat_mesh_path = write_ply(job.out / "coat_mesh.ply", *job.coat_mesh)
 
 
-def check_finite(what: str, arrays) -> None:
-    """``ValueError`` naming the stage whose output holds NaN/inf, instead of writing it."""
-    for index, array in enumerate(arrays):
-        if not np.all(np.isfinite(array)):
-            raise ValueError(f"{what} {index} holds NaN/inf values; nothing was written. Check the density's range "
-                             "(normalise it and use --density-scale) and the light's strength.")
-
-
 def _inputs_record(job: Job) -> dict:
-    args = job.args
+    args, pipeline = job.args, job.pipeline
+    refinement = pipeline.refinement(len(job.frames.densities))
     return {"density": str(job.output.density.path), "mesh": job.output.density.mesh, "grid": args.grid,
-            "style": job.output.style.describe(), "strength": args.strength, "frames": len(job.densities),
-            "shape_zyx": list(job.densities[0].shape), "checkpoint": str(job.stylizer.path), "light": args.light,
-            "spp": args.spp, "max_depth": args.max_depth, "res": args.res, "density_scale": job.density_scale,
-            "coat_ior": args.coat, "scale_structures": args.scale_structures, "colour_match": args.colour_match,
-            "correction": args.correct,
-            "refine_steps": job.refine_steps, "refine_path_steps": job.refine_path_steps, "views": len(job.views)}
+            "style": job.output.style.describe(), "strength": args.strength, "frames": len(job.frames.densities),
+            "shape_zyx": list(job.frames.densities[0].shape), "checkpoint": str(pipeline.stylizer.path),
+            "light": args.light, "spp": args.spp, "max_depth": args.max_depth, "res": args.res,
+            "density_scale": pipeline.density_scale, "coat_ior": args.coat, "scale_structures": args.scale_structures,
+            "colour_match": args.colour_match, "correction": args.correct, "refine_steps": refinement.layer_steps,
+            "refine_path_steps": refinement.path_steps, "views": len(job.views)}
 
 
 def _frame_suffix(job: Job, index: int) -> str:
@@ -370,118 +320,41 @@ def _frame_suffix(job: Job, index: int) -> str:
     return f"_frame{index:04d}" if job.sequence else ""
 
 
-# ---------------------------------------------------------------------------- stage 2: stylize
-def stylize_frames(job: Job, report: dict) -> list[np.ndarray]:
-    """The network's albedo for every frame, written as ``albedo*.npy`` (the ``.vol`` by
-    ``write_assets``); flicker for sequences."""
+# ---------------------------------------------------------------------------- stage 2: stylize, correct, refine
+def stylize_frames(job: Job, report: dict):
+    """The pipeline's albedos for every frame (``pipeline.Stylization``); the feed-forward albedo is
+    written as ``albedo*.npy`` (the grids by ``write_assets``)."""
     from .io import write_npy
-    from .objective.metrics import temporal_flicker
 
-    started = time.perf_counter()
-    frames = np.stack(job.densities) if job.sequence else job.densities[0]
     style = job.style_parts if len(job.style_parts) > 1 else job.style_parts[0][0]
-    stylized = job.stylizer(frames, style, job.args.scale_structures, notes=job.notes, strength=job.args.strength,
-                            match_colours=job.args.colour_match)
-    albedos = list(stylized) if job.sequence else [stylized]
-    report["stylize_seconds"] = time.perf_counter() - started
-    check_finite("The network's albedo of frame", albedos)
-    log(f"stylized {len(albedos)} frame(s) of {job.densities[0].shape} in {report['stylize_seconds']:.2f} s")
-    for index, albedo in enumerate(albedos):
+    stylized = job.pipeline.stylize(job.frames, style, notes=job.notes)
+    report.update(stylized.report)
+    for index, albedo in enumerate(stylized.network):
         write_npy(job.out / f"albedo{_frame_suffix(job, index)}.npy", albedo)
-    if job.sequence and job.velocities is not None:
-        report["temporal_flicker"] = temporal_flicker(np.stack(albedos), np.stack(job.velocities))
-    elif job.sequence:
-        report["temporal_flicker_unwarped"] = float(np.mean(np.abs(np.diff(np.stack(albedos), axis=0))))
-        report["notes"].append("the frames carry no velocity; temporal_flicker_unwarped compares frames without warping")
-    return albedos
+    return stylized
 
 
-# ---------------------------------------------------------------------------- stage 3: correct and refine
-def correct_frames(job: Job, albedos: list[np.ndarray], report: dict) -> list[np.ndarray]:
-    """The albedos to path trace: calibrated for multiple scattering and/or refined, as asked
-    (written with the scene by ``write_assets``)."""
-    rendered = albedos
-    radiance = job.stylizer.config.render.radiance
-    if job.args.correct == "calibrate":
-        from .correct import measure_calibration
-
-        calibration = measure_calibration(job.densities[0], job.density_scale, radiance, job.views[:2], res=64, spp=16,
-                                          prepared=job.prepared_frame(0))
-        rendered = [calibration.apply(a) for a in rendered]
-        report["calibration"] = calibration.as_dict()
-        log(f"multiple-scattering calibration in {calibration.seconds:.1f} s")
-    if job.refine_steps or job.refine_path_steps:
-        rendered, report["refine_seconds"] = refine_frames(job, rendered)
-        if job.sequence and job.velocities is not None:
-            from .objective.metrics import temporal_flicker
-
-            report["temporal_flicker_refined"] = temporal_flicker(np.stack(rendered), np.stack(job.velocities))
-    check_finite("The corrected albedo of frame", rendered)
-    return rendered
-
-
-def refine_frames(job: Job, albedos: list[np.ndarray]) -> tuple[list[np.ndarray], float]:
-    """``fit.refine_albedo`` of every frame: ``job.refine_steps`` fast-layer steps, then
-    ``job.refine_path_steps`` path-traced ones, against the style.
-
-    In a sequence, each frame after the first starts from the previous frame's refined albedo warped
-    by its velocity (unwarped when the frames carry none) and is held near it by the temporal term:
-    measured on 3 held-out smoke frames, albedo flicker 0.0056 against 0.0148 for frames refined
-    independently and 0.0029 for the network's (experiments/sequence_refine.py)."""
-    from .fit import refine_albedo
-    from .progress import bar
-    from .warp import warp_grid
-
-    config = job.stylizer.config
-    settings = refinement_settings(config, job.refine_steps, job.refine_path_steps, job.camera_distance)
-    refined, seconds = [], 0.0
-    for index, (grid, albedo) in enumerate(zip(job.densities, albedos)):
-        label = f"refining frame {index}" if job.sequence else "refining"
-        with bar(settings.layer_steps + settings.path_steps, label) as progress_bar:
-            def progress(stage, done, count, loss, progress_bar=progress_bar):
-                progress_bar.set_postfix_str(f"{stage}, loss {loss:.4g}", refresh=False)
-                progress_bar.update(1)
-
-            anchor = None
-            if index > 0:
-                previous = refined[-1]
-                anchor = warp_grid(previous, job.velocities[index - 1]) if job.velocities is not None else previous
-                albedo = anchor
-            result, took = refine_albedo(grid, job.density_scale, albedo, job.style, settings,
-                                         radiance=config.render.radiance, device=job.args.device,
-                                         prepared=job.prepared_frame(index), anchor=anchor, progress=progress)
-        log(f"{label}: {settings.layer_steps} layer + {settings.path_steps} path-traced steps in {took:.1f} s")
-        refined.append(result)
-        seconds += took
-    return refined, seconds
-
-
-# ---------------------------------------------------------------------------- stage 4: path trace
-def render_frames(job: Job, rendered: list[np.ndarray], albedos: list[np.ndarray], report: dict):
-    """Path-trace the rendered albedos and write EXR/PNG (and video); also the layer's images of
-    the network's albedos. Returns ``(images, layer_images)``, linear ``(H, W, 3)`` each."""
-    from .api import path_trace
+# ---------------------------------------------------------------------------- stage 3: path trace
+def render_frames(job: Job, stylized, report: dict):
+    """Path-trace the pipeline's albedos and write EXR/PNG (and video); also the layer's images of
+    the feed-forward albedos. Returns ``(images, layer_images)``, linear ``(H, W, 3)`` each."""
     from .display import display
     from .io import write_exr, write_gif, write_mp4, write_png
     from .progress import bar
 
-    args = job.args
-    jobs = job.render_jobs()
-    total = sum(len(views) for _, views in jobs)
-    images, layer_images, render_seconds = [], [], []
+    args, pipeline = job.args, job.pipeline
+    plan = pipeline.render_plan(job.frames, job.views)
+    total = sum(len(views) for _, views in plan)
     started = time.perf_counter()
     with bar(total, "path tracing", unit="image") as progress_bar:
-        for frame, frame_views in jobs:
-            frame_images, seconds = path_trace(job.densities[frame], rendered[frame], frame_views, **_trace_options(job),
-                                               progress=lambda done, count, seconds: progress_bar.update(1))
-            images += frame_images
-            render_seconds += seconds
-            layer_images += _layer_images(job, frame, albedos[frame], frame_views)
+        images, render_seconds = pipeline.path_trace(job.frames, stylized.albedos, job.views,
+                                                     coat_mesh=job.coat_mesh_path,
+                                                     progress=lambda done, count, seconds: progress_bar.update(1))
+    layer_images = [image for frame, views in plan
+                    for image in pipeline.layer_images(job.frames, frame, stylized.network[frame], views)]
     report["render_seconds"] = time.perf_counter() - started
     log(f"path traced {total} image(s) of {args.res}^2 at {args.spp} spp in {report['render_seconds']:.1f} s")
     report["render_seconds_per_image"] = float(np.mean(render_seconds))
-    check_finite("The path-traced image", images)
-    check_finite("The fast layer's image", layer_images)
 
     kind = "sequence" if job.sequence else "turntable" if args.turntable else "view"
     for index, image in enumerate(images):
@@ -496,79 +369,62 @@ def render_frames(job: Job, rendered: list[np.ndarray], albedos: list[np.ndarray
     return images, layer_images
 
 
-def _trace_options(job: Job) -> dict:
-    args = job.args
-    return {"res": args.res, "spp": args.spp, "max_depth": args.max_depth, "density_scale": job.density_scale,
-            "light": job.light, "coat_ior": args.coat, "coat_mesh": job.coat_mesh_path, "device": args.device,
-            "bricks": args.bricks}
-
-
-def _layer_images(job: Job, frame: int, albedo: np.ndarray, views) -> list[np.ndarray]:
-    import torch
-
-    from .bridge_torch import render_views
-
-    config = job.stylizer.config
-    grid = torch.from_numpy(albedo).permute(3, 0, 1, 2).to(job.args.device)
-    with torch.no_grad():
-        images = render_views(grid, job.prepared_frame(frame), views, job.args.res, steps=config.render.steps,
-                              radiance=config.render.radiance)
-    return [image.permute(1, 2, 0).cpu().numpy() for image in images]
-
-
-# ---------------------------------------------------------------------------- stage 5: assets
-def write_assets(job: Job, albedos: list[np.ndarray], rendered: list[np.ndarray]) -> list[str]:
+# ---------------------------------------------------------------------------- stage 4: assets
+def write_assets(job: Job, stylized) -> list[str]:
     """What a Mitsuba, Houdini or Blender user opens: per frame the density and the path-traced albedo
-    (``.vol``, medium box as bounding box; also the network's ``albedo.vol`` when another albedo was
+    (``.vol``, medium box as bounding box; also the feed-forward ``albedo.vol`` when another albedo was
     path traced), the ``scene.xml`` that reproduces the render, and ``volume.vdb`` (density + albedo
     as ``Cd``) in the input ``.vdb``'s transform, or in the medium box's with ``--vdb``. Returns the
     file names written."""
     from .scenes.export import write_medium_grid, write_scene_files
 
     # scene.xml holds one medium: bricks only speed the render up (scenes.export).
-    scene_options = {key: value for key, value in _trace_options(job).items() if key not in ("device", "bricks")}
-    refined = rendered is not albedos
+    options = job.pipeline.trace_options()
+    scene_options = {key: value for key, value in options.items() if key not in ("device", "bricks")}
     written = []
-    for frame, views in job.render_jobs():
+    for frame, views in job.pipeline.render_plan(job.frames, job.views):
         suffix = _frame_suffix(job, frame)
-        if refined:
-            written.append(write_medium_grid(job.out / f"albedo{suffix}.vol", albedos[frame]).name)
-        paths = write_scene_files(job.out, job.densities[frame], rendered[frame], views, suffix=suffix,
-                                  albedo_name="albedo_refined" if refined else "albedo", **scene_options)
+        density, albedo = job.frames.densities[frame], stylized.albedos[frame]
+        if stylized.refined:
+            written.append(write_medium_grid(job.out / f"albedo{suffix}.vol", stylized.network[frame]).name)
+        paths = write_scene_files(job.out, density, albedo, views, suffix=suffix, coat_mesh=job.coat_mesh_path,
+                                  albedo_name="albedo_refined" if stylized.refined else "albedo", **scene_options)
         written += [path.name for path in paths.values()]
         if job.transforms is not None or job.args.vdb:
             from .vdb import ALBEDO_GRID, DENSITY_GRID, VdbTransform, write_vdb
 
-            density = job.densities[frame]
             transform = job.transforms[frame] if job.transforms is not None else VdbTransform.for_medium_box(density.shape)
             # The albedo only where there is medium: elsewhere it is never seen, and zeros stay inactive (small files).
-            albedo = rendered[frame] * (density > 0)[..., None]
-            path = write_vdb(job.out / f"volume{suffix}.vdb", transform, {DENSITY_GRID: density, ALBEDO_GRID: albedo},
-                             metadata={"mistyle_style": job.output.style.describe(), "mistyle_checkpoint": str(job.stylizer.path)})
+            shown = albedo * (density > 0)[..., None]
+            metadata = {"mistyle_style": job.output.style.describe(), "mistyle_checkpoint": str(job.pipeline.stylizer.path)}
+            path = write_vdb(job.out / f"volume{suffix}.vdb", transform, {DENSITY_GRID: density, ALBEDO_GRID: shown},
+                             metadata=metadata)
             written.append(path.name)
     return written
 
 
-# ---------------------------------------------------------------------------- stage 6: report
-def write_report(job: Job, albedos, images, layer_images, report: dict) -> None:
+# ---------------------------------------------------------------------------- stage 5: report
+def write_report(job: Job, stylized, images, layer_images, report: dict) -> None:
     """Style metrics of every image against the style, ``report.json``, ``sheet.png`` and a summary line."""
     from .display import display
     from .io import atomic_write_bytes
     from .objective.metrics import style_distance, style_fidelity
     from .pages import SHEET_FILE, write_sheet
 
-    final = [style_distance(image, job.style) for image in images]
+    style = stylized.target
+    final = [style_distance(image, style) for image in images]
     report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
     report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
-    report["swd_layer"] = float(np.mean([style_distance(image, job.style)["swd"] for image in layer_images]))
-    report.update(style_fidelity(images, job.style))
+    report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in layer_images]))
+    report.update(style_fidelity(images, style))
     atomic_write_bytes(job.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
     seconds = report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds"]
     lines = [f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
              f"RGB SWD {report['rgb_swd']:.4f}   patch SWD {report['patch_swd']:.4f}   hue coverage {report['hue_coverage']:.2f}",
-             f"strength {job.args.strength:g}, refine {job.refine_steps}+{job.refine_path_steps} steps, "
+             f"strength {job.args.strength:g}, refine {stylized.refinement.layer_steps}+{stylized.refinement.path_steps} "
+             f"steps, "
              f"{job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s"]
-    write_sheet(job.out / SHEET_FILE, [("style", job.style), ("fast layer (network)", display(layer_images[0])),
+    write_sheet(job.out / SHEET_FILE, [("style", style), ("fast layer (network)", display(layer_images[0])),
                                        ("final render", display(images[0]))], lines)
     print(json.dumps({k: report[k] for k in ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd",
                                              "hue_coverage") if k in report}))

@@ -17,12 +17,13 @@ LAYERS = [
     {"model", "objective"},
     {"fit", "correct", "data"},
     {"colour_match"},
-    {"api"},
+    {"pipeline"},
+    {"api", "benchmark"},
     {"render_final", "train"},
     {"demo"},
 ]
 RANK = {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
-INFERENCE = ("api", "render_final", "demo")
+INFERENCE = ("pipeline", "api", "benchmark", "render_final", "demo")
 
 
 def unit_of(module: str) -> str:

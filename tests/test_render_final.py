@@ -343,7 +343,7 @@ def test_mix_and_strength_from_the_command_line(mi, checkpoint, inputs, tmp_path
                  f"{inputs / 'rgba.png'}:1", "--strength", "0.5", "--out", str(out), "--res", "16", "--spp", "1"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["inputs"]["strength"] == 0.5 and "0.75 x" in report["inputs"]["style"] and "0.25 x" in report["inputs"]["style"]
-    assert report["inputs"]["refine_steps"] == 0 and any("--strength 0.5" in note for note in report["notes"])
+    assert report["inputs"]["refine_steps"] == 0 and any("strength 0.5" in note for note in report["notes"])
 
 
 @pytest.mark.parametrize("arguments, message", [

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from mistyle.api import LUMA_WEIGHTS, Stylizer, style_parts, validate_strength
+from mistyle.pipeline import LUMA_WEIGHTS, Stylizer, style_parts, validate_strength
 from mistyle.data.heldout import held_out_styles
 from mistyle.io import load_style
 from mistyle.model.skpn import SKPN, SKPNConfig, StylizingKernels

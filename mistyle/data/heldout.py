@@ -4,7 +4,7 @@ This module is the one place the split is recorded. Training draws its styles fr
 photographs and textures, procedural materials and users' folders, and its densities from the smoke
 solver with the dataset seeds of ``configs/`` (0 and up); the benchmark uses
 
-* styles: the images under ``experiments/heldout_styles/`` (paintings, photographs and material
+* styles: the images under ``mistyle/data/heldout_styles/`` (paintings, photographs and material
   textures from other sources; each file's source and licence in ``SOURCES.toml`` there), and
 * densities: ``HELD_OUT_DENSITIES``, made by ``held_out_density`` from seeds no training set uses
   (smoke at 64^3 and 128^3, and densities from other generators: a pyroclastic cloud and a
@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-HELD_OUT_STYLE_DIR = Path(__file__).resolve().parents[2] / "experiments" / "heldout_styles"
+HELD_OUT_STYLE_DIR = Path(__file__).resolve().parent / "heldout_styles"
+"""The held-out styles: package data, so an installed mistyle benchmarks without the repository."""
 HELD_OUT_SEED_BASE = 7000
 """Seeds of held-out densities start here; training datasets use small seeds (``tests/test_heldout.py``)."""
 

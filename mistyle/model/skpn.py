@@ -262,9 +262,9 @@ class SKPN(nn.Module):
 
     @torch.no_grad()
     def infer(self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor],
-              precision: str = "bf16", crop_margin: int | None = DEFAULT_CROP_MARGIN) -> torch.Tensor:
+              precision: str | None = None, crop_margin: int | None = DEFAULT_CROP_MARGIN) -> torch.Tensor:
         """``forward`` for inference, faster: in ``precision`` (``"bf16"``: bfloat16 autocast, as the
-        network was trained; ``"fp32"``: plain), and with ``crop_margin`` set, only over the bounding box
+        network was trained; ``"fp32"``: plain; None: ``inference_precision`` of the device), and with ``crop_margin`` set, only over the bounding box
         of the density's non-zero voxels grown by that many voxels (its low corner on a multiple of 4,
         so the strided levels keep their alignment). Outside the box the albedo repeats its faces'
         values: there is no medium there to show it. Returns float32 ``(B, 3, D, H, W)``.
@@ -272,6 +272,7 @@ class SKPN(nn.Module):
         Both change the albedo slightly against ``forward`` in float32 over the whole box (bfloat16
         rounding; the convolutions near the crop see zero padding instead of empty-space features);
         ``experiments/bench_skpn.py`` measures the change and ``tests/test_skpn.py`` bounds it."""
+        precision = inference_precision(density.device) if precision is None else precision
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}.")
         window = occupied_window(density, crop_margin) if crop_margin is not None else None
@@ -283,6 +284,15 @@ class SKPN(nn.Module):
             return albedo
         pads = [p for w, n in reversed(list(zip(window, density.shape[2:]))) for p in (w.start, n - w.stop)]
         return F.pad(albedo, pads, mode="replicate")
+
+
+def inference_precision(device: torch.device) -> str:
+    """``"bf16"`` where the hardware computes bfloat16 natively (CUDA; CPUs with AVX-512 BF16 or AMX, as
+    oneDNN reports), else ``"fp32"``: elsewhere bfloat16 convolutions are emulated, about 200x slower
+    than float32 at 64^3 on an AMD EPYC without AVX-512 BF16 (``experiments/bench_skpn.py``)."""
+    if torch.device(device).type == "cuda":
+        return "bf16"
+    return "bf16" if torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported() else "fp32"
 
 
 def occupied_window(density: torch.Tensor, margin: int) -> tuple[slice, slice, slice] | None:

@@ -1,0 +1,174 @@
+"""The benchmark's methods, registered by name: the product, its baselines and its upper reference.
+
+Each method maps ``(context, density (Z, Y, X), style (H, W, 3))`` to an albedo ``(Z, Y, X, 3)`` in
+[0, 1]; the runner path traces and scores every albedo the same way.
+
+The two **training-free baselines** exist to keep the colour match honest: they involve no network,
+and are given the style's colours by the same ``Stylizer.match_colours`` the product applies after
+the network. A post-processing stage that lifts them as much as the network proves nothing about the
+network.
+
+* ``density_ramp``: the density's rank among the occupied voxels, as a grey albedo.
+* ``smooth_noise``: independent Gaussian noise per channel, blurred by ``NOISE_SIGMA`` of the grid's
+  longest side (3 voxels at 64^3) and stretched to [0, 1] per channel.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+NOISE_SIGMA = 3 / 64
+"""The smooth noise's blur, as a fraction of the grid's longest side: structures of one size in the box."""
+QUICK_STEPS = (4, 1)
+"""Refinement and optimisation steps (fast layer, path traced) in quick mode."""
+
+
+@dataclass
+class Context:
+    """What every method of one run shares: the loaded network and the metric views."""
+
+    stylizer: object  # pipeline.Stylizer
+    views: list  # scenes.View: the metric views (the uniform baseline is matched on the first two)
+    quick: bool = False
+    optimise_factor: float = 2.0  # direct optimisation runs this many times the default refinement's steps
+    seed: int = 0
+    _pipelines: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def density_scale(self) -> float:
+        return self.stylizer.density_scale
+
+    @property
+    def radiance(self) -> float:
+        return self.stylizer.config.render.radiance
+
+    def pipeline(self, **settings):
+        """A ``pipeline.Pipeline`` on the shared network with these ``PipelineSettings`` fields."""
+        from ..pipeline import Pipeline, PipelineSettings
+
+        key = tuple(sorted(settings.items()))
+        if key not in self._pipelines:
+            self._pipelines[key] = Pipeline(PipelineSettings(checkpoint=self.stylizer.path, **settings),
+                                            stylizer=self.stylizer)
+        return self._pipelines[key]
+
+
+@dataclass(frozen=True)
+class Method:
+    name: str
+    role: str  # "product" | "ablation" | "baseline" | "reference"
+    description: str
+    albedo: Callable  # (Context, density, style) -> (Z, Y, X, 3)
+    uses_network: bool = False
+
+
+def uniform_albedo(context: Context, density: np.ndarray, style: np.ndarray) -> np.ndarray:
+    """One colour whose path-traced foreground has the style's mean display colour (matched on the
+    first two metric views)."""
+    from .study import uniform_baseline
+
+    return uniform_baseline(density, style, context.views, density_scale=context.density_scale,
+                            radiance=context.radiance)
+
+
+def density_ramp(density: np.ndarray) -> np.ndarray:
+    """Grey albedo ``(Z, Y, X, 3)``: each occupied voxel's rank in density, in (0, 1]; empty voxels 0."""
+    ramp = np.zeros(density.size, np.float32)
+    occupied = np.flatnonzero(density.ravel() > 0)
+    order = occupied[np.argsort(density.ravel()[occupied], kind="stable")]
+    ramp[order] = np.arange(1, len(order) + 1, dtype=np.float32) / max(len(order), 1)
+    return np.repeat(ramp.reshape(density.shape)[..., None], 3, axis=-1)
+
+
+def smooth_noise(shape: tuple, seed: int = 0, sigma: float = NOISE_SIGMA) -> np.ndarray:
+    """RGB noise ``shape + (3,)`` in [0, 1]: Gaussian per channel, blurred by ``sigma`` times the longest
+    side (a separable Gaussian, zero padded), each channel stretched to span [0, 1]."""
+    import torch
+    import torch.nn.functional as F
+
+    voxels = max(sigma * max(shape), 1e-3)
+    radius = max(1, int(np.ceil(3 * voxels)))
+    taps = torch.exp(-0.5 * (torch.arange(-radius, radius + 1, dtype=torch.float64) / voxels) ** 2)
+    taps = (taps / taps.sum()).to(torch.float32)
+    generator = torch.Generator().manual_seed(seed)
+    field = torch.randn((3, 1) + tuple(shape), generator=generator)
+    for axis in range(3):
+        kernel = taps.view((1, 1) + tuple(len(taps) if a == axis else 1 for a in range(3)))
+        padding = tuple(radius if a == axis else 0 for a in range(3))
+        field = F.conv3d(field, kernel, padding=padding)
+    field = field[:, 0].permute(1, 2, 3, 0).numpy()
+    low, high = field.reshape(-1, 3).min(axis=0), field.reshape(-1, 3).max(axis=0)
+    return np.ascontiguousarray((field - low) / np.maximum(high - low, 1e-12), dtype=np.float32)
+
+
+def colour_matched(context: Context, field: np.ndarray, density: np.ndarray, style: np.ndarray) -> np.ndarray:
+    """``field`` given the style's colours by the product's colour match."""
+    return context.stylizer.match_colours([field], [density], style)[0]
+
+
+def _density_ramp(context, density, style):
+    return colour_matched(context, density_ramp(density), density, style)
+
+
+def _smooth_noise(context, density, style):
+    return colour_matched(context, smooth_noise(density.shape, context.seed), density, style)
+
+
+def _network(context, density, style):
+    return context.pipeline(refine_steps=0, refine_path_steps=0).stylize(density, style).albedos[0]
+
+
+def _network_unmatched(context, density, style):
+    return context.pipeline(refine_steps=0, refine_path_steps=0, colour_match=False).stylize(density, style).albedos[0]
+
+
+def _default(context, density, style):
+    steps = dict(zip(("refine_steps", "refine_path_steps"), QUICK_STEPS)) if context.quick else {}
+    return context.pipeline(**steps).stylize(density, style).albedos[0]
+
+
+def _optimised(context, density, style):
+    from dataclasses import replace
+
+    from ..fit import refine_albedo
+    from ..pipeline import default_refinement
+
+    schedule = default_refinement(context.stylizer.config)
+    if context.quick:
+        schedule = replace(schedule, layer_steps=QUICK_STEPS[0], path_steps=QUICK_STEPS[1])
+    else:
+        schedule = schedule.scaled(context.optimise_factor)
+    albedo, _ = refine_albedo(density, context.density_scale, uniform_albedo(context, density, style), style, schedule,
+                              radiance=context.radiance)
+    return albedo
+
+
+METHODS = {
+    method.name: method
+    for method in (
+        Method("default", "product", "mistyle-render's default output: network, colour match, refinement",
+               _default, uses_network=True),
+        Method("network", "product", "feed-forward (--refine 0): the network, then the colour match",
+               _network, uses_network=True),
+        Method("network_unmatched", "ablation", "the network's albedo as predicted (--no-colour-match)",
+               _network_unmatched, uses_network=True),
+        Method("density_ramp", "baseline", "training-free: the density's rank as grey, then the colour match",
+               _density_ramp),
+        Method("smooth_noise", "baseline", "training-free: smooth RGB noise, then the colour match", _smooth_noise),
+        Method("uniform", "baseline", "one colour matched to the style's mean (the must-beat baseline)",
+               uniform_albedo),
+        Method("optimised", "reference", "direct optimisation of the albedo grid from the uniform baseline",
+               _optimised),
+    )
+}
+
+
+def timed(method: Method, context: Context, density: np.ndarray, style: np.ndarray) -> tuple[np.ndarray, float]:
+    """``method``'s albedo and the seconds it took."""
+    started = time.perf_counter()
+    albedo = method.albedo(context, density, style)
+    return albedo, time.perf_counter() - started

@@ -1,0 +1,232 @@
+"""The benchmark's one runner: pairs x methods -> albedos -> path-traced metric views -> rows, table, sheet.
+
+Rows live in ``<out>/rows.jsonl``, one ``Row`` a line. A row is identified by its method, pair and
+settings (``Row.key``): running again replaces the rows it recomputes and keeps every other, and
+``resume`` skips the ones already there. ``report`` rewrites ``<out>/table.md`` (medians per method,
+and medians of per-pair ratios to the uniform baseline on the same pairs and settings),
+``<out>/sheet.jpg`` (per pair: the style, then each method's first metric view) and
+``<out>/index.html``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import subprocess
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+METRIC_VIEWS = 3
+"""Metric views, evenly around the orbit from the held-out view."""
+ROWS_FILE, TABLE_FILE, SHEET_FILE = "rows.jsonl", "table.md", "sheet.jpg"
+TILE = 128
+
+
+@dataclass
+class Row:
+    method: str
+    density: str
+    style: str
+    rgb_swd: float
+    patch_swd: float
+    hue_coverage: float
+    seconds: float  # making the albedo (path tracing the metric views not included)
+    settings: dict  # res, spp, views, quick, optimise_factor: rows compare only at equal settings
+    checkpoint: str  # the network's file name and the first 12 hex digits of its SHA-256
+    commit: str  # the code's git commit ("+changes" when the tree had uncommitted changes)
+    split: str = ""
+
+    def key(self) -> tuple:
+        return self.method, self.density, self.style, json.dumps(self.settings, sort_keys=True)
+
+
+def metric_views(camera_distance: float, count: int = METRIC_VIEWS) -> list:
+    """``count`` views evenly around the orbit, starting at the held-out view."""
+    from ..conventions import HELD_OUT_VIEW
+    from ..scenes import CameraPath
+
+    return CameraPath(distance=camera_distance).turntable(count, offset=HELD_OUT_VIEW)
+
+
+def score(density, albedo, style, views, *, res: int, spp: int, density_scale: float, radiance: float):
+    """``(style_fidelity metrics, images)`` of ``albedo`` on ``density`` path traced from ``views``."""
+    from ..objective.metrics import style_fidelity
+    from ..pathtrace import path_trace
+
+    images, _ = path_trace(density, albedo, views, res=res, spp=spp, density_scale=density_scale,
+                           light=f"constant:{radiance}")
+    return style_fidelity(images, style), images
+
+
+def checkpoint_id(path) -> str:
+    digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]
+    return f"{Path(path).name}:{digest}"
+
+
+def code_commit() -> str:
+    """The git commit of the package's checkout, or "unknown" outside one."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"], capture_output=True,
+                                text=True, check=True, timeout=10).stdout.strip()
+        changed = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                                 capture_output=True, text=True, check=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return commit + ("+changes" if changed else "")
+
+
+def read_rows(path: Path) -> list[Row]:
+    if not path.exists():
+        return []
+    return [Row(**json.loads(line)) for line in path.read_text().splitlines() if line.strip()]
+
+
+def write_rows(path: Path, rows: list[Row]) -> None:
+    from ..io import atomic_write_bytes
+
+    atomic_write_bytes(path, "".join(json.dumps(asdict(row)) + "\n" for row in rows).encode())
+
+
+def run(out, pairs: list, method_names: list[str], *, res: int = 128, spp: int = 16, quick: bool = False,
+        resume: bool = False, checkpoint=None, optimise_factor: float = 2.0, cache=None, split: str = "",
+        log=print) -> list[Row]:
+    """Score ``method_names`` on ``pairs`` (``splits.split_pairs``), writing rows as they come, then the
+    report. Returns every row in ``<out>/rows.jsonl``."""
+    from ..data.heldout import held_out_density, held_out_styles
+    from ..io import load_style
+    from ..pipeline import Stylizer
+    from .methods import METHODS, Context, timed
+
+    unknown = [name for name in method_names if name not in METHODS]
+    if unknown:
+        raise ValueError(f"Unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}.")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows_path, tiles = out / ROWS_FILE, out / "tiles"
+    rows = read_rows(rows_path)
+    stylizer = Stylizer(checkpoint)
+    context = Context(stylizer, metric_views(stylizer.config.render.camera_distance), quick=quick,
+                      optimise_factor=optimise_factor)
+    settings = {"res": res, "spp": spp, "views": METRIC_VIEWS, "quick": quick, "optimise_factor": optimise_factor}
+    common = {"settings": settings, "checkpoint": checkpoint_id(stylizer.path), "commit": code_commit(), "split": split}
+    styles = held_out_styles()
+    for spec in dict.fromkeys(spec for spec, _ in pairs):
+        density = held_out_density(spec, cache)
+        for style_name in [name for density_spec, name in pairs if density_spec == spec]:
+            style = load_style(styles[style_name]["path"])
+            for name in method_names:
+                probe = Row(name, spec.name, style_name, 0.0, 0.0, 0.0, 0.0, **common)
+                if resume and any(row.key() == probe.key() for row in rows):
+                    continue
+                albedo, seconds = timed(METHODS[name], context, density, style)
+                metrics, images = score(density, albedo, style, context.views, res=res, spp=spp,
+                                        density_scale=context.density_scale, radiance=context.radiance)
+                row = Row(name, spec.name, style_name, metrics["rgb_swd"], metrics["patch_swd"],
+                          metrics["hue_coverage"], seconds, **common)
+                rows = [old for old in rows if old.key() != row.key()] + [row]
+                write_rows(rows_path, rows)
+                save_tile(tiles, row, images[0])
+                log(f"{name:18s} {spec.name:14s} {style_name:34s} RGB {row.rgb_swd:.4f} patch {row.patch_swd:.4f} "
+                    f"hue {row.hue_coverage:.2f} {seconds:6.1f} s")
+    report(out)
+    return rows
+
+
+# ---------------------------------------------------------------------------- report
+def summary(rows: list[Row]) -> dict:
+    """Per method (in ``METHODS`` order, then others): medians of the metrics and of each SWD's ratio to
+    the uniform baseline on the same pair and settings, and the number of pairs."""
+    from .methods import METHODS
+
+    uniform = {(row.density, row.style, json.dumps(row.settings, sort_keys=True)): row
+               for row in rows if row.method == "uniform"}
+    order = list(METHODS) + sorted({row.method for row in rows} - set(METHODS))
+    result = {}
+    for method in order:
+        mine = [row for row in rows if row.method == method]
+        if not mine:
+            continue
+        entry = {key: float(np.median([getattr(row, key) for row in mine]))
+                 for key in ("rgb_swd", "patch_swd", "hue_coverage", "seconds")}
+        matched = [(row, uniform.get((row.density, row.style, json.dumps(row.settings, sort_keys=True))))
+                   for row in mine]
+        matched = [(row, base) for row, base in matched if base is not None]
+        for key in ("rgb_swd", "patch_swd"):
+            entry[f"{key}_x_uniform"] = (float(np.median([getattr(row, key) / getattr(base, key) for row, base in matched]))
+                                         if matched else float("nan"))
+        entry["pairs"] = len(mine)
+        result[method] = entry
+    return result
+
+
+def table(rows: list[Row]) -> str:
+    """The medians of ``summary`` as a Markdown table."""
+    lines = ["| method | RGB SWD | x uniform | patch SWD | x uniform | hue coverage | seconds | pairs |",
+             "|---|---|---|---|---|---|---|---|"]
+    for method, m in summary(rows).items():
+        lines.append(f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_x_uniform']:.2f} | {m['patch_swd']:.4f} | "
+                     f"{m['patch_swd_x_uniform']:.2f} | {m['hue_coverage']:.2f} | {m['seconds']:.1f} | {m['pairs']} |")
+    return "\n".join(lines) + "\n"
+
+
+def report(out) -> str:
+    """Rewrite ``table.md``, ``sheet.jpg`` and ``index.html`` in ``out`` from its rows; returns the table."""
+    from ..io import atomic_write_bytes
+    from ..pages import write_index
+
+    out = Path(out)
+    rows = read_rows(out / ROWS_FILE)
+    text = table(rows)
+    atomic_write_bytes(out / TABLE_FILE, text.encode())
+    write_sheet(rows, out / "tiles", out / SHEET_FILE)
+    write_index(out, "mistyle: style-fidelity benchmark", [f"{len(rows)} rows; the table is {TABLE_FILE}"])
+    return text
+
+
+def tile_path(folder: Path, row: Row) -> Path:
+    return folder / f"{row.density}__{row.style}__{row.method}.png"
+
+
+def save_tile(folder: Path, row: Row, image: np.ndarray) -> None:
+    """The first metric view of a row, on display, as a ``TILE``^2 PNG for the contact sheet."""
+    from PIL import Image
+
+    from ..display import display
+    from ..io import write_png
+
+    shown = Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8)).resize((TILE, TILE), Image.LANCZOS)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_png(tile_path(folder, row), np.asarray(shown, np.float32) / 255, srgb=False)
+
+
+def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
+    """Per (density, style): the style, then each method's tile (grey where none was saved)."""
+    from PIL import Image, ImageDraw
+
+    from ..data.heldout import held_out_styles
+    from ..io import atomic_output, load_style
+    from ..model.features import square_style
+
+    pairs = list(dict.fromkeys((row.density, row.style) for row in rows))
+    if not pairs:
+        return
+    methods = list(summary(rows))
+    styles = held_out_styles()
+    canvas = np.full((len(pairs) * TILE + 16, (len(methods) + 1) * TILE, 3), 1.0, np.float32)
+    for index, (density, style) in enumerate(pairs):
+        cells = [square_style(load_style(styles[style]["path"]), TILE).permute(1, 2, 0).numpy()]
+        for method in methods:
+            tile = tiles / f"{density}__{style}__{method}.png"
+            cells.append(load_style(tile) if tile.exists() else np.full((TILE, TILE, 3), 0.5, np.float32))
+        canvas[16 + index * TILE:16 + (index + 1) * TILE] = np.concatenate(cells, axis=1)
+    image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
+    draw = ImageDraw.Draw(image)
+    for column, name in enumerate(["style"] + methods):
+        draw.text((column * TILE + 4, 2), name, fill="black")
+    for index, (density, _) in enumerate(pairs):
+        draw.text((4, 16 + index * TILE + 4), density, fill="white")
+    with atomic_output(path) as temporary:
+        image.save(temporary, format="JPEG", quality=88)

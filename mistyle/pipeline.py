@@ -1,0 +1,568 @@
+"""The product: density + style -> network -> colour match -> refinement -> path tracing, in memory.
+
+    from mistyle.pipeline import Pipeline, PipelineSettings
+
+    pipeline = Pipeline(PipelineSettings())                 # the bundled checkpoint, mistyle-render's defaults
+    stylized = pipeline.stylize(density, "marble.png")      # Stylization: .albedos[0] is what gets path traced
+    images, _ = pipeline.path_trace(stylized.frames, stylized.albedos)   # the final images, linear RGB
+
+The chain, each stage owned by one module and configured by ``PipelineSettings``:
+
+1. **Network** (``Stylizer``): the SKPN's albedo for each frame, from the style's stylizing kernels
+   (mixed and weakened on the kernels: ``Stylizer.kernels``, ``Stylizer.weakened``).
+2. **Colour match** (``mistyle.colour_match``): the network's arrangement with the style's colours;
+   a sequence shares the map fitted on its first frame.
+3. **Refinement** (``fit.refine_albedo``): fast-layer steps, then path-traced steps, against the
+   style; in a sequence each frame starts from the previous frame's result warped by the velocity
+   and is held near it by the temporal term. ``Pipeline.refinement`` owns the rule for how many
+   steps: a single frame at full strength gets ``RefineSettings``' schedule, sequences and weakened
+   styles none, unless the settings name the steps.
+4. **Path tracing** (``pathtrace.path_trace``): Mitsuba's ``volpath``, multiple scattering.
+
+``mistyle-render`` is argparse -> ``PipelineSettings`` -> ``Pipeline`` -> files, and
+``mistyle.stylize(..., refine=True)`` returns the albedo it path traces by default
+(``tests/test_pipeline.py`` checks that the two agree bit for bit).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .conventions import CORRECTIONS, DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
+from .io import load_style
+
+PACKAGE = Path(__file__).resolve().parent
+DEFAULT_CHECKPOINT = PACKAGE / "checkpoints" / "skpn_cpu.pt"
+SCALE_STRUCTURES_RANGE = (0.125, 8.0)
+# Rec. 709 luma of display RGB: the brightness a neutral (strength 0) medium keeps from the style.
+LUMA_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
+
+
+def validate_scale_structures(factor, name: str = "scale_structures") -> float:
+    """The structure-scale factor, in ``SCALE_STRUCTURES_RANGE``; ``ValueError`` naming ``name``."""
+    low, high = SCALE_STRUCTURES_RANGE
+    if not (np.isfinite(factor) and low <= factor <= high):
+        raise ValueError(f"{name} must lie in [{low}, {high}], got {factor}.")
+    return float(factor)
+
+
+def validate_strength(strength, name: str = "strength") -> float:
+    """A style strength in [0, 1]; ``ValueError`` naming ``name``."""
+    if not (np.isfinite(strength) and 0.0 <= strength <= 1.0):
+        raise ValueError(f"{name} must lie in [0, 1] (0: a uniform grey medium, 1: the full style), got {strength}.")
+    return float(strength)
+
+
+def style_parts(style) -> list[tuple[object, float]]:
+    """``style`` as ``[(image or path, weight)]``: one image or path, or a list of ``(style, weight)``."""
+    if isinstance(style, (list, tuple)) and style and all(isinstance(p, tuple) and len(p) == 2 for p in style):
+        weights = [float(w) for _, w in style]
+        if not all(np.isfinite(w) and w >= 0 for w in weights) or sum(weights) <= 0:
+            raise ValueError(f"Style mix weights must be >= 0 with a positive sum, got {weights}.")
+        return [(image, float(w)) for image, w in style]
+    return [(style, 1.0)]
+
+
+def style_target(images: list[np.ndarray], weights, height: int = 256) -> np.ndarray:
+    """The picture a style's look is measured and refined against: the image itself, or for a mix a
+    mosaic ``(height, W, 3)`` of its images side by side, each given a width in proportion to its
+    weight (scaled to ``height``, tiled across its strip), so every style's colours and patterns
+    count as much as its weight."""
+    from PIL import Image
+
+    if len(images) == 1:
+        return images[0]
+    weights = np.asarray(weights, dtype=np.float64) / np.sum(weights)
+    strips = []
+    for image, weight in zip(images, weights):
+        width = round(height * len(images) * weight)
+        if width < 1:
+            continue
+        scaled = np.asarray(Image.fromarray((image * 255 + 0.5).astype(np.uint8)).resize(
+            (max(1, round(image.shape[1] * height / image.shape[0])), height), Image.LANCZOS), dtype=np.float32) / 255
+        repeats = -(-width // scaled.shape[1])
+        strips.append(np.tile(scaled, (1, repeats, 1))[:, :width])
+    return np.concatenate(strips, axis=1)
+
+
+
+class Stylizer:
+    """A loaded checkpoint: ``stylizer(density, style) -> albedo``; see ``stylize``.
+
+    Attributes:
+        trained: the checkpoint's ``mistyle.model.checkpoint.TrainedModel`` (network, config,
+            extractor, density scale).
+    """
+
+    def __init__(self, checkpoint=None, device: str = "cpu", vgg_weights=None):
+        import torch
+
+        from .model.checkpoint import load_model
+
+        path = Path(checkpoint) if checkpoint is not None else DEFAULT_CHECKPOINT
+        if not path.is_file():
+            if checkpoint is None:
+                raise ValueError(f"The bundled checkpoint {path} is missing; train one with "
+                                 "`python -m mistyle.train --config configs/cpu.toml --out runs/cpu` and pass --checkpoint.")
+            raise ValueError(f"Checkpoint {path} does not exist; give a file written by `python -m mistyle.train` "
+                             "(e.g. runs/cpu/final.pt), or leave --checkpoint out for the bundled one.")
+        self.trained = load_model(path, vgg_weights)
+        self.device = torch.device(device)
+        self.trained.model.to(self.device)
+        self.trained.extractor.to(self.device)
+
+    @property
+    def path(self) -> Path:
+        return self.trained.path
+
+    @property
+    def config(self):
+        return self.trained.config
+
+    @property
+    def extractor(self):
+        return self.trained.extractor
+
+    @property
+    def density_scale(self) -> float:
+        return self.trained.density_scale
+
+    def style_tensor(self, style: np.ndarray):
+        """``(H, W, 3)`` style -> the ``(3, S, S)`` square the network and the objective see."""
+        from .model.features import square_style
+
+        return square_style(style, self.config.data.style_size)
+
+    def style_inputs(self, style: np.ndarray):
+        """What the network reads of ``style`` (``model.skpn.StyleInputs``)."""
+        return self.trained.model.encode_style(self.style_tensor(style)[None].to(self.device), self.extractor)
+
+    def kernels(self, style, notes: list | None = None):
+        """The stylizing kernels (``model.skpn.StylizingKernels``) the network applies for ``style``:
+        one image or path, or a mix ``[(style, weight)]``, whose kernels are blended with the
+        weights normalised to sum 1."""
+        import torch
+
+        from .model.skpn import StylizingKernels
+
+        model = self.trained.model
+        with torch.no_grad():
+            return StylizingKernels.blend([(model.predict_kernels(self.style_inputs(load_style(image, notes))), weight)
+                                           for image, weight in style_parts(style)])
+
+    def weakened(self, kernels, grid: np.ndarray, strength: float):
+        """``kernels`` at ``strength``: blended with ``SKPN.neutral_kernels`` whose grey is the luma of the
+        full-strength albedo's density-weighted mean on ``grid``, so that fading the style out keeps
+        the medium's brightness and removes its hues and patterns (0: uniform grey, 1: ``kernels``)."""
+        from .model.skpn import StylizingKernels
+
+        if validate_strength(strength) == 1.0:
+            return kernels
+        return StylizingKernels.blend([(kernels, strength), (self.neutral(kernels, grid), 1.0 - strength)])
+
+    def neutral(self, kernels, grid: np.ndarray):
+        """``SKPN.neutral_kernels`` of ``kernels`` whose grey is the luma of the density-weighted mean of
+        the albedo ``kernels`` give on ``grid`` (what ``weakened`` fades towards)."""
+        full = self._one(grid, kernels, 1.0)
+        grey = float(np.tensordot(grid / grid.sum(), full, axes=3) @ LUMA_WEIGHTS)
+        return self.trained.model.neutral_kernels(kernels, grey)
+
+    def __call__(self, density, style, scale_structures: float = 1.0, notes: list | None = None,
+                 strength: float = 1.0, match_colours: bool = True) -> np.ndarray:
+        """Albedo ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) of ``density`` for ``style`` (see ``kernels``)
+        at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame).
+
+        ``match_colours``: give the network's arrangement the style's colours (``colour_match``; for a
+        mix, the colours of ``style_target``), moved ``strength`` of the way; a sequence shares the map
+        fitted on its first frame. A medium too thin to be seen keeps the network's colours (said in
+        ``notes``). False: the network's albedo as predicted."""
+        from .volume import validate_density
+
+        array = np.asarray(density)
+        sequence = array.ndim == 4 and array.shape[-1] != 1
+        frames = array if sequence else array[None]
+        validate_scale_structures(scale_structures)
+        validate_strength(strength)
+        parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
+        inputs = self.kernels(parts)
+        grids, albedos = [], []
+        for index, frame in enumerate(frames):
+            grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
+            if not grid.any():
+                raise ValueError(f"{'Frame ' + str(index) + ' of the density' if sequence else 'The density'} is all zero; "
+                                 "there is no medium to stylize.")
+            if index == 0:
+                inputs = self.weakened(inputs, grid, strength)
+            grids.append(grid)
+            albedos.append(self._one(grid, inputs, scale_structures))
+        if match_colours and strength > 0:
+            target = style_target([image for image, _ in parts], [weight for _, weight in parts])
+            albedos = self.match_colours(albedos, grids, target, strength, notes)
+        return np.stack(albedos) if sequence else albedos[0]
+
+    def match_colours(self, albedos: list, grids: list, target: np.ndarray, strength: float = 1.0,
+                      notes: list | None = None) -> list:
+        """The frames' albedos ``[(Z, Y, X, 3)]`` on ``grids`` with the colours of the picture ``target (H, W, 3)``
+        (``colour_match``), through the map fitted on the first frame, moved ``strength`` of the way. A medium
+        too thin to be seen keeps its albedos (said in ``notes``)."""
+        from .colour_match import InvisibleMedium, fit_colour_match
+
+        render = self.config.render
+        try:
+            match = fit_colour_match(albedos[0], grids[0], target, density_scale=self.density_scale,
+                                     radiance=render.radiance, camera_distance=render.camera_distance)
+        except InvisibleMedium:
+            if notes is not None:
+                notes.append("colour match skipped: the medium is too thin to be seen at this density scale, "
+                             "so the network's own colours are kept")
+            return albedos
+        return [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
+
+    def _one(self, grid: np.ndarray, inputs, scale_structures: float) -> np.ndarray:
+        import torch
+        import torch.nn.functional as F
+
+        shape = grid.shape
+        density = torch.from_numpy(grid)[None, None].to(self.device)
+        if scale_structures != 1.0:
+            size = tuple(max(4, round(n * scale_structures)) for n in shape)
+            density = F.interpolate(density, size=size, mode="trilinear", align_corners=False)
+        with torch.no_grad():
+            albedo = self.trained.model.infer(density, inputs)  # bfloat16, empty space cropped: SKPN.infer
+            if tuple(albedo.shape[2:]) != shape:
+                albedo = F.interpolate(albedo, size=shape, mode="trilinear", align_corners=False)
+        return np.ascontiguousarray(albedo[0].permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
+
+
+
+def check_finite(what: str, arrays) -> None:
+    """``ValueError`` naming the stage whose output holds NaN/inf, instead of handing it on."""
+    for index, array in enumerate(arrays):
+        if not np.all(np.isfinite(array)):
+            raise ValueError(f"{what} {index} holds NaN/inf values; nothing was written. Check the density's range "
+                             "(normalise it and use --density-scale) and the light's strength.")
+
+
+def default_refinement(config, camera_distance: float | None = None):
+    """``mistyle-render``'s refinement schedule (``fit.RefineSettings``) for a checkpoint's ``config``:
+    the schedule's defaults with the checkpoint's TV weight and orbit radius."""
+    from .fit import RefineSettings
+
+    distance = config.render.camera_distance if camera_distance is None else camera_distance
+    return RefineSettings(tv_weight=config.loss.tv_weight, camera_distance=distance)
+
+
+@dataclass
+class RenderSettings:
+    """How the final images are path traced (``mistyle-render``'s ``--res``, ``--spp``, ...)."""
+
+    res: int = 256
+    spp: int = 64
+    max_depth: int = -1  # -1: full multiple scattering; 2: single scattering
+    light: str = LIGHT_KINDS[0]  # constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]
+    coat_ior: float | None = None  # a smooth dielectric boundary of this index of refraction
+    bricks: int | None = None  # voxels per majorant brick; None: scenes.bricks.DEFAULT_BRICK (0 under a coat)
+    view: float = HELD_OUT_VIEW  # the camera's position on the orbit, in [0, 1)
+    turntable: int = 0  # > 0: this many views evenly around the orbit from ``view``
+
+
+@dataclass
+class PipelineSettings:
+    """Everything that decides the pipeline's output, with ``mistyle-render``'s defaults.
+
+    ``None`` fields take the checkpoint's value (``density_scale``, ``camera_distance``) or the
+    pipeline's rule (``refine_steps``, ``refine_path_steps``: see ``Pipeline.refinement``)."""
+
+    checkpoint: str | Path | None = None  # a ``mistyle-train`` checkpoint; None: the bundled one
+    device: str = "cpu"
+    vgg_weights: str | Path | None = None
+    strength: float = 1.0
+    scale_structures: float = 1.0
+    colour_match: bool = True
+    correction: str = CORRECTIONS[0]
+    refine_steps: int | None = None
+    refine_path_steps: int | None = None
+    density_scale: float | None = None
+    camera_distance: float | None = None
+    render: RenderSettings = field(default_factory=RenderSettings)
+
+    def __post_init__(self):
+        validate_strength(self.strength)
+        validate_scale_structures(self.scale_structures)
+        if self.device not in DEVICES:
+            raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {self.device!r}.")
+        if self.correction not in CORRECTIONS:
+            raise ValueError(f"correction must be one of {', '.join(CORRECTIONS)}, got {self.correction!r}.")
+        for name in ("refine_steps", "refine_path_steps"):
+            steps = getattr(self, name)
+            if steps is not None and not 0 <= steps <= 10000:
+                raise ValueError(f"{name} must lie in [0, 10000], got {steps}.")
+
+
+@dataclass
+class Frames:
+    """The density frames one output stylizes, and what is computed once per frame."""
+
+    densities: list  # (Z, Y, X) float32 each, all one shape
+    velocities: list | None  # (Z, Y, X, 3) each, when every frame has one
+    density_scale: float
+    _prepared: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def sequence(self) -> bool:
+        return len(self.densities) > 1
+
+    def prepared(self, frame: int):
+        """The frame's density prepared for the fast layer (its Ls grid), computed once."""
+        from .integrators import prepare_density
+
+        if frame not in self._prepared:
+            self._prepared[frame] = prepare_density(self.densities[frame], self.density_scale)
+        return self._prepared[frame]
+
+
+@dataclass
+class Stylization:
+    """What ``Pipeline.stylize`` made for one (density, style) pair."""
+
+    frames: Frames
+    network: list  # (Z, Y, X, 3) per frame: the feed-forward albedo (network, then the colour match)
+    albedos: list  # (Z, Y, X, 3) per frame: what is path traced (refined or calibrated, else ``network``)
+    target: np.ndarray  # (H, W, 3) display RGB: the picture the result is refined and measured against
+    refinement: object  # the fit.RefineSettings that ran (0 steps: none)
+    report: dict  # seconds per stage, temporal flicker of sequences, the calibration
+    notes: list
+
+    @property
+    def refined(self) -> bool:
+        """Whether ``albedos`` differ from the feed-forward ``network`` albedos."""
+        return self.albedos is not self.network
+
+
+class Pipeline:
+    """The chain of the module docstring for one set of ``PipelineSettings``, network loaded once.
+
+    ``log(message)``, when given, receives a status line per stage (the command line prints them);
+    progress bars appear on a terminal only (``mistyle.progress``).
+    """
+
+    def __init__(self, settings: PipelineSettings | None = None, stylizer: Stylizer | None = None,
+                 log: Callable[[str], None] | None = None):
+        self.settings = settings if settings is not None else PipelineSettings()
+        s = self.settings
+        self.stylizer = stylizer if stylizer is not None else Stylizer(s.checkpoint, s.device, s.vgg_weights)
+        self.log = log if log is not None else (lambda message: None)
+
+    @property
+    def config(self):
+        return self.stylizer.config
+
+    @property
+    def density_scale(self) -> float:
+        s = self.settings
+        return s.density_scale if s.density_scale is not None else self.stylizer.density_scale
+
+    @property
+    def camera_distance(self) -> float:
+        s = self.settings
+        return s.camera_distance if s.camera_distance is not None else self.config.render.camera_distance
+
+    @property
+    def radiance(self) -> float:
+        """The training light's radiance: the constant environment of refinement and of ``light`` by default."""
+        return self.config.render.radiance
+
+    def light(self):
+        """The final render's ``scenes.LightSpec``."""
+        from .scenes import LightSpec
+
+        return LightSpec.parse(self.settings.render.light, default_radiance=self.radiance)
+
+    def views(self) -> list:
+        """The final render's ``scenes.View``s: one at ``render.view``, or a turntable from it."""
+        from .scenes import CameraPath
+
+        render = self.settings.render
+        orbit = CameraPath(distance=self.camera_distance)
+        return orbit.turntable(render.turntable, offset=render.view) if render.turntable else [orbit.view(render.view)]
+
+    def refinement(self, frames: int = 1):
+        """The refinement schedule (``fit.RefineSettings``) for ``frames`` frames.
+
+        Steps the settings name are used as they are. Otherwise a single frame at full strength gets
+        ``default_refinement``'s steps, and sequences and weakened styles get none: even warm-started
+        and anchored, refined frames flicker about twice as much as the network's and each frame costs
+        the refinement's time, and refining against the style would undo a strength below 1.
+        ``refine_steps=0`` also turns the path-traced steps off unless they are named."""
+        s = self.settings
+        defaults = default_refinement(self.config, self.camera_distance)
+        unrefined = frames > 1 or s.strength < 1.0
+        layer = s.refine_steps if s.refine_steps is not None else 0 if unrefined else defaults.layer_steps
+        path = (s.refine_path_steps if s.refine_path_steps is not None
+                else 0 if unrefined or s.refine_steps == 0 else defaults.path_steps)
+        return replace(defaults, layer_steps=layer, path_steps=path)
+
+    def frames(self, density, velocities=None) -> Frames:
+        """``density`` as ``Frames``: one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
+        frames; ``velocities`` ``(Z, Y, X, 3)`` per frame or None. ``ValueError`` for a frame that
+        is not a valid density or holds no medium."""
+        from .volume import validate_density
+
+        if isinstance(density, Frames):
+            return density
+        array = density if isinstance(density, (list, tuple)) else np.asarray(density)
+        sequence = isinstance(array, (list, tuple)) or (array.ndim == 4 and array.shape[-1] != 1)
+        grids = []
+        for index, frame in enumerate(array if sequence else [array]):
+            name = f"density frame {index}" if sequence else "density"
+            grid = validate_density(frame, name=name)
+            if not grid.any():
+                raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
+            grids.append(grid)
+        if len({grid.shape for grid in grids}) > 1:
+            raise ValueError(f"The frames have different shapes {sorted({g.shape for g in grids})}; "
+                             "a sequence needs one grid size.")
+        if velocities is not None and len(velocities) != len(grids):
+            raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
+        return Frames(grids, None if velocities is None else list(velocities), self.density_scale)
+
+    # ------------------------------------------------------------------------ stylize
+    def stylize(self, density, style, velocities=None, notes: list | None = None) -> Stylization:
+        """Network, colour match and refinement (or calibration) for every frame of ``density``.
+
+        ``style``: an image or path, or a mix ``[(image or path, weight)]`` (see ``style_parts``).
+        ``notes`` (a list) collects what the user should know (conversions, skipped stages)."""
+        from .objective.metrics import temporal_flicker
+
+        s = self.settings
+        notes = [] if notes is None else notes
+        frames = self.frames(density, velocities)
+        parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
+        target = style_target([image for image, _ in parts], [weight for _, weight in parts])
+        refinement = self.refinement(len(frames.densities))
+        if s.strength < 1.0 and s.refine_steps is None:
+            notes.append(f"strength {s.strength:g}: not refined against the style (which would undo the strength); "
+                         "name the refinement steps to refine anyway")
+        report: dict = {}
+
+        started = time.perf_counter()
+        stacked = np.stack(frames.densities) if frames.sequence else frames.densities[0]
+        network = self.stylizer(stacked, parts if len(parts) > 1 else parts[0][0], s.scale_structures, notes=notes,
+                                strength=s.strength, match_colours=s.colour_match)
+        network = list(network) if frames.sequence else [network]
+        report["stylize_seconds"] = time.perf_counter() - started
+        check_finite("The network's albedo of frame", network)
+        self.log(f"stylized {len(network)} frame(s) of {frames.densities[0].shape} in {report['stylize_seconds']:.2f} s")
+        if frames.sequence and frames.velocities is not None:
+            report["temporal_flicker"] = temporal_flicker(np.stack(network), np.stack(frames.velocities))
+        elif frames.sequence:
+            report["temporal_flicker_unwarped"] = float(np.mean(np.abs(np.diff(np.stack(network), axis=0))))
+            notes.append("the frames carry no velocity; temporal_flicker_unwarped compares frames without warping")
+
+        albedos = network
+        if s.correction == "calibrate":
+            albedos = self.calibrate(frames, albedos, report)
+        if refinement.layer_steps or refinement.path_steps:
+            albedos, report["refine_seconds"] = self.refine(frames, albedos, target, refinement)
+            if frames.sequence and frames.velocities is not None:
+                report["temporal_flicker_refined"] = temporal_flicker(np.stack(albedos), np.stack(frames.velocities))
+        check_finite("The corrected albedo of frame", albedos)
+        return Stylization(frames, network, albedos, target, refinement, report, notes)
+
+    def calibrate(self, frames: Frames, albedos: list, report: dict) -> list:
+        """The albedos mapped so their multiply-scattered brightness matches single scattering
+        (``correct.measure_calibration`` on the first frame)."""
+        from .correct import measure_calibration
+
+        calibration = measure_calibration(frames.densities[0], frames.density_scale, self.radiance, self.views()[:2],
+                                          res=64, spp=16, prepared=frames.prepared(0))
+        report["calibration"] = calibration.as_dict()
+        self.log(f"multiple-scattering calibration in {calibration.seconds:.1f} s")
+        return [calibration.apply(albedo) for albedo in albedos]
+
+    def refine(self, frames: Frames, albedos: list, target: np.ndarray, refinement) -> tuple[list, float]:
+        """``fit.refine_albedo`` of every frame against ``target`` with the schedule ``refinement``:
+        ``(refined albedos, seconds)``.
+
+        In a sequence, each frame after the first starts from the previous frame's refined albedo
+        warped by its velocity (unwarped when the frames carry none) and is held near it by the
+        temporal term (``RefineSettings.temporal_weight``; experiments/sequence_refine.py measures
+        the flicker)."""
+        from .fit import refine_albedo
+        from .progress import bar
+        from .warp import warp_grid
+
+        refined, seconds = [], 0.0
+        for index, (grid, albedo) in enumerate(zip(frames.densities, albedos)):
+            label = f"refining frame {index}" if frames.sequence else "refining"
+            with bar(refinement.layer_steps + refinement.path_steps, label) as progress_bar:
+                def progress(stage, done, count, loss, progress_bar=progress_bar):
+                    progress_bar.set_postfix_str(f"{stage}, loss {loss:.4g}", refresh=False)
+                    progress_bar.update(1)
+
+                anchor = None
+                if index > 0:
+                    previous = refined[-1]
+                    anchor = (warp_grid(previous, frames.velocities[index - 1])
+                              if frames.velocities is not None else previous)
+                    albedo = anchor
+                result, took = refine_albedo(grid, frames.density_scale, albedo, target, refinement,
+                                             radiance=self.radiance, device=self.settings.device,
+                                             prepared=frames.prepared(index), anchor=anchor, progress=progress)
+            self.log(f"{label}: {refinement.layer_steps} layer + {refinement.path_steps} path-traced steps "
+                     f"in {took:.1f} s")
+            refined.append(result)
+            seconds += took
+        return refined, seconds
+
+    # ------------------------------------------------------------------------ render
+    def path_trace(self, frames: Frames, albedos: list, views: list | None = None, coat_mesh=None,
+                   progress=None) -> tuple[list, list]:
+        """Path-trace frame ``i`` with ``albedos[i]`` from ``views`` (default ``self.views()``): every view
+        of a single frame, or for a sequence frame ``i`` from view ``i mod len(views)``. Returns
+        ``(images (res, res, 3) linear RGB, seconds per image)``; ``progress(done, count, seconds)``
+        after each image."""
+        from .pathtrace import path_trace
+
+        images, seconds = [], []
+        for frame, frame_views in self.render_plan(frames, views):
+            frame_images, took = path_trace(frames.densities[frame], albedos[frame], frame_views,
+                                            coat_mesh=coat_mesh, progress=progress, **self.trace_options())
+            images += frame_images
+            seconds += took
+        check_finite("The path-traced image", images)
+        return images, seconds
+
+    def render_plan(self, frames: Frames, views: list | None = None) -> list[tuple[int, list]]:
+        """``(frame, views)`` to path trace: every view of one frame, or each frame of a sequence
+        from the views in turn."""
+        views = self.views() if views is None else views
+        if frames.sequence:
+            return [(i, [views[i % len(views)]]) for i in range(len(frames.densities))]
+        return [(0, views)]
+
+    def trace_options(self) -> dict:
+        """``pathtrace.path_trace``'s options for the final render (also the exported scene's)."""
+        render = self.settings.render
+        return {"res": render.res, "spp": render.spp, "max_depth": render.max_depth,
+                "density_scale": self.density_scale, "light": self.light(), "coat_ior": render.coat_ior,
+                "device": self.settings.device, "bricks": render.bricks}
+
+    def layer_images(self, frames: Frames, frame: int, albedo: np.ndarray, views: list) -> list[np.ndarray]:
+        """The fast layer's images ``(res, res, 3)`` of ``albedo`` on ``frame`` under the training light."""
+        import torch
+
+        from .bridge_torch import render_views
+
+        grid = torch.from_numpy(albedo).permute(3, 0, 1, 2).to(self.settings.device)
+        with torch.no_grad():
+            images = render_views(grid, frames.prepared(frame), views, self.settings.render.res,
+                                  steps=self.config.render.steps, radiance=self.radiance)
+        images = [image.permute(1, 2, 0).cpu().numpy() for image in images]
+        check_finite("The fast layer's image", images)
+        return images

@@ -1,0 +1,111 @@
+"""The benchmark package: its splits, its training-free baselines, its runner and rows, its command."""
+
+import json
+
+import numpy as np
+import pytest
+
+from mistyle.benchmark import METHODS, split_pairs
+from mistyle.benchmark.__main__ import main
+from mistyle.benchmark.methods import density_ramp, smooth_noise
+from mistyle.benchmark.runner import read_rows, run, summary
+from mistyle.data.heldout import HELD_OUT_SEED_BASE, HeldOutDensity, held_out_styles
+
+TINY = HeldOutDensity("pyroclastic16", "pyroclastic", 16, HELD_OUT_SEED_BASE + 3)
+
+
+def test_the_held_out_styles_are_package_data():
+    from pathlib import Path
+
+    import mistyle
+
+    package = Path(mistyle.__file__).resolve().parent
+    styles = held_out_styles()
+    assert len(styles) >= 10
+    assert all(package in record["path"].resolve().parents for record in styles.values())
+
+
+def test_splits_name_their_pairs_and_refuse_unknown_names():
+    pairs = split_pairs("heldout")
+    assert {spec.name for spec, _ in pairs} == {"smoke64", "pyroclastic64"}
+    assert len(pairs) == 2 * len(held_out_styles())
+    assert [style for _, style in split_pairs("heldout", ["smoke64"], ["munch_the_scream"])] == ["munch_the_scream"]
+    for bad, message in ((("nope",), "Unknown split"), (("heldout", ["smoke32"]), "no density smoke32"),
+                         (("quick", None, ["munch_the_scream"]), "no style munch_the_scream")):
+        with pytest.raises(ValueError, match=message):
+            split_pairs(*bad)
+
+
+def test_the_registry_holds_the_product_the_baselines_and_the_reference():
+    roles = {name: method.role for name, method in METHODS.items()}
+    assert {"default", "network"} <= {n for n, r in roles.items() if r == "product"}
+    assert {"uniform", "density_ramp", "smooth_noise"} <= {n for n, r in roles.items() if r == "baseline"}
+    assert roles["optimised"] == "reference"
+    assert not any(METHODS[name].uses_network for name in ("uniform", "density_ramp", "smooth_noise"))
+
+
+def test_density_ramp_is_the_densitys_rank(rng):
+    density = np.zeros((6, 7, 8), np.float32)
+    density[1:5, 2:6, 3:7] = rng.random((4, 4, 4)) + 0.1
+    ramp = density_ramp(density)
+    assert ramp.shape == density.shape + (3,) and np.array_equal(ramp[..., 0], ramp[..., 2])
+    occupied = density > 0
+    assert np.all(ramp[~occupied] == 0) and ramp.max() == 1.0
+    order = np.argsort(density[occupied])
+    assert np.all(np.diff(ramp[..., 0][occupied][order]) > 0)  # strictly increasing with density
+
+
+def test_smooth_noise_is_seeded_spans_the_unit_cube_and_is_smooth():
+    noise = smooth_noise((32, 32, 32), seed=3)
+    assert noise.shape == (32, 32, 32, 3) and noise.dtype == np.float32
+    assert np.array_equal(noise, smooth_noise((32, 32, 32), seed=3))
+    assert not np.array_equal(noise, smooth_noise((32, 32, 32), seed=4))
+    assert np.allclose(noise.reshape(-1, 3).min(axis=0), 0) and np.allclose(noise.reshape(-1, 3).max(axis=0), 1)
+    # Neighbours are close: much closer than white noise's (mean |difference| 1/3 for uniform values).
+    assert float(np.abs(np.diff(noise, axis=0)).mean()) < 0.05
+    channels = noise.reshape(-1, 3).T
+    assert abs(np.corrcoef(channels)[0, 1]) < 0.5  # independent channels: colour varies in every direction
+
+
+def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
+    pairs = [(TINY, "hokusai_great_wave")]
+    methods = ["density_ramp", "smooth_noise", "uniform"]
+    lines = []
+    rows = run(tmp_path, pairs, methods, res=16, spp=1, cache=tmp_path / "cache", log=lines.append)
+    assert len(rows) == 3 and len(lines) == 3
+    stored = read_rows(tmp_path / "rows.jsonl")
+    assert [row.method for row in stored] == methods
+    row = stored[0]
+    assert row.density == "pyroclastic16" and row.settings["res"] == 16 and row.checkpoint.startswith("skpn_cpu.pt:")
+    assert np.isfinite([row.rgb_swd, row.patch_swd, row.hue_coverage]).all() and row.commit
+    assert summary(stored)["uniform"]["rgb_swd_x_uniform"] == 1.0
+    table = (tmp_path / "table.md").read_text()
+    assert all(f"| {name} |" in table for name in methods)
+    assert (tmp_path / "sheet.jpg").stat().st_size > 0 and (tmp_path / "index.html").exists()
+    # Resume: nothing is recomputed; another setting gives rows of its own beside the first ones.
+    lines.clear()
+    run(tmp_path, pairs, methods, res=16, spp=1, cache=tmp_path / "cache", resume=True, log=lines.append)
+    assert lines == [] and read_rows(tmp_path / "rows.jsonl") == stored
+    run(tmp_path, pairs, ["uniform"], res=16, spp=2, cache=tmp_path / "cache", log=lines.append)
+    assert len(read_rows(tmp_path / "rows.jsonl")) == 4
+
+
+def test_command_refuses_bad_input_in_one_line(tmp_path, capsys):
+    assert main(["--methods", "network,magic", "--out", str(tmp_path / "x"), "--styles", "munch_the_scream",
+                 "--densities", "smoke64"]) == 2
+    assert "Unknown method(s) magic" in capsys.readouterr().err
+    assert main(["--report-only", "--out", str(tmp_path / "none")]) == 2
+    assert "run the benchmark first" in capsys.readouterr().err
+    assert main(["--split", "quick", "--styles", "munch_the_scream"]) == 2
+    assert "no style munch_the_scream" in capsys.readouterr().err
+
+
+@pytest.mark.benchmark
+def test_quick_benchmark(mi, tmp_path, capsys):
+    """``mistyle-bench --quick``: every method on the quick split, the table beside the baselines."""
+    assert main(["--quick", "--out", str(tmp_path), "--cache", str(tmp_path / "cache")]) == 0
+    rows = [json.loads(line) for line in (tmp_path / "rows.jsonl").read_text().splitlines()]
+    assert {row["method"] for row in rows} == set(METHODS)
+    assert len(rows) == len(METHODS) * len(split_pairs("quick"))
+    table = capsys.readouterr().out
+    assert "| smooth_noise |" in table and "| density_ramp |" in table and "| default |" in table

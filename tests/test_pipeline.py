@@ -1,0 +1,94 @@
+"""The pipeline is the product: ``mistyle.stylize``, ``mistyle.Pipeline`` and ``mistyle-render`` give the
+same albedo for the same inputs, bit for bit."""
+
+import drjit as dr
+import numpy as np
+import pytest
+
+import mistyle
+from mistyle.io import read_vol, write_vol
+from mistyle.pipeline import Pipeline, PipelineSettings
+from mistyle.render_final import main, parser, settings_from
+
+STYLE = "examples/style_marble.png"
+RENDER = ["--res", "16", "--spp", "1", "--quiet"]
+
+
+@pytest.fixture
+def one_thread():
+    """Dr.Jit on one thread: its parallel scatter-add (the fast layer's backward pass) sums in the order
+    threads finish, so a refinement is bit-reproducible only on one thread."""
+    threads = dr.thread_count()
+    dr.set_thread_count(1)
+    yield
+    dr.set_thread_count(threads)
+
+
+@pytest.fixture(scope="module")
+def density_file(tmp_path_factory, blob_density):
+    path = tmp_path_factory.mktemp("pipeline") / "blob.vol"
+    write_vol(path, blob_density)
+    return path
+
+
+def render_cli(tmp_path, density_file, *options):
+    out = tmp_path / "out"
+    assert main(["--density", str(density_file), "--style", STYLE, "--out", str(out), *RENDER, *options]) == 0
+    return out
+
+
+def test_stylize_is_the_commands_feed_forward_albedo(mi, tmp_path, density_file):
+    out = render_cli(tmp_path, density_file, "--refine", "0")
+    assert np.array_equal(mistyle.stylize(read_vol(density_file), STYLE), np.load(out / "albedo.npy"))
+    assert np.array_equal(read_vol(out / "albedo.vol"), np.load(out / "albedo.npy"))
+
+
+def test_pipeline_gives_the_commands_refined_albedo_bit_for_bit(mi, tmp_path, density_file, one_thread):
+    out = render_cli(tmp_path, density_file, "--refine", "3", "--refine-path", "1")
+    stylized = Pipeline(PipelineSettings(refine_steps=3, refine_path_steps=1)).stylize(read_vol(density_file), STYLE)
+    assert stylized.refined and stylized.refinement.layer_steps == 3 and stylized.refinement.path_steps == 1
+    assert np.array_equal(stylized.albedos[0], read_vol(out / "albedo_refined.vol"))
+    assert np.array_equal(stylized.network[0], np.load(out / "albedo.npy"))
+
+
+def test_stylize_refine_runs_the_commands_default_settings():
+    args = parser().parse_args(["--density", "d.vol", "--style", STYLE, "--out", "o"])
+    assert settings_from(args) == PipelineSettings()  # the command's defaults are the pipeline's defaults
+    refinement = Pipeline().refinement()
+    assert refinement.layer_steps > 0 and refinement.path_steps > 0  # a single frame is refined by default
+
+
+@pytest.mark.slow
+def test_stylize_refine_is_the_commands_default_output(mi, tmp_path, density_file, one_thread):
+    out = render_cli(tmp_path, density_file)
+    assert np.array_equal(mistyle.stylize(read_vol(density_file), STYLE, refine=True),
+                          read_vol(out / "albedo_refined.vol"))
+
+
+def test_refinement_rule():
+    pipeline = Pipeline()
+    default = pipeline.refinement(1)
+    assert (pipeline.refinement(3).layer_steps, pipeline.refinement(3).path_steps) == (0, 0)  # sequences
+    weakened = Pipeline(PipelineSettings(strength=0.5), stylizer=pipeline.stylizer).refinement(1)
+    assert (weakened.layer_steps, weakened.path_steps) == (0, 0)
+    layer_only = Pipeline(PipelineSettings(refine_steps=0), stylizer=pipeline.stylizer).refinement(1)
+    assert (layer_only.layer_steps, layer_only.path_steps) == (0, 0)
+    named = Pipeline(PipelineSettings(refine_steps=5, refine_path_steps=2), stylizer=pipeline.stylizer).refinement(3)
+    assert (named.layer_steps, named.path_steps) == (5, 2) and named.tv_weight == default.tv_weight
+
+
+@pytest.mark.parametrize("change, message", [({"strength": 2.0}, "strength"), ({"refine_steps": -1}, "refine_steps"),
+                                             ({"device": "tpu"}, "device"), ({"correction": "x"}, "correction")])
+def test_settings_refuse_bad_values(change, message):
+    with pytest.raises(ValueError, match=message):
+        PipelineSettings(**change)
+
+
+def test_pipeline_refuses_empty_and_mismatched_frames(blob_density):
+    pipeline = Pipeline()
+    with pytest.raises(ValueError, match="all zero"):
+        pipeline.frames(np.zeros((8, 8, 8), np.float32))
+    with pytest.raises(ValueError, match="one grid size"):
+        pipeline.frames([blob_density, blob_density[:8]])
+    with pytest.raises(ValueError, match="one velocity per frame"):
+        pipeline.frames([blob_density, blob_density], velocities=[np.zeros(blob_density.shape + (3,))])

@@ -112,9 +112,9 @@ def table(rows: list[dict]) -> str:
 
 
 def uniform_response(density: np.ndarray, scale: float, radiance: float, view) -> tuple[np.ndarray, np.ndarray]:
-    """``(log levels, shown)``: ``correct.uniform_display_response`` at ``RESPONSE_LEVELS`` from one view,
+    """``(log levels, shown)``: ``response.uniform_display_response`` at ``RESPONSE_LEVELS`` from one view,
     nudged to strictly increasing so that it inverts."""
-    from mistyle.correct import uniform_display_response
+    from mistyle.response import uniform_display_response
 
     shown = uniform_display_response(density, scale, radiance, [view], RESPONSE_LEVELS, res=32, spp=4)
     return np.log(RESPONSE_LEVELS), shown + np.arange(len(shown)) * 1e-9

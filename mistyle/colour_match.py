@@ -9,7 +9,7 @@ a grey response sweep and one low-resolution render of the matched medium.
 1. **Response.** Under a white light every colour channel renders independently, so one sweep of
    uniform grey albedos ``a`` (``RESPONSE_LEVELS``, path traced with ``volpath`` from one view, three
    levels a render, one in each channel) gives ``f(a)``: the mean display value of the medium's
-   foreground (``correct.uniform_display_response``).
+   foreground (``response.uniform_display_response``).
    Each voxel's albedo is mapped to the colour ``f(albedo)`` a medium of that albedo would show.
 2. **Weights.** A voxel counts in proportion to how much of it the orbit's cameras see: its density
    times its mean transmittance from the four horizontal sides of the box (``visible_weight``). On
@@ -195,7 +195,7 @@ def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray,
         ValueError: an albedo of another shape than the density's.
         InvisibleMedium: a medium no pixel of the response render sees, even at albedo 1."""
     from .conventions import FOREGROUND_THRESHOLD
-    from .correct import albedo_renders, uniform_display_response
+    from .response import albedo_renders, uniform_display_response
     from .display import display
     from .scenes import CameraPath
 

@@ -15,7 +15,7 @@ Numbers (each chosen by measurement where a comment says so):
   renders use. Training samples positions uniformly, so no position is strictly unseen; this one
   sits between the four quarter turns that previews and tests favour.
 * ``FOREGROUND_THRESHOLD``: a pixel sees the medium when any channel of its linear radiance
-  exceeds this (masks of the losses, the metrics and the calibration).
+  exceeds this (masks of the losses, the metrics and the colour match's renders).
 * ``LS_DIRECTIONS``: K, the Hammersley directions of the in-scattered radiance precompute.
 
 Names of choices (config values and command-line options), so no string literal is repeated.
@@ -50,7 +50,6 @@ Wasserstein (``objective.style.SlicedObjective``, the fidelity study's choice)."
 LOSS_MASKS = ("foreground", "body")
 """Which pixels the style term compares: any that sees the medium, or the medium's body."""
 LIGHT_KINDS = ("constant", "envmap", "point", "area")
-CORRECTIONS = ("none", "calibrate")
 DEVICES = ("cpu", "cuda")
 TEMPORAL_GRADIENTS = ("both", "current")
 """Which frames the temporal term's gradient reaches: t and t+1, or t only (frame t+1 as a fixed target,

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import CORRECTIONS, DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
+from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
 from .io import load_style
 
 PACKAGE = Path(__file__).resolve().parent
@@ -284,7 +284,6 @@ class PipelineSettings:
     strength: float = 1.0
     scale_structures: float = 1.0
     colour_match: bool = True
-    correction: str = CORRECTIONS[0]
     refine_steps: int | None = None
     refine_path_steps: int | None = None
     density_scale: float | None = None
@@ -296,8 +295,6 @@ class PipelineSettings:
         validate_scale_structures(self.scale_structures)
         if self.device not in DEVICES:
             raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {self.device!r}.")
-        if self.correction not in CORRECTIONS:
-            raise ValueError(f"correction must be one of {', '.join(CORRECTIONS)}, got {self.correction!r}.")
         for name in ("refine_steps", "refine_path_steps"):
             steps = getattr(self, name)
             if steps is not None and not 0 <= steps <= 10000:
@@ -332,15 +329,15 @@ class Stylization:
 
     frames: Frames
     network: list  # (Z, Y, X, 3) per frame: the feed-forward albedo (network, then the colour match)
-    albedos: list  # (Z, Y, X, 3) per frame: what is path traced (refined or calibrated, else ``network``)
+    albedos: list  # (Z, Y, X, 3) per frame: what is path traced (refined, else ``network``)
     target: np.ndarray  # (H, W, 3) display RGB: the picture the result is refined and measured against
     refinement: object  # the fit.RefineSettings that ran (0 steps: none)
-    report: dict  # seconds per stage, temporal flicker of sequences, the calibration
+    report: dict  # seconds per stage, temporal flicker of sequences
     notes: list
 
     @property
     def refined(self) -> bool:
-        """Whether ``albedos`` differ from the feed-forward ``network`` albedos."""
+        """Whether ``albedos`` were refined from the feed-forward ``network`` albedos."""
         return self.albedos is not self.network
 
 
@@ -433,7 +430,7 @@ class Pipeline:
 
     # ------------------------------------------------------------------------ stylize
     def stylize(self, density, style, velocities=None, notes: list | None = None) -> Stylization:
-        """Network, colour match and refinement (or calibration) for every frame of ``density``.
+        """Network, colour match and refinement for every frame of ``density``.
 
         ``style``: an image or path, or a mix ``[(image or path, weight)]`` (see ``style_parts``).
         ``notes`` (a list) collects what the user should know (conversions, skipped stages)."""
@@ -465,25 +462,12 @@ class Pipeline:
             notes.append("the frames carry no velocity; temporal_flicker_unwarped compares frames without warping")
 
         albedos = network
-        if s.correction == "calibrate":
-            albedos = self.calibrate(frames, albedos, report)
         if refinement.layer_steps or refinement.path_steps:
             albedos, report["refine_seconds"] = self.refine(frames, albedos, target, refinement)
             if frames.sequence and frames.velocities is not None:
                 report["temporal_flicker_refined"] = temporal_flicker(np.stack(albedos), np.stack(frames.velocities))
         check_finite("The corrected albedo of frame", albedos)
         return Stylization(frames, network, albedos, target, refinement, report, notes)
-
-    def calibrate(self, frames: Frames, albedos: list, report: dict) -> list:
-        """The albedos mapped so their multiply-scattered brightness matches single scattering
-        (``correct.measure_calibration`` on the first frame)."""
-        from .correct import measure_calibration
-
-        calibration = measure_calibration(frames.densities[0], frames.density_scale, self.radiance, self.views()[:2],
-                                          res=64, spp=16, prepared=frames.prepared(0))
-        report["calibration"] = calibration.as_dict()
-        self.log(f"multiple-scattering calibration in {calibration.seconds:.1f} s")
-        return [calibration.apply(albedo) for albedo in albedos]
 
     def refine(self, frames: Frames, albedos: list, target: np.ndarray, refinement) -> tuple[list, float]:
         """``fit.refine_albedo`` of every frame against ``target`` with the schedule ``refinement``:

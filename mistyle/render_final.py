@@ -15,8 +15,7 @@ One output per (density, style) pair (``mistyle.batch``): a single pair into ``-
 ``--overwrite``. Each output holds:
 
 - ``sheet.png``: style | fast layer | final render, with the metrics under them;
-- ``density.vol`` and the path-traced albedo (``albedo.vol``, or ``albedo_refined.vol`` when refined
-  or calibrated), both with the medium box as bounding box, and ``scene.xml``, the Mitsuba 3 scene
+- ``density.vol`` and the path-traced albedo (``albedo.vol``, or ``albedo_refined.vol`` when refined), both with the medium box as bounding box, and ``scene.xml``, the Mitsuba 3 scene
   that reproduces the final render (``mi.load_file``; ``mistyle.scenes.export``) -- with ``--mesh``
   the density is the voxelized mesh; per frame ``*_frameNNNN.*`` for sequences;
 - ``volume.vdb`` (OpenVDB: ``density`` and the albedo as ``Cd``) when the density came from a
@@ -55,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import CORRECTIONS, DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
+from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
 
 
 def _coat(text: str) -> float:
@@ -108,8 +107,6 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--no-colour-match", dest="colour_match", action="store_false",
                    help="keep the network's own colours (default: its arrangement gets the style's colours, "
                         "mistyle.colour_match)")
-    p.add_argument("--correct", choices=CORRECTIONS, default="none",
-                   help="calibrate: map the albedo so its multiply-scattered brightness matches single scattering")
     p.add_argument("--refine", type=int, default=None, metavar="STEPS",
                    help=f"refine the albedo for STEPS steps against the style through the fast layer "
                         f"(default: {RefineSettings.layer_steps} for a single frame at full strength, else 0)")
@@ -154,7 +151,7 @@ def settings_from(args):
                             coat_ior=args.coat, bricks=args.bricks, view=args.view, turntable=args.turntable)
     return PipelineSettings(checkpoint=args.checkpoint, device=args.device, vgg_weights=args.vgg_weights,
                             strength=args.strength, scale_structures=args.scale_structures,
-                            colour_match=args.colour_match, correction=args.correct, refine_steps=args.refine,
+                            colour_match=args.colour_match, refine_steps=args.refine,
                             refine_path_steps=args.refine_path, density_scale=args.density_scale,
                             camera_distance=args.camera_distance, render=render)
 
@@ -311,7 +308,7 @@ def _inputs_record(job: Job) -> dict:
             "shape_zyx": list(job.frames.densities[0].shape), "checkpoint": str(pipeline.stylizer.path),
             "light": args.light, "spp": args.spp, "max_depth": args.max_depth, "res": args.res,
             "density_scale": pipeline.density_scale, "coat_ior": args.coat, "scale_structures": args.scale_structures,
-            "colour_match": args.colour_match, "correction": args.correct, "refine_steps": refinement.layer_steps,
+            "colour_match": args.colour_match, "refine_steps": refinement.layer_steps,
             "refine_path_steps": refinement.path_steps, "views": len(job.views)}
 
 
@@ -320,7 +317,7 @@ def _frame_suffix(job: Job, index: int) -> str:
     return f"_frame{index:04d}" if job.sequence else ""
 
 
-# ---------------------------------------------------------------------------- stage 2: stylize, correct, refine
+# ---------------------------------------------------------------------------- stage 2: stylize and refine
 def stylize_frames(job: Job, report: dict):
     """The pipeline's albedos for every frame (``pipeline.Stylization``); the feed-forward albedo is
     written as ``albedo*.npy`` (the grids by ``write_assets``)."""

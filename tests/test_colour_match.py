@@ -188,7 +188,7 @@ def test_apply_is_the_map_voxel_by_voxel():
 def test_three_levels_a_render_give_the_same_response(mi, blob_density):
     """Packing three grey levels into the colour channels of one render changes the response by no more
     than its noise (the channels render independently under a white light)."""
-    from mistyle.correct import uniform_display_response
+    from mistyle.response import uniform_display_response
     from mistyle.scenes import CameraPath
 
     view = [CameraPath(distance=1.7).view(0.0)]

@@ -150,7 +150,7 @@ def test_refinement_brings_a_path_traced_render_closer_to_the_style(mi, blob_den
 
 
 def test_matched_uniform_albedo_reproduces_the_style_mean(mi, blob_density):
-    from mistyle.correct import matched_uniform_albedo
+    from mistyle.response import matched_uniform_albedo
     from mistyle.display import display
     from mistyle.api import path_trace
     from mistyle.objective.metrics import foreground_mask

@@ -15,7 +15,7 @@ LAYERS = [
     {"integrators"},
     {"bridge_torch", "reference_torch", "pathtrace"},
     {"model", "objective"},
-    {"fit", "correct", "data"},
+    {"fit", "response", "data"},
     {"colour_match"},
     {"pipeline"},
     {"api", "benchmark"},

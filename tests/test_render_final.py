@@ -97,7 +97,7 @@ def test_environment_map_lights_the_side_it_is_bright_on(mi, blob_density, tmp_p
 def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "out"
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "24", "--spp", "4", "--turntable", "3", "--correct", "calibrate",
+                 "--out", str(out), "--res", "24", "--spp", "4", "--turntable", "3",
                  "--refine", "1"])
     assert code == 0
     names = {p.name for p in out.iterdir()}
@@ -106,7 +106,7 @@ def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_pa
             "albedo_refined.vol"} <= names
     report = json.loads((out / "report.json").read_text())
     for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "rgb_swd", "patch_swd", "hue_coverage",
-                "calibration", "refine_seconds"):
+                "refine_seconds"):
         assert key in report, key
     assert (out / "turntable.mp4").stat().st_size > 1000 and (out / "turntable.mp4").read_bytes()[4:8] == b"ftyp"
     assert np.load(out / "albedo.npy").shape == (16, 18, 20, 3)
@@ -279,21 +279,6 @@ def test_unwritable_output_directory(mi, checkpoint, inputs, tmp_path, capsys):
     code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
                  "--out", str(blocker / "out")])
     assert code == 2 and "Cannot write to the output directory" in capsys.readouterr().err
-
-
-def test_calibration_is_applied_to_the_rendered_albedo(mi, checkpoint, inputs, tmp_path):
-    from mistyle.correct import ScatteringCalibration
-
-    out = tmp_path / "out"
-    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--correct", "calibrate", "--refine", "0"]) == 0
-    report = json.loads((out / "report.json").read_text())
-    saved = report["calibration"]
-    calibration = ScatteringCalibration(np.array(saved["levels"]), np.array(saved["multiple"]), saved["single"], 0.0)
-    network, rendered = np.load(out / "albedo.npy"), read_vol(out / "albedo_refined.vol")
-    np.testing.assert_allclose(rendered, calibration.apply(network), atol=1e-6)
-    # Multiple scattering brightens the medium, so matching single scattering darkens the albedo.
-    assert calibration.multiple[-1] > calibration.single and rendered.mean() < network.mean()
 
 
 # ---------------------------------------------------------------------------- fitting artists' pipelines

@@ -23,7 +23,7 @@ def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:
 def uniform_baseline(density, style, views, *, density_scale: float, radiance: float) -> np.ndarray:
     """The must-beat baseline's albedo ``(Z, Y, X, 3)``: one colour matched to the style's mean
     (``methods.uniform_albedo``'s, for a density scale and light given directly)."""
-    from ..correct import matched_uniform_albedo
+    from ..response import matched_uniform_albedo
 
     colour = matched_uniform_albedo(density, density_scale, radiance, style, views[:2], res=64, spp=16)
     return np.ascontiguousarray(np.broadcast_to(colour, density.shape + (3,)), dtype=np.float32)

@@ -1,73 +1,18 @@
-"""Multiple-scattering calibration: the network is trained under single scattering.
+"""How a medium's render responds to its albedo: the path-traced measurements that the colour match
+and the uniform baseline build on.
 
-The path tracer adds multiple scattering, which brightens and desaturates a medium relative to
-the fast layer the network was trained through. ``calibrate_albedo`` undoes this to first order,
-per density: render the density with uniform albedo ``a`` at a few levels with ``volpath``
-(multiple scattering) to measure the mean foreground radiance ``g(a)``; the fast layer's is
-``a * h`` (linear in albedo). Each albedo value ``a`` is then replaced, per channel, by
-``g^{-1}(a * h)``: the albedo whose multiply-scattered brightness equals the single-scattered
-brightness the network aimed for. ``g`` is monotone, so the inverse is a table lookup.
-
-(The other correction, refining the albedo with the path tracer in the loop, is ``mistyle.fit``.)
+* ``albedo_renders``: ``volpath`` renders of one density with several albedos, in one scene;
+* ``uniform_display_response``: ``f(a)``, the mean display value of the foreground at uniform grey
+  albedo ``a`` (under a white light each channel renders independently, so ``f`` serves each);
+* ``matched_uniform_albedo``: the one colour whose render shows a style's mean colour (the
+  benchmark's must-beat baseline).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .conventions import FOREGROUND_THRESHOLD
-
-LEVELS = (0.1, 0.25, 0.4, 0.55, 0.7, 0.85, 1.0)
-
-
-@dataclass
-class ScatteringCalibration:
-    levels: np.ndarray  # albedo levels a, increasing, starting with 0
-    multiple: np.ndarray  # g(a): mean path-traced foreground radiance at uniform albedo a
-    single: float  # h: mean fast-layer foreground radiance at uniform albedo 1
-    seconds: float
-
-    def apply(self, albedo: np.ndarray) -> np.ndarray:
-        """``(..., 3)`` albedo -> calibrated albedo (same shape), ``g^{-1}(a h)`` per value."""
-        target = np.asarray(albedo, dtype=np.float64) * self.single
-        return np.clip(np.interp(target, self.multiple, self.levels), 0.0, 1.0).astype(np.float32)
-
-    def as_dict(self) -> dict:
-        return {"levels": self.levels.tolist(), "multiple": self.multiple.tolist(), "single": self.single,
-                "seconds": self.seconds}
-
-
-def measure_calibration(density: np.ndarray, density_scale: float, radiance: float, views, res: int = 64,
-                        spp: int = 32, levels=LEVELS, prepared=None) -> ScatteringCalibration:
-    """Measure ``g(a)`` and ``h`` for ``density`` under the constant environment ``radiance`` from ``views``.
-
-    ``prepared``: the density's ``PreparedDensity`` when the caller has computed its Ls already.
-    """
-    import time
-
-    import torch
-
-    from .backend import active_variant
-    from .bridge_torch import render_views
-    from .integrators import prepare_density
-
-    active_variant()
-    started = time.perf_counter()
-    shape = density.shape
-    if prepared is None:
-        prepared = prepare_density(density, density_scale)
-    with torch.no_grad():
-        layer = render_views(torch.ones((3,) + shape), prepared, views, res, radiance=radiance).numpy()
-    mask = layer.max(axis=1) > FOREGROUND_THRESHOLD  # (V, H, W)
-    if not mask.any():
-        raise ValueError("The medium is not visible from the calibration views.")
-    single = float(layer.transpose(0, 2, 3, 1)[mask].mean())
-    multiple = [0.0] + [float(images[mask].mean()) for images in albedo_renders(
-        density, density_scale, radiance, views, levels, res=res, spp=spp)]
-    multiple = np.maximum.accumulate(np.array(multiple))  # monotone despite noise
-    return ScatteringCalibration(np.array((0.0,) + tuple(levels)), multiple, single, time.perf_counter() - started)
 
 
 def albedo_renders(density: np.ndarray, density_scale: float, radiance: float, views, albedos, *, res: int,

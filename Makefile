@@ -2,13 +2,17 @@
 PY := .venv/bin/python
 STAMP := .venv/.mistyle-installed
 
-.PHONY: demo test test-all bench-quick setup
+.PHONY: demo test test-all bench-quick lint setup
 
 demo: $(STAMP)
 	$(PY) -m mistyle.demo
 
 test: $(STAMP)
 	$(PY) -m pytest -q
+
+lint: $(STAMP)
+	.venv/bin/ruff check .
+	.venv/bin/ruff format --check .
 
 test-all: $(STAMP)
 	$(PY) -m pytest -q -m ''

@@ -43,12 +43,11 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from mistyle.benchmark.study import add_metric_arguments
 from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
-
-from mistyle.benchmark.study import add_metric_arguments
 
 BASE_CONFIG = REPO / "configs" / "ablation.toml"
 EVAL_DENSITIES = ("smoke64", "pyroclastic64")
@@ -59,7 +58,11 @@ SPREAD_VIEWS = 8
 OFF_ORBIT_VIEWS = ((60.0, 0.1), (-45.0, 0.6))
 FLICKER_FRAMES = 5  # consecutive frames of the held-out smoke64 plume, from its benchmark frame on
 FLICKER_STYLES = ("hokusai_great_wave", "munch_the_scream")
-SHEET_PAIRS = (("smoke64", "hokusai_great_wave"), ("smoke64", "munch_the_scream"), ("pyroclastic64", "photo_nasa_carina_pillar"))
+SHEET_PAIRS = (
+    ("smoke64", "hokusai_great_wave"),
+    ("smoke64", "munch_the_scream"),
+    ("pyroclastic64", "photo_nasa_carina_pillar"),
+)
 SHEET_TILE, SHEET_SPP = 128, 32
 THIN_OPACITY = 0.5  # a pixel is thin where less than half the light from behind is absorbed or scattered away
 DENSE_OPACITY = 0.9  # and dense where more than 90% is
@@ -77,24 +80,36 @@ class Claim:
 
 CLAIMS = {
     1: Claim("DAIN vs instance normalisation", {"DAIN": [], "instance norm": ['model.norm="in"']}, regions=True),
-    2: Claim("style loss", {
-        "histogram": ['loss.style="histogram"'],
-        "Gram": ['loss.style="gram"'],
-        "mean/std": ['loss.style="meanstd"'],
-        "sliced (fidelity study)": ['loss.objective="sliced"', 'loss.mask="body"'],
-    }),
-    3: Claim("number of stylizing kernels", {"4": ["model.kernels=4"], "2": ["model.kernels=2"], "1": ["model.kernels=1"]},
-             unit="kernels"),
+    2: Claim(
+        "style loss",
+        {
+            "histogram": ['loss.style="histogram"'],
+            "Gram": ['loss.style="gram"'],
+            "mean/std": ['loss.style="meanstd"'],
+            "sliced (fidelity study)": ['loss.objective="sliced"', 'loss.mask="body"'],
+        },
+    ),
+    3: Claim(
+        "number of stylizing kernels",
+        {"4": ["model.kernels=4"], "2": ["model.kernels=2"], "1": ["model.kernels=1"]},
+        unit="kernels",
+    ),
     4: Claim("predicted kernel size", {"1x1x1": ["model.kernel_size=1"], "3x3x3": ["model.kernel_size=3"]}),
-    5: Claim("views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True,
-             unit="views"),
-    6: Claim("temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}, flicker=True),
-    7: Claim("kernel prediction vs AdaIN", {
-        "kernels": ['model.stylize="kernel"'],
-        "AdaIN": ['model.stylize="adain"'],
-        # A wider style predictor brings AdaIN to the kernel arm's parameter count (321,623 vs 321,707).
-        "AdaIN, same size": ['model.stylize="adain"', "model.style_hidden=177"],
-    }),
+    5: Claim(
+        "views per training step", {"4": ["render.views=4"], "1": ["render.views=1"]}, view_spread=True, unit="views"
+    ),
+    6: Claim(
+        "temporal loss", {"on": ["loss.temporal_weight=300.0"], "off": ["loss.temporal_weight=0.0"]}, flicker=True
+    ),
+    7: Claim(
+        "kernel prediction vs AdaIN",
+        {
+            "kernels": ['model.stylize="kernel"'],
+            "AdaIN": ['model.stylize="adain"'],
+            # A wider style predictor brings AdaIN to the kernel arm's parameter count (321,623 vs 321,707).
+            "AdaIN, same size": ['model.stylize="adain"', "model.style_hidden=177"],
+        },
+    ),
 }
 LAYER_CLAIM = 8
 BASES = {
@@ -109,15 +124,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--claims", default="all", help="comma-separated claim numbers 1-8, or all")
     parser.add_argument("--seeds", default="0,1,2")
-    parser.add_argument("--base", choices=sorted(BASES), default="paper",
-                        help="what every arm starts from: the paper's design, or it with mistyle's sliced objective")
+    parser.add_argument(
+        "--base",
+        choices=sorted(BASES),
+        default="paper",
+        help="what every arm starts from: the paper's design, or it with mistyle's sliced objective",
+    )
     parser.add_argument("--steps", type=int, default=None, help="training steps per run (default: the config's)")
     parser.add_argument("--runs", type=Path, default=REPO / "runs" / "ablations")
     parser.add_argument("--out", type=Path, default=REPO / "results" / "ablations" / "ablations")
     add_metric_arguments(parser)
     parser.add_argument("--layer-json", type=Path, default=None, help="claim 8: layer_vs_pathtraced.py's output line")
-    parser.add_argument("--rescore", action="store_true",
-                        help="score finished runs again (new rows replace old ones in the table)")
+    parser.add_argument(
+        "--rescore", action="store_true", help="score finished runs again (new rows replace old ones in the table)"
+    )
     parser.add_argument("--report-only", action="store_true")
     args = parser.parse_args()
     claims = sorted(set(CLAIMS) | {LAYER_CLAIM}) if args.claims == "all" else [int(c) for c in args.claims.split(",")]
@@ -133,7 +153,10 @@ def main() -> None:
         for number in claims:
             if number == LAYER_CLAIM:
                 if args.layer_json is None:
-                    print("claim 8 needs --layer-json (run experiments/layer_vs_pathtraced.py > out.json)", file=sys.stderr)
+                    print(
+                        "claim 8 needs --layer-json (run experiments/layer_vs_pathtraced.py > out.json)",
+                        file=sys.stderr,
+                    )
                     continue
                 row = layer_row(args.layer_json)
                 append(jsonl, row)  # the table keeps the newest layer row (newest_rows)
@@ -179,16 +202,26 @@ def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path
         flicker = sequence_flicker(out / "final.pt", args)
         rows = [{**row, **flicker} for row in rows]
     for row in rows:
-        append(jsonl, {"claim": number, "base": args.base, "arm": arm, "seed": seed, "overrides": overrides,
-                       "steps": config.optim.steps, "train_seconds": train_seconds, **row})
+        append(
+            jsonl,
+            {
+                "claim": number,
+                "base": args.base,
+                "arm": arm,
+                "seed": seed,
+                "overrides": overrides,
+                "steps": config.optim.steps,
+                "train_seconds": train_seconds,
+                **row,
+            },
+        )
 
 
 def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
     """Fidelity metrics of a checkpoint on the held-out pairs, each with its uniform baseline's ratio,
     and the claim's extra metrics (view spread, thin/dense regions)."""
-    from mistyle.benchmark.study import metric_views, score
-
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import (
         HELD_OUT_DENSITIES,
         held_out_density,
@@ -210,26 +243,43 @@ def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
         for style_name in EVAL_STYLES:
             style = load_style(styles[style_name]["path"])
             albedo = stylizer(density, style)
-            metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
-                                    radiance=radiance)
-            uniform = uniform_metrics(f"{density_name}/{style_name}", density, style, views, scale, radiance, args,
-                                      opacities)
+            metrics, images = score(
+                density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+            )
+            uniform = uniform_metrics(
+                f"{density_name}/{style_name}", density, style, views, scale, radiance, args, opacities
+            )
             if opacities is not None:
                 metrics.update(region_fidelity(images, opacities, style))
             ratios = [key for key in metrics if key in uniform and (key.endswith("rgb_swd") or key == "patch_swd")]
-            row = {"density": density_name, "style": style_name, "parameters": parameters, **metrics,
-                   **{f"{key}_x_uniform": metrics[key] / uniform[key] for key in ratios}}
+            row = {
+                "density": density_name,
+                "style": style_name,
+                "parameters": parameters,
+                **metrics,
+                **{f"{key}_x_uniform": metrics[key] / uniform[key] for key in ratios},
+            }
             if claim.view_spread:
                 around = metric_views(stylizer.config.render.camera_distance, SPREAD_VIEWS)
-                _, images = score(density, albedo, style, around, res=args.res, spp=args.spp, density_scale=scale,
-                                  radiance=radiance)
+                _, images = score(
+                    density, albedo, style, around, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+                )
                 per_view = [style_fidelity([image], style)["rgb_swd"] for image in images]
                 row["rgb_swd_view_spread"] = multiview_spread(per_view)["relative_std"]
                 unseen = off_orbit_views(stylizer.config.render.camera_distance)
-                off, _ = score(density, albedo, style, unseen, res=args.res, spp=args.spp, density_scale=scale,
-                               radiance=radiance)
-                off_uniform = uniform_metrics(f"{density_name}/{style_name}/off_orbit", density, style, unseen, scale,
-                                              radiance, args, colour_views=views)
+                off, _ = score(
+                    density, albedo, style, unseen, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+                )
+                off_uniform = uniform_metrics(
+                    f"{density_name}/{style_name}/off_orbit",
+                    density,
+                    style,
+                    unseen,
+                    scale,
+                    radiance,
+                    args,
+                    colour_views=views,
+                )
                 row["off_orbit_rgb_swd_x_uniform"] = off["rgb_swd"] / off_uniform["rgb_swd"]
             rows.append(row)
             print(json.dumps({key: (round(v, 4) if isinstance(v, float) else v) for key, v in row.items()}), flush=True)
@@ -240,16 +290,17 @@ def off_orbit_views(camera_distance: float) -> list:
     """``OFF_ORBIT_VIEWS`` as ``View``s at the orbit's distance."""
     from mistyle.scenes import CameraPath
 
-    return [CameraPath(distance=camera_distance, elevation_deg=elevation, elevation_wobble_deg=0.0).view(u)
-            for elevation, u in OFF_ORBIT_VIEWS]
+    return [
+        CameraPath(distance=camera_distance, elevation_deg=elevation, elevation_wobble_deg=0.0).view(u)
+        for elevation, u in OFF_ORBIT_VIEWS
+    ]
 
 
 def contact_sheet(number: int, seed: int, args) -> None:
     """``<out>_claim<N>.jpg``: the styles, the uniform baseline, then a row per arm (its ``seed`` run) on
     ``SHEET_PAIRS``, path traced from the held-out view."""
-    from mistyle.benchmark.study import metric_views, uniform_baseline
-
     from mistyle.api import Stylizer, display, path_trace
+    from mistyle.benchmark.study import metric_views, uniform_baseline
     from mistyle.data.heldout import (
         HELD_OUT_DENSITIES,
         held_out_density,
@@ -260,8 +311,10 @@ def contact_sheet(number: int, seed: int, args) -> None:
     from mistyle.pages import write_grid
 
     claim = CLAIMS[number]
-    checkpoints = {arm: run_folder(BASES[args.base] + overrides, seed, args)[1] / "final.pt"
-                   for arm, overrides in claim.arms.items()}
+    checkpoints = {
+        arm: run_folder(BASES[args.base] + overrides, seed, args)[1] / "final.pt"
+        for arm, overrides in claim.arms.items()
+    }
     missing = [arm for arm, path in checkpoints.items() if not path.exists()]
     if missing:
         print(f"claim {number}: no contact sheet, arms {missing} have no seed-{seed} run", file=sys.stderr)
@@ -276,17 +329,32 @@ def contact_sheet(number: int, seed: int, args) -> None:
     views = metric_views(first.config.render.camera_distance)
 
     def tile(density, albedo):
-        image = path_trace(density, albedo, views[:1], res=SHEET_TILE, spp=SHEET_SPP, density_scale=scale,
-                           light=f"constant:{radiance}")[0][0]
+        image = path_trace(
+            density, albedo, views[:1], res=SHEET_TILE, spp=SHEET_SPP, density_scale=scale, light=f"constant:{radiance}"
+        )[0][0]
         return display(image)
 
-    rows = [[(square_style(styles[style], SHEET_TILE).permute(1, 2, 0).numpy(), style[:20]) for _, style in SHEET_PAIRS],
-            [(tile(densities[d], uniform_baseline(densities[d], styles[s], views, density_scale=scale, radiance=radiance)),
-              f"uniform, {d}") for d, s in SHEET_PAIRS]]
+    rows = [
+        [(square_style(styles[style], SHEET_TILE).permute(1, 2, 0).numpy(), style[:20]) for _, style in SHEET_PAIRS],
+        [
+            (
+                tile(
+                    densities[d],
+                    uniform_baseline(densities[d], styles[s], views, density_scale=scale, radiance=radiance),
+                ),
+                f"uniform, {d}",
+            )
+            for d, s in SHEET_PAIRS
+        ],
+    ]
     for arm, stylizer in stylizers.items():
         label = f"{arm} {claim.unit}".strip()[:21]
-        rows.append([(tile(densities[d], stylizer(densities[d], styles[s])), label if column == 0 else "")
-                     for column, (d, s) in enumerate(SHEET_PAIRS)])
+        rows.append(
+            [
+                (tile(densities[d], stylizer(densities[d], styles[s])), label if column == 0 else "")
+                for column, (d, s) in enumerate(SHEET_PAIRS)
+            ]
+        )
     suffix = "" if args.base == "paper" else f"_{args.base}"
     path = write_grid(args.out.parent / f"{args.out.name}_claim{number}{suffix}.jpg", rows, SHEET_TILE)
     print(f"wrote {path}")
@@ -318,13 +386,18 @@ def layer_sheet(args, layer_error: float) -> None:
     mi = use_variant("cpu")
     density, albedo, views = scene_inputs(64, view_count=2)
     views = views[:1]
-    layer = mi.load_dict(layer_scene(prepare_density(density, DEFAULT_DENSITY_SCALE, 128), albedo, views, res=SHEET_TILE))
+    layer = mi.load_dict(
+        layer_scene(prepare_density(density, DEFAULT_DENSITY_SCALE, 128), albedo, views, res=SHEET_TILE)
+    )
     split_views(mi.render(layer), 1)  # compile
     started = time.perf_counter()
     fast = split_views(mi.render(layer), 1)[0]
     tiles = [(fast, f"layer, {time.perf_counter() - started:.3f} s, {100 * layer_error:.2f}%")]
-    volpath = mi.load_dict(pathtraced_scene(density, albedo, views, res=SHEET_TILE, density_scale=DEFAULT_DENSITY_SCALE,
-                                            max_depth=2, batch=True))
+    volpath = mi.load_dict(
+        pathtraced_scene(
+            density, albedo, views, res=SHEET_TILE, density_scale=DEFAULT_DENSITY_SCALE, max_depth=2, batch=True
+        )
+    )
     reference, noise_var = two_seed_reference(lambda spp, seed: pixel_centre_estimate(volpath, spp, seed, 1)[0], 1024)
 
     def error(image):
@@ -335,8 +408,11 @@ def layer_sheet(args, layer_error: float) -> None:
         image = pixel_centre_estimate(volpath, spp, 100 + spp, 1)[0]
         tiles.append((image, f"{spp} spp, {time.perf_counter() - started:.2f} s, {error(image):.0f}%"))
     tiles.append((reference, "volpath, 2 x 1024 spp"))
-    path = write_grid(args.out.parent / f"{args.out.name}_claim8.jpg", [[(display(image), label) for image, label in tiles]],
-                      SHEET_TILE)
+    path = write_grid(
+        args.out.parent / f"{args.out.name}_claim8.jpg",
+        [[(display(image), label) for image, label in tiles]],
+        SHEET_TILE,
+    )
     print(f"wrote {path}")
 
 
@@ -349,8 +425,9 @@ def view_opacity(density, views, res: int, density_scale: float) -> list:
 
     sigma_t = torch.from_numpy(density).double() * density_scale
     ones = torch.ones((1, 1, *density.shape), dtype=torch.float64)
-    opacity = render_views_torch(ones, sigma_t, torch.ones_like(sigma_t), views, (res, res), steps=4 * max(density.shape),
-                                 radiance=1.0)
+    opacity = render_views_torch(
+        ones, sigma_t, torch.ones_like(sigma_t), views, (res, res), steps=4 * max(density.shape), radiance=1.0
+    )
     return list(opacity[0, :, 0].numpy())
 
 
@@ -371,9 +448,13 @@ def region_fidelity(images: list, opacities: list, style) -> dict:
     masks = [foreground_mask(image) for image in images]
     result = {}
     for region, inside in (("thin", lambda a: a < THIN_OPACITY), ("dense", lambda a: a > DENSE_OPACITY)):
-        pixels = np.concatenate([display(image)[mask & inside(alpha)] for image, mask, alpha in zip(images, masks, opacities)])
+        pixels = np.concatenate(
+            [display(image)[mask & inside(alpha)] for image, mask, alpha in zip(images, masks, opacities)]
+        )
         result[f"{region}_share"] = len(pixels) / sum(int(mask.sum()) for mask in masks)
-        result[f"{region}_rgb_swd"] = sliced_wasserstein(pixels, style.reshape(-1, 3), order=1) if len(pixels) else float("nan")
+        result[f"{region}_rgb_swd"] = (
+            sliced_wasserstein(pixels, style.reshape(-1, 3), order=1) if len(pixels) else float("nan")
+        )
         result[f"{region}_hue_coverage"] = hue_coverage(pixels, style)
     return result
 
@@ -413,9 +494,13 @@ def held_out_sequence(cache: str):
     if not path.exists():
         spec = next(s for s in HELD_OUT_DENSITIES if s.name == "smoke64")
         config = PlumeConfig.random((spec.resolution,) * 3, np.random.default_rng([spec.seed, 0]))
-        frames = [(d, v) for t, d, v in simulate(config, spec.frame + FLICKER_FRAMES, seed=spec.seed) if t >= spec.frame]
+        frames = [
+            (d, v) for t, d, v in simulate(config, spec.frame + FLICKER_FRAMES, seed=spec.seed) if t >= spec.frame
+        ]
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, densities=np.stack([d for d, _ in frames]), velocities=np.stack([v for _, v in frames]))
+        np.savez_compressed(
+            path, densities=np.stack([d for d, _ in frames]), velocities=np.stack([v for _, v in frames])
+        )
     data = np.load(path)
     return data["densities"].astype(np.float32), data["velocities"].astype(np.float32)
 
@@ -423,11 +508,11 @@ def held_out_sequence(cache: str):
 _UNIFORM: dict = {}
 
 
-def uniform_metrics(name: str, density, style, views, scale, radiance, args, opacities=None,
-                    colour_views=None) -> dict:
+def uniform_metrics(name: str, density, style, views, scale, radiance, args, opacities=None, colour_views=None) -> dict:
     """The uniform baseline's metrics for one pair seen from ``views`` (``name``: the pair and, for other
     than the scoring views, which), with ``region_fidelity``'s when given the views' ``opacities``
-    (``view_opacity``); computed once per process and cached on disk. The baseline's colour is matched in ``colour_views`` (default:
+    (``view_opacity``); computed once per process and cached on disk. The baseline's colour is matched in
+    ``colour_views`` (default:
     ``views``), so pass the scoring views to score the same baseline from elsewhere."""
     from mistyle.benchmark.study import score, uniform_baseline
 
@@ -436,10 +521,12 @@ def uniform_metrics(name: str, density, style, views, scale, radiance, args, opa
     if not _UNIFORM and cache.exists():
         _UNIFORM.update(json.loads(cache.read_text()))
     if key not in _UNIFORM or (opacities is not None and "thin_rgb_swd" not in _UNIFORM[key]):
-        albedo = uniform_baseline(density, style, views if colour_views is None else colour_views, density_scale=scale,
-                                  radiance=radiance)
-        metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
-                                radiance=radiance)
+        albedo = uniform_baseline(
+            density, style, views if colour_views is None else colour_views, density_scale=scale, radiance=radiance
+        )
+        metrics, images = score(
+            density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+        )
         if opacities is not None:
             metrics.update(region_fidelity(images, opacities, style))
         _UNIFORM[key] = metrics
@@ -452,43 +539,70 @@ def layer_row(path: Path) -> dict:
     """Claim 8 from ``layer_vs_pathtraced.py``'s JSON line: the layer's error and the path tracer's time
     to reach it."""
     result = json.loads(Path(path).read_text().strip().splitlines()[-1])
-    return {"claim": LAYER_CLAIM, "arm": "fast layer", "seed": 0, "rel_rmse_single": result["rel_rmse_single"],
-            "layer_seconds": result["layer_seconds"], "pt_spp_equal_error": result["pt_spp_equal_error"],
-            "pt_seconds_equal_error": result["pt_seconds_equal_error"],
-            "speedup_at_equal_error": result["pt_seconds_equal_error"] / result["layer_seconds"],
-            "extrapolated": result["pt_equal_error_extrapolated"], "setting": result["setting"]}
+    return {
+        "claim": LAYER_CLAIM,
+        "arm": "fast layer",
+        "seed": 0,
+        "rel_rmse_single": result["rel_rmse_single"],
+        "layer_seconds": result["layer_seconds"],
+        "pt_spp_equal_error": result["pt_spp_equal_error"],
+        "pt_seconds_equal_error": result["pt_seconds_equal_error"],
+        "speedup_at_equal_error": result["pt_seconds_equal_error"] / result["layer_seconds"],
+        "extrapolated": result["pt_equal_error_extrapolated"],
+        "setting": result["setting"],
+    }
 
 
 def report(rows: list[dict]) -> str:
     """Markdown: per claim and arm, the mean over seeds of the per-seed medians over pairs, and the spread."""
-    lines = ["# Ablations: per-arm results (`experiments/ablations.py`)", "",
-             "Per arm: the median over held-out pairs of each seed's run, then mean ± spread (max - min) over",
-             "seeds. `x uniform`: ratio to the uniform baseline of the same pair (lower is better).", ""]
+    lines = [
+        "# Ablations: per-arm results (`experiments/ablations.py`)",
+        "",
+        "Per arm: the median over held-out pairs of each seed's run, then mean ± spread (max - min) over",
+        "seeds. `x uniform`: ratio to the uniform baseline of the same pair (lower is better).",
+        "",
+    ]
     for number in sorted({r["claim"] for r in rows}):
         claim_rows = [r for r in rows if r["claim"] == number]
         if number == LAYER_CLAIM:
             r = claim_rows[-1]
-            lines += ["## Claim 8: the fast layer", "",
-                      "| layer rel. RMSE vs volpath | layer s | volpath spp at equal error | volpath s | speed-up |",
-                      "| --- | --- | --- | --- | --- |",
-                      f"| {100 * r['rel_rmse_single']:.2f}% | {r['layer_seconds']:.3f} | {r['pt_spp_equal_error']:,.0f}"
-                      f"{' (extrapolated)' if r['extrapolated'] else ''} | {r['pt_seconds_equal_error']:.0f} | "
-                      f"{r['speedup_at_equal_error']:,.0f}x |", ""]
+            lines += [
+                "## Claim 8: the fast layer",
+                "",
+                "| layer rel. RMSE vs volpath | layer s | volpath spp at equal error | volpath s | speed-up |",
+                "| --- | --- | --- | --- | --- |",
+                f"| {100 * r['rel_rmse_single']:.2f}% | {r['layer_seconds']:.3f} | {r['pt_spp_equal_error']:,.0f}"
+                f"{' (extrapolated)' if r['extrapolated'] else ''} | {r['pt_seconds_equal_error']:.0f} | "
+                f"{r['speedup_at_equal_error']:,.0f}x |",
+                "",
+            ]
             continue
         claim = CLAIMS[number]
-        extra = ((["rgb_swd_view_spread", "off_orbit_rgb_swd_x_uniform"] if claim.view_spread else [])
-                 + (["flicker", "flicker_unwarped"] if claim.flicker else [])
-                 + ([f"{region}_{metric}" for region in ("thin", "dense") for metric in ("rgb_swd_x_uniform", "hue_coverage")]
-                    if claim.regions else []))
+        extra = (
+            (["rgb_swd_view_spread", "off_orbit_rgb_swd_x_uniform"] if claim.view_spread else [])
+            + (["flicker", "flicker_unwarped"] if claim.flicker else [])
+            + (
+                [
+                    f"{region}_{metric}"
+                    for region in ("thin", "dense")
+                    for metric in ("rgb_swd_x_uniform", "hue_coverage")
+                ]
+                if claim.regions
+                else []
+            )
+        )
         columns = ["rgb_swd_x_uniform", "patch_swd_x_uniform", "hue_coverage", *extra]
         for base in BASES:
             base_rows = [r for r in claim_rows if r.get("base", "paper") == base]
             if not base_rows:
                 continue
             on = "" if base == "paper" else f" (on the {base} objective)"
-            lines += [f"## Claim {number}: {claim.title}{on}", "",
-                      "| arm | seeds | steps | " + " | ".join(columns) + " | rgb_swd_x_uniform per seed | parameters |",
-                      "| --- | --- | --- | " + " | ".join("---" for _ in columns) + " | --- | --- |"]
+            lines += [
+                f"## Claim {number}: {claim.title}{on}",
+                "",
+                "| arm | seeds | steps | " + " | ".join(columns) + " | rgb_swd_x_uniform per seed | parameters |",
+                "| --- | --- | --- | " + " | ".join("---" for _ in columns) + " | --- | --- |",
+            ]
             for arm in claim.arms:
                 lines.append(arm_line(arm, [r for r in base_rows if r["arm"] == arm], columns))
             lines.append("")
@@ -502,8 +616,11 @@ def arm_line(arm: str, rows: list[dict], columns: list[str]) -> str:
         return f"| {arm} | not run | | " + " | ".join("" for _ in columns) + " | | |"
 
     def per_seed(column):
-        return [statistics.median(values) for s in seeds
-                if (values := [r[column] for r in rows if r["seed"] == s and column in r])]
+        return [
+            statistics.median(values)
+            for s in seeds
+            if (values := [r[column] for r in rows if r["seed"] == s and column in r])
+        ]
 
     cells = []
     for column in columns:
@@ -511,13 +628,18 @@ def arm_line(arm: str, rows: list[dict], columns: list[str]) -> str:
         # Empty: a metric that older runs were not scored with.
         cells.append(f"{statistics.mean(values):.3g} ± {max(values) - min(values):.2g}" if values else "")
     each = ", ".join(f"{v:.2f}" for v in per_seed("rgb_swd_x_uniform"))
-    return (f"| {arm} | {len(seeds)} | {rows[0]['steps']} | " + " | ".join(cells)
-            + f" | {each} | {rows[0]['parameters']:,} |")
+    return (
+        f"| {arm} | {len(seeds)} | {rows[0]['steps']} | "
+        + " | ".join(cells)
+        + f" | {each} | {rows[0]['parameters']:,} |"
+    )
 
 
 def newest_rows(rows: list[dict]) -> list[dict]:
     """The last row of each (claim, arm, seed, density, style): a rescore replaces what came before."""
-    newest = {(r["claim"], r.get("base", "paper"), r["arm"], r["seed"], r.get("density"), r.get("style")): r for r in rows}
+    newest = {
+        (r["claim"], r.get("base", "paper"), r["arm"], r["seed"], r.get("density"), r.get("style")): r for r in rows
+    }
     return list(newest.values())
 
 

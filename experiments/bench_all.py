@@ -51,8 +51,12 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--only", nargs="+", metavar="FIGURE", help="run only these figures")
     args = parser.parse_args()
-    machine = {"processor": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
-               "platform": platform.platform(), "date": time.strftime("%Y-%m-%d")}
+    machine = {
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "platform": platform.platform(),
+        "date": time.strftime("%Y-%m-%d"),
+    }
     for figure, command in benchmarks(args.quick):
         if args.only and figure not in args.only:
             continue
@@ -60,7 +64,9 @@ def main() -> None:
         load_before = os.getloadavg()[0]
         result = subprocess.run([sys.executable, str(HERE / command[0]), *command[1:]], capture_output=True, text=True)
         if result.returncode != 0:
-            print(json.dumps({"figure": figure, "command": command, "error": result.stderr.strip()[-2000:]}), flush=True)
+            print(
+                json.dumps({"figure": figure, "command": command, "error": result.stderr.strip()[-2000:]}), flush=True
+            )
             continue
         for line in result.stdout.splitlines():
             if not line.startswith("{"):

@@ -36,9 +36,11 @@ def main() -> None:
     stylizer = Stylizer()
     style = load_style(STYLE)
     specs = {spec.name: spec for spec in HELD_OUT_DENSITIES}
-    densities = {"smoke64": held_out_density(specs["smoke64"], args.cache),
-                 "examples/smoke_64.vol": load_density(ROOT / "examples" / "smoke_64.vol"),
-                 "smoke128": held_out_density(specs["smoke128"], args.cache)}
+    densities = {
+        "smoke64": held_out_density(specs["smoke64"], args.cache),
+        "examples/smoke_64.vol": load_density(ROOT / "examples" / "smoke_64.vol"),
+        "smoke128": held_out_density(specs["smoke128"], args.cache),
+    }
     for name, density in densities.items():
         load_before = os.getloadavg()[0]
         times = {False: [], True: []}
@@ -50,10 +52,22 @@ def main() -> None:
                 stylizer(density, style, match_colours=match)
                 times[match].append(time.perf_counter() - started)
         network, matched = statistics.median(times[False]), statistics.median(times[True])
-        print(json.dumps({"density": name, "shape": list(density.shape), "network_seconds": round(network, 3),
-                          "with_colour_match_seconds": round(matched, 3), "colour_match_seconds": round(matched - network, 3),
-                          "repeats": args.repeats, "cpus": os.cpu_count(), "load_before": load_before,
-                          "load_after": os.getloadavg()[0]}), flush=True)
+        print(
+            json.dumps(
+                {
+                    "density": name,
+                    "shape": list(density.shape),
+                    "network_seconds": round(network, 3),
+                    "with_colour_match_seconds": round(matched, 3),
+                    "colour_match_seconds": round(matched - network, 3),
+                    "repeats": args.repeats,
+                    "cpus": os.cpu_count(),
+                    "load_before": load_before,
+                    "load_after": os.getloadavg()[0],
+                }
+            ),
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -127,12 +127,17 @@ def main() -> None:
                 "used_voxel_fraction": float(inscatter_used_fraction(sigma_t)),
                 "ls_bruteforce_seconds": ls_brute_seconds,
                 "setting": {
-                    "res": args.res, "views": args.views, "image": args.image,
-                    "steps": args.steps, "directions": args.directions,
+                    "res": args.res,
+                    "views": args.views,
+                    "image": args.image,
+                    "steps": args.steps,
+                    "directions": args.directions,
                 },
                 "machine": {
-                    "cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads(),
-                    "load_avg_1m": os.getloadavg()[0], "platform": platform.platform(),
+                    "cpu_count": os.cpu_count(),
+                    "torch_threads": torch.get_num_threads(),
+                    "load_avg_1m": os.getloadavg()[0],
+                    "platform": platform.platform(),
                 },
             }
         )

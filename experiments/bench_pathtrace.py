@@ -80,25 +80,39 @@ def compare(density: np.ndarray, image: int, spp: int, configurations: list[tupl
         image_b, var_b, seconds_b = render_repeats(bricked_scene, spp)
         level, _ = brick_levels(density, brick, levels)
         standard_error = np.sqrt((plain_var + var_b) / 3 / plain.size)  # of the difference of two 3-render means
-        records.append({
-            "figure": "pathtrace_equal_noise",
-            "shape": list(density.shape),
-            "occupied_fraction": float((density > 0).mean()),
-            "image": image, "spp": spp, "brick": brick, "levels": levels,
-            "bricks_by_level": np.bincount(level.ravel() + 1, minlength=levels + 1).tolist(),  # [empty, level 0, ...]
-            "plain_seconds": plain_seconds, "bricks_seconds": seconds_b, "bricks_build_seconds": build_seconds,
-            "plain_variance": plain_var, "bricks_variance": var_b,
-            "time_ratio": plain_seconds / seconds_b,
-            "equal_noise_speedup": (plain_seconds * plain_var) / (seconds_b * var_b),
-            "mean_z": float((image_b.mean() - plain.mean()) / standard_error),
-            "machine": machine(),
-        })
+        records.append(
+            {
+                "figure": "pathtrace_equal_noise",
+                "shape": list(density.shape),
+                "occupied_fraction": float((density > 0).mean()),
+                "image": image,
+                "spp": spp,
+                "brick": brick,
+                "levels": levels,
+                "bricks_by_level": np.bincount(
+                    level.ravel() + 1, minlength=levels + 1
+                ).tolist(),  # [empty, level 0, ...]
+                "plain_seconds": plain_seconds,
+                "bricks_seconds": seconds_b,
+                "bricks_build_seconds": build_seconds,
+                "plain_variance": plain_var,
+                "bricks_variance": var_b,
+                "time_ratio": plain_seconds / seconds_b,
+                "equal_noise_speedup": (plain_seconds * plain_var) / (seconds_b * var_b),
+                "mean_z": float((image_b.mean() - plain.mean()) / standard_error),
+                "machine": machine(),
+            }
+        )
     return records
 
 
 def machine() -> dict:
-    return {"cpu": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
-            "load_avg_1m": round(os.getloadavg()[0], 2), "date": time.strftime("%Y-%m-%d")}
+    return {
+        "cpu": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "load_avg_1m": round(os.getloadavg()[0], 2),
+        "date": time.strftime("%Y-%m-%d"),
+    }
 
 
 def run(quick: bool = False, sweep: bool = False) -> list[dict]:

@@ -37,8 +37,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--configs", nargs="+", default=["shipped", "paper"],
-                        help="configs/NAME.toml with random weights, or 'shipped' (the bundled network)")
+    parser.add_argument(
+        "--configs",
+        nargs="+",
+        default=["shipped", "paper"],
+        help="configs/NAME.toml with random weights, or 'shipped' (the bundled network)",
+    )
     args = parser.parse_args()
     sizes = [(32, 32, 32), (64, 64, 64)] if args.quick else [(64, 64, 64), (128, 128, 128), (128, 256, 128)]
 
@@ -78,7 +82,9 @@ def run(sizes, configs, repeats: int = 3) -> list[dict]:
             config.model.style_channels = extractor.channels
             model, widths = SKPN(config.model).eval(), config.model.widths
             with torch.no_grad():
-                kernels = model.predict_kernels(list(extractor(torch.rand(1, 3, 128, 128, generator=torch.Generator().manual_seed(0)))))
+                kernels = model.predict_kernels(
+                    list(extractor(torch.rand(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))))
+                )
             vgg_config = load_config(f"configs/{name}.toml").model
             vgg_config.style_channels = (64, 128, 256, 512)
             parameters_vgg16 = parameter_count(SKPN(vgg_config))
@@ -89,17 +95,28 @@ def run(sizes, configs, repeats: int = 3) -> list[dict]:
                 peak_after_fast = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
                 plain_seconds, plain = median_seconds(repeats, lambda: model(density, kernels))
             change = (fast - plain)[0].permute(1, 2, 3, 0)[density[0, 0] > 0].abs()
-            records.append({
-                "figure": "skpn_inference", "config": name, "widths": list(widths), "parameters": parameter_count(model),
-                "parameters_with_vgg16_styles": parameters_vgg16, "size": list(size),
-                "occupied_fraction": float((density > 0).float().mean()),
-                "plain_seconds": plain_seconds, "fast_seconds": fast_seconds, "speedup": plain_seconds / fast_seconds,
-                "max_abs_change": float(change.max()), "mean_abs_change": float(change.mean()),
-                "paper_gpu_seconds": PAPER_SECONDS.get(size),
-                "peak_rss_gb_after_fast": peak_after_fast,
-                "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
-                "load_avg_1m": os.getloadavg()[0], "cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads(),
-            })
+            records.append(
+                {
+                    "figure": "skpn_inference",
+                    "config": name,
+                    "widths": list(widths),
+                    "parameters": parameter_count(model),
+                    "parameters_with_vgg16_styles": parameters_vgg16,
+                    "size": list(size),
+                    "occupied_fraction": float((density > 0).float().mean()),
+                    "plain_seconds": plain_seconds,
+                    "fast_seconds": fast_seconds,
+                    "speedup": plain_seconds / fast_seconds,
+                    "max_abs_change": float(change.max()),
+                    "mean_abs_change": float(change.mean()),
+                    "paper_gpu_seconds": PAPER_SECONDS.get(size),
+                    "peak_rss_gb_after_fast": peak_after_fast,
+                    "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+                    "load_avg_1m": os.getloadavg()[0],
+                    "cpu_count": os.cpu_count(),
+                    "torch_threads": torch.get_num_threads(),
+                }
+            )
     return records
 
 

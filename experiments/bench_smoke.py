@@ -89,12 +89,22 @@ def main() -> None:
         "plume_seconds": {f"{small}^3": plume_small, f"{large}^3_crops_projected": plume_large},
         "plume_bytes": {f"{small}^3": bytes_small, f"{large}^3_crops": bytes_large},
         "files_per_plume": {f"{small}^3": files_small, f"{large}^3_crops": kept * 5},
-        "cpu_dataset": {"plumes": cpu_plumes, "frames": cpu_plumes * kept,
-                        "hours_projected": cpu_plumes * plume_small / 3600, "gigabytes": cpu_plumes * bytes_small / 1e9},
-        "paper_dataset": {"frames": paper_small * kept + paper_large * kept * 5,
-                          "hours_projected": (paper_small * plume_small + paper_large * plume_large) / 3600,
-                          "gigabytes": (paper_small * bytes_small + paper_large * bytes_large) / 1e9},
-        "machine": {"cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads(), "load_avg_1m": os.getloadavg()[0]},
+        "cpu_dataset": {
+            "plumes": cpu_plumes,
+            "frames": cpu_plumes * kept,
+            "hours_projected": cpu_plumes * plume_small / 3600,
+            "gigabytes": cpu_plumes * bytes_small / 1e9,
+        },
+        "paper_dataset": {
+            "frames": paper_small * kept + paper_large * kept * 5,
+            "hours_projected": (paper_small * plume_small + paper_large * plume_large) / 3600,
+            "gigabytes": (paper_small * bytes_small + paper_large * bytes_large) / 1e9,
+        },
+        "machine": {
+            "cpu_count": os.cpu_count(),
+            "torch_threads": torch.get_num_threads(),
+            "load_avg_1m": os.getloadavg()[0],
+        },
     }
     print(json.dumps(result))
 

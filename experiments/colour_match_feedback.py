@@ -22,12 +22,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
-
 
 from mistyle.benchmark.study import add_metric_arguments
 
@@ -38,14 +36,16 @@ SHEET_PAIRS = 4
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="results/colour_match_feedback/colour_match_feedback")
-    parser.add_argument("--reference", default="results/gap_decomposition/gap_decomposition.jsonl",
-                        help="gap_decomposition.py's rows: the optimised and uniform scores of each pair")
+    parser.add_argument(
+        "--reference",
+        default="results/gap_decomposition/gap_decomposition.jsonl",
+        help="gap_decomposition.py's rows: the optimised and uniform scores of each pair",
+    )
     add_metric_arguments(parser)
     args = parser.parse_args()
 
-    from mistyle.benchmark.study import metric_views, score
-
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score
     from mistyle.colour_match import fit_colour_match
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.display import display
@@ -58,8 +58,9 @@ def main() -> None:
     references = {(r["density"], r["style"]): r for r in map(json.loads, lines)}
     stylizer = Stylizer()
     render = stylizer.config.render
-    settings = dict(density_scale=stylizer.density_scale, radiance=render.radiance,
-                    camera_distance=render.camera_distance)
+    settings = dict(
+        density_scale=stylizer.density_scale, radiance=render.radiance, camera_distance=render.camera_distance
+    )
     views = metric_views(render.camera_distance)
     out = Path(args.out)
     rows, sheet = [], []
@@ -68,26 +69,48 @@ def main() -> None:
         for painting in validation_paintings():
             reference = references.get((spec.name, painting.stem))
             if reference is None:
-                raise SystemExit(f"{args.reference} has no row for {spec.name} x {painting.stem}: "
-                                 "run gap_decomposition.py first.")
+                raise SystemExit(
+                    f"{args.reference} has no row for {spec.name} x {painting.stem}: run gap_decomposition.py first."
+                )
             style = load_style(painting)
             network = stylizer(density, style, match_colours=False)
-            row = {"density": spec.name, "style": painting.stem,
-                   "optimised": reference["optimised"], "uniform": reference["uniform"]}
+            row = {
+                "density": spec.name,
+                "style": painting.stem,
+                "optimised": reference["optimised"],
+                "uniform": reference["uniform"],
+            }
             tiles = [(style, painting.stem[:18])]
             for arm, feedback in ARMS.items():
                 started = time.perf_counter()
                 match = fit_colour_match(network, density, style, feedback=feedback, **settings)
                 albedo = match.apply(network, density)
                 seconds = time.perf_counter() - started
-                row[arm], images = score(density, albedo, style, views, res=args.res, spp=args.spp,
-                                         density_scale=stylizer.density_scale, radiance=render.radiance)
-                row[arm]["rgb_swd_per_view"] = float(np.mean([style_fidelity(image[None], style)["rgb_swd"]
-                                                              for image in images]))
+                row[arm], images = score(
+                    density,
+                    albedo,
+                    style,
+                    views,
+                    res=args.res,
+                    spp=args.spp,
+                    density_scale=stylizer.density_scale,
+                    radiance=render.radiance,
+                )
+                row[arm]["rgb_swd_per_view"] = float(
+                    np.mean([style_fidelity(image[None], style)["rgb_swd"] for image in images])
+                )
                 row[arm]["seconds"] = seconds
                 if arm == "no feedback" and len(sheet) < SHEET_PAIRS:
-                    _, network_images = score(density, network, style, views[:1], res=args.res, spp=args.spp,
-                                              density_scale=stylizer.density_scale, radiance=render.radiance)
+                    _, network_images = score(
+                        density,
+                        network,
+                        style,
+                        views[:1],
+                        res=args.res,
+                        spp=args.spp,
+                        density_scale=stylizer.density_scale,
+                        radiance=render.radiance,
+                    )
                     tiles.append((display(network_images[0]), "network"))
                 tiles.append((display(images[0]), arm))
             if len(sheet) < SHEET_PAIRS:
@@ -105,16 +128,23 @@ def main() -> None:
 def table(rows: list[dict]) -> str:
     """Medians over pairs of each arm's RGB SWD x optimised (pooled, per view), patch SWD x uniform, hue
     coverage and seconds, and on how many pairs the feedback lowers the pooled RGB SWD."""
-    lines = [f"Medians over {len(rows)} validation pairs (lower is better, hue coverage higher is better).", "",
-             "| arm | RGB SWD x optimised | per view | patch SWD x uniform | hue coverage | seconds |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        f"Medians over {len(rows)} validation pairs (lower is better, hue coverage higher is better).",
+        "",
+        "| arm | RGB SWD x optimised | per view | patch SWD x uniform | hue coverage | seconds |",
+        "|---|---|---|---|---|---|",
+    ]
     for arm in ARMS:
+
         def median(value):
             return float(np.median([value(r) for r in rows]))
-        lines.append(f"| {arm} | {median(lambda r: r[arm]['rgb_swd'] / r['optimised']['rgb_swd']):.3f} | "
-                     f"{median(lambda r: r[arm]['rgb_swd_per_view'] / r['optimised']['rgb_swd_per_view']):.3f} | "
-                     f"{median(lambda r: r[arm]['patch_swd'] / r['uniform']['patch_swd']):.3f} | "
-                     f"{median(lambda r: r[arm]['hue_coverage']):.3f} | {median(lambda r: r[arm]['seconds']):.2f} |")
+
+        lines.append(
+            f"| {arm} | {median(lambda r: r[arm]['rgb_swd'] / r['optimised']['rgb_swd']):.3f} | "
+            f"{median(lambda r: r[arm]['rgb_swd_per_view'] / r['optimised']['rgb_swd_per_view']):.3f} | "
+            f"{median(lambda r: r[arm]['patch_swd'] / r['uniform']['patch_swd']):.3f} | "
+            f"{median(lambda r: r[arm]['hue_coverage']):.3f} | {median(lambda r: r[arm]['seconds']):.2f} |"
+        )
     better = sum(r["feedback"]["rgb_swd"] < r["no feedback"]["rgb_swd"] for r in rows)
     lines += ["", f"The feedback lowers the pooled RGB SWD on {better} of the {len(rows)} pairs."]
     return "\n".join(lines) + "\n"

@@ -10,12 +10,13 @@ noise-filled level set, spot noise, voxelized mesh; white albedo, constant light
 from __future__ import annotations
 
 import argparse
+from collections import deque
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from mistyle.pages import EXPERIMENTS_TITLE, write_index
-import torch
 
 
 def main() -> None:
@@ -49,9 +50,8 @@ def main() -> None:
         for frame, density, _ in simulate(config, 90, seed=plume):
             if frame + 1 in (40, 65, 90):
                 densities.append(density)
-    for frame, density, _ in simulate(FireConfig(resolution=shape, source_radius=0.1), 60, seed=0):
-        pass
-    densities.append(density)
+    _, density, _ = deque(simulate(FireConfig(resolution=shape, source_radius=0.1), 60, seed=0), maxlen=1)[0]
+    densities.append(density)  # the last frame
     densities.append(pyroclastic_sphere(shape, seed=3))
     densities.append(noise_filled_level_set(torus_sdf(shape), seed=1))
     vertices, faces = icosphere(3)

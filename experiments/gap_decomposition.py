@@ -50,20 +50,28 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-
-
-from mistyle.benchmark.study import add_metric_arguments
 from output_corrections import transported, uniform_response, weighted_lowpass
 
+from mistyle.benchmark.study import add_metric_arguments
 from mistyle.colour_match import TRANSPORT_SAMPLES, apply_sliced_transport, fit_sliced_transport
 
-ARMS = ("network", "optimised", "net place, opt colours", "opt place, net colours", "opt low-pass 1", "opt low-pass 2",
-        "net + opt detail", "opt coarse + net detail", "colour match, density weights", "colour match", "uniform")
+ARMS = (
+    "network",
+    "optimised",
+    "net place, opt colours",
+    "opt place, net colours",
+    "opt low-pass 1",
+    "opt low-pass 2",
+    "net + opt detail",
+    "opt coarse + net detail",
+    "colour match, density weights",
+    "colour match",
+    "uniform",
+)
 SHEET_PAIRS = 4
 ALBEDO_FLOOR = 1e-3
 
@@ -75,15 +83,16 @@ def main() -> None:
     parser.add_argument("--optimise-factor", type=float, default=2, help="as mistyle-bench's")
     add_metric_arguments(parser)
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--report-only", action="store_true", help="rewrite the .md and .jpg from the .jsonl and the albedos")
+    parser.add_argument(
+        "--report-only", action="store_true", help="rewrite the .md and .jpg from the .jsonl and the albedos"
+    )
     args = parser.parse_args()
     if args.quick:
         args.res, args.spp, args.out = 32, 4, str(Path(tempfile.mkdtemp()) / "gap_decomposition")
         args.optimise_factor = 0.05
 
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
-
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
@@ -96,7 +105,7 @@ def main() -> None:
     scale, radiance = stylizer.density_scale, stylizer.config.render.radiance
     views = metric_views(stylizer.config.render.camera_distance)
     settings = default_refinement(stylizer.config).scaled(args.optimise_factor)
-    paintings = validation_paintings()[:1 if args.quick else None]
+    paintings = validation_paintings()[: 1 if args.quick else None]
     out = Path(args.out)
     kept = out.parent / f"{out.name}_albedos"
     kept.mkdir(parents=True, exist_ok=True)
@@ -117,28 +126,51 @@ def main() -> None:
             if stored.exists():
                 optimised = np.load(stored)["optimised"].astype(np.float32)
             else:
-                optimised, _ = refine_albedo(density, scale, uniform, style, settings, radiance=radiance, prepared=prepared)
+                optimised, _ = refine_albedo(
+                    density, scale, uniform, style, settings, radiance=radiance, prepared=prepared
+                )
             np.savez_compressed(stored, network=network.astype(np.float16), optimised=optimised.astype(np.float16))
-            low = {(name, sigma): weighted_lowpass(albedo.astype(np.float64), weight, sigma)
-                   for name, albedo in (("network", network), ("optimised", optimised)) for sigma in (1.0, 2.0)}
-            albedos = {"network": network, "optimised": optimised, "uniform": uniform,
-                       "net place, opt colours": recoloured(network, optimised, weight),
-                       "opt place, net colours": recoloured(optimised, network, weight),
-                       "opt low-pass 1": low["optimised", 1.0],
-                       "opt low-pass 2": low["optimised", 2.0],
-                       "net + opt detail": network + (optimised - low["optimised", 1.0]),
-                       "opt coarse + net detail": low["optimised", 2.0] + (network - low["network", 2.0]),
-                       "colour match, density weights": transported(network, density, style, response, sigma=0.0),
-                       "colour match": stylizer.match_colours([network], [density], style)[0]}
+            low = {
+                (name, sigma): weighted_lowpass(albedo.astype(np.float64), weight, sigma)
+                for name, albedo in (("network", network), ("optimised", optimised))
+                for sigma in (1.0, 2.0)
+            }
+            albedos = {
+                "network": network,
+                "optimised": optimised,
+                "uniform": uniform,
+                "net place, opt colours": recoloured(network, optimised, weight),
+                "opt place, net colours": recoloured(optimised, network, weight),
+                "opt low-pass 1": low["optimised", 1.0],
+                "opt low-pass 2": low["optimised", 2.0],
+                "net + opt detail": network + (optimised - low["optimised", 1.0]),
+                "opt coarse + net detail": low["optimised", 2.0] + (network - low["network", 2.0]),
+                "colour match, density weights": transported(network, density, style, response, sigma=0.0),
+                "colour match": stylizer.match_colours([network], [density], style)[0],
+            }
             albedos = {arm: np.clip(albedo, 0.0, 1.0).astype(np.float32) for arm, albedo in albedos.items()}
-            row = {"density": spec.name, "style": painting.stem,
-                   "detail_rms": {name: detail_rms(albedo, low[name, 1.0], weight)
-                                  for name, albedo in (("network", network), ("optimised", optimised))}}
+            row = {
+                "density": spec.name,
+                "style": painting.stem,
+                "detail_rms": {
+                    name: detail_rms(albedo, low[name, 1.0], weight)
+                    for name, albedo in (("network", network), ("optimised", optimised))
+                },
+            }
             for arm in ARMS:
-                row[arm], images = score(density, albedos[arm], style, views, res=args.res, spp=args.spp,
-                                         density_scale=scale, radiance=radiance)
-                row[arm]["rgb_swd_per_view"] = float(np.mean([style_fidelity(image[None], style)["rgb_swd"]
-                                                              for image in images]))
+                row[arm], images = score(
+                    density,
+                    albedos[arm],
+                    style,
+                    views,
+                    res=args.res,
+                    spp=args.spp,
+                    density_scale=scale,
+                    radiance=radiance,
+                )
+                row[arm]["rgb_swd_per_view"] = float(
+                    np.mean([style_fidelity(image[None], style)["rgb_swd"] for image in images])
+                )
             rows.append(row)
             print(json.dumps(row), flush=True)
     out.with_suffix(".jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
@@ -147,9 +179,8 @@ def main() -> None:
 
 def report(rows: list[dict], out: Path, args) -> None:
     """``<out>.md`` and ``<out>.jpg`` from the rows and the albedos kept in ``<out>_albedos/``."""
-    from mistyle.benchmark.study import metric_views, score
-
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.display import display
     from mistyle.io import load_style
@@ -169,11 +200,13 @@ def report(rows: list[dict], out: Path, args) -> None:
         for density_name in {r["density"] for r in rows}:
             weight = held_out_density(specs[density_name], args.cache).astype(np.float64)
             fields = [albedos[key][name].astype(np.float64) for key in albedos if key[0] == density_name]
-            correlations += [pattern_correlation(a, b, weight) for i, a in enumerate(fields) for b in fields[i + 1:]]
+            correlations += [pattern_correlation(a, b, weight) for i, a in enumerate(fields) for b in fields[i + 1 :]]
         dependence[name] = float(np.median(correlations))
-    text = table(rows) + (f"\nThe same arrangement whatever the style? Density-weighted correlation of two styles' albedos on "
-                          f"the same density, each less its mean colour (median over pairs of styles): network "
-                          f"{dependence['network']:.2f}, optimisation {dependence['optimised']:.2f}.\n")
+    text = table(rows) + (
+        f"\nThe same arrangement whatever the style? Density-weighted correlation of two styles' albedos on "
+        f"the same density, each less its mean colour (median over pairs of styles): network "
+        f"{dependence['network']:.2f}, optimisation {dependence['optimised']:.2f}.\n"
+    )
     out.with_suffix(".md").write_text(text)
     print(text)
     sheet = []
@@ -183,13 +216,19 @@ def report(rows: list[dict], out: Path, args) -> None:
         tiles = [(style, r["style"][:18])]
         for name in ("network", "colour match", "optimised"):
             stored = albedos[r["density"], r["style"]]
-            albedo = (stylizer.match_colours([stored["network"].astype(np.float32)], [density], style)[0]
-                      if name == "colour match" else stored[name].astype(np.float32))
-            _, images = score(density, albedo, style, views[:1], res=args.res, spp=args.spp, density_scale=scale,
-                              radiance=radiance)
+            albedo = (
+                stylizer.match_colours([stored["network"].astype(np.float32)], [density], style)[0]
+                if name == "colour match"
+                else stored[name].astype(np.float32)
+            )
+            _, images = score(
+                density, albedo, style, views[:1], res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+            )
             middle = albedo.shape[0] // 2  # the slice through the volume's centre, black where there is no medium
-            tiles += [(display(images[0]), name),
-                      (display(albedo[middle] * (density[middle, ..., None] > 0)), f"{name[:12]}: slice")]
+            tiles += [
+                (display(images[0]), name),
+                (display(albedo[middle] * (density[middle, ..., None] > 0)), f"{name[:12]}: slice"),
+            ]
         sheet.append(tiles)
     write_grid(out.with_suffix(".jpg"), sheet)
     write_index(out.parent, EXPERIMENTS_TITLE)
@@ -202,8 +241,9 @@ def recoloured(arrangement: np.ndarray, colours: np.ndarray, weight: np.ndarray,
     p = weight.ravel() / weight.sum()
     source = np.log(np.clip(arrangement, ALBEDO_FLOOR, 1.0)).reshape(-1, 3).astype(np.float64)
     target = np.log(np.clip(colours, ALBEDO_FLOOR, 1.0)).reshape(-1, 3).astype(np.float64)
-    stages = fit_sliced_transport(source[rng.choice(len(p), TRANSPORT_SAMPLES, p=p)],
-                                  target[rng.choice(len(p), TRANSPORT_SAMPLES, p=p)], rng)
+    stages = fit_sliced_transport(
+        source[rng.choice(len(p), TRANSPORT_SAMPLES, p=p)], target[rng.choice(len(p), TRANSPORT_SAMPLES, p=p)], rng
+    )
     inside = weight.ravel() > 0
     result = source.copy()
     result[inside] = apply_sliced_transport(stages, source[inside])
@@ -226,20 +266,30 @@ def detail_rms(albedo: np.ndarray, low: np.ndarray, weight: np.ndarray) -> float
 def table(rows: list[dict]) -> str:
     """Medians over pairs: RGB SWD as multiples of optimisation's and of the uniform baseline's, patch SWD x
     uniform, hue coverage."""
-    lines = [f"Medians over {len(rows)} validation pairs (lower is better, hue coverage higher is better).", "",
-             "| arm | RGB SWD x optimised | per view | RGB SWD x uniform | patch SWD x uniform | hue coverage |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        f"Medians over {len(rows)} validation pairs (lower is better, hue coverage higher is better).",
+        "",
+        "| arm | RGB SWD x optimised | per view | RGB SWD x uniform | patch SWD x uniform | hue coverage |",
+        "|---|---|---|---|---|---|",
+    ]
     for arm in ARMS:
+
         def median_ratio(key, reference):
             return float(np.median([r[arm][key] / r[reference][key] for r in rows]))
+
         coverage = float(np.median([r[arm]["hue_coverage"] for r in rows]))
-        lines.append(f"| {arm} | {median_ratio('rgb_swd', 'optimised'):.2f} | {median_ratio('rgb_swd_per_view', 'optimised'):.2f} | "
-                     f"{median_ratio('rgb_swd', 'uniform'):.3f} | "
-                     f"{median_ratio('patch_swd', 'uniform'):.3f} | {coverage:.3f} |")
+        lines.append(
+            f"| {arm} | {median_ratio('rgb_swd', 'optimised'):.2f} | "
+            f"{median_ratio('rgb_swd_per_view', 'optimised'):.2f} | "
+            f"{median_ratio('rgb_swd', 'uniform'):.3f} | "
+            f"{median_ratio('patch_swd', 'uniform'):.3f} | {coverage:.3f} |"
+        )
     lines.append("")
     for name in ("network", "optimised"):
-        lines.append(f"Detail finer than one voxel (density-weighted RMS, median over pairs), {name}: "
-                     f"{np.median([r['detail_rms'][name] for r in rows]):.4f}  ")
+        lines.append(
+            f"Detail finer than one voxel (density-weighted RMS, median over pairs), {name}: "
+            f"{np.median([r['detail_rms'][name] for r in rows]):.4f}  "
+        )
     return "\n".join(lines) + "\n"
 
 

@@ -16,7 +16,7 @@ One pixel-centre ``volpath`` reference (max_depth=2, two seeds, noise taken out;
 Prints one JSON line: ``{"noise": ..., "rows": [{"K", "method", "ls_grid", "ls", "march", "N", "rel_rmse",
 "brightness"}]}``.
 
-    python experiments/layer_error_budget.py            # 64^3 pyroclastic sphere, 2 views at 128^2, 2 x 8192 spp (~15 min)
+    python experiments/layer_error_budget.py   # 64^3 pyroclastic sphere, 2 views at 128^2, 2 x 8192 spp (~15 min)
     python experiments/layer_error_budget.py --density data/heldout/smoke64.npy --reference-cache runs/smoke64_ref.npz
     python experiments/layer_error_budget.py --quick    # 24^3, 32^2
 """
@@ -34,8 +34,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--density", default=None, help="a (Z, Y, X) .npy density instead of the pyroclastic sphere")
-    parser.add_argument("--reference-cache", default=None,
-                        help="an .npz to load the path-traced reference from, or to save it to when missing")
+    parser.add_argument(
+        "--reference-cache",
+        default=None,
+        help="an .npz to load the path-traced reference from, or to save it to when missing",
+    )
     args = parser.parse_args()
     res, image, spp = (24, 32, 1024) if args.quick else (64, 128, 8192)
 
@@ -57,7 +60,9 @@ def main() -> None:
 
     mi = use_variant("cpu")
     scale = DEFAULT_DENSITY_SCALE
-    density = pyroclastic_sphere((res,) * 3, seed=7) if args.density is None else np.load(args.density).astype(np.float32)
+    density = (
+        pyroclastic_sphere((res,) * 3, seed=7) if args.density is None else np.load(args.density).astype(np.float32)
+    )
     albedo = colour_noise_albedo(density.shape, seed=11)
     views = CameraPath().turntable(2, offset=0.125)
     sigma_t = density * np.float32(scale)
@@ -65,10 +70,12 @@ def main() -> None:
         cached = np.load(args.reference_cache)
         reference, noise = cached["reference"], float(cached["noise"])
     else:
-        reference_scene = mi.load_dict(pathtraced_scene(density, albedo, views, res=image, density_scale=scale,
-                                                        max_depth=2, batch=True))
-        reference, noise = two_seed_reference(lambda count, seed: pixel_centre_estimate(reference_scene, count, seed, 2),
-                                              spp)
+        reference_scene = mi.load_dict(
+            pathtraced_scene(density, albedo, views, res=image, density_scale=scale, max_depth=2, batch=True)
+        )
+        reference, noise = two_seed_reference(
+            lambda count, seed: pixel_centre_estimate(reference_scene, count, seed, 2), spp
+        )
         if args.reference_cache:
             np.savez(args.reference_cache, reference=reference, noise=noise)
 
@@ -106,12 +113,21 @@ def main() -> None:
         for ls, march in (("samples", "box"), ("samples", "support"), ("nodes", "box"), ("nodes", "support")):
             for steps in (64, 80, 128, 256):
                 rendered = layer(samples if ls == "samples" else fitted, steps, march)
-                rows.append({
-                    "K": directions, "method": method, "ls_grid": factor, "ls": ls, "march": march, "N": steps,
-                    "rel_rmse": net_rel_rmse(rendered, reference, noise),
-                    "brightness": float(rendered.mean() / reference.mean()),
-                })
-    print(json.dumps({"noise": float(np.sqrt(noise / np.mean(reference**2))), "res": res, "image": image, "rows": rows}))
+                rows.append(
+                    {
+                        "K": directions,
+                        "method": method,
+                        "ls_grid": factor,
+                        "ls": ls,
+                        "march": march,
+                        "N": steps,
+                        "rel_rmse": net_rel_rmse(rendered, reference, noise),
+                        "brightness": float(rendered.mean() / reference.mean()),
+                    }
+                )
+    print(
+        json.dumps({"noise": float(np.sqrt(noise / np.mean(reference**2))), "res": res, "image": image, "rows": rows})
+    )
 
 
 if __name__ == "__main__":

@@ -44,7 +44,12 @@ def main() -> None:
     parser.add_argument("--views", type=int, default=2)
     parser.add_argument("--steps", type=int, default=64)
     parser.add_argument("--directions", type=int, default=128)
-    parser.add_argument("--ls-grid-factor", type=int, default=1, help="Ls on a grid this many times finer (3: 0.35%% at 80 steps, 27x the Ls memory)")
+    parser.add_argument(
+        "--ls-grid-factor",
+        type=int,
+        default=1,
+        help="Ls on a grid this many times finer (3: 0.35%% at 80 steps, 27x the Ls memory)",
+    )
     parser.add_argument("--density-scale", type=float, default=DEFAULT_DENSITY_SCALE)
     parser.add_argument("--ref-spp", type=int, default=4096, help="spp of each single-scattering reference")
     parser.add_argument("--multi-spp", type=int, default=1024, help="spp of each multiple-scattering reference")
@@ -69,8 +74,11 @@ def main() -> None:
     density, albedo, views = scene_inputs(args.res, args.views)
     size = (args.image, args.image)
     scenes = {
-        depth: mi.load_dict(pathtraced_scene(density, albedo, views, res=size, density_scale=args.density_scale,
-                                             max_depth=depth, batch=True))
+        depth: mi.load_dict(
+            pathtraced_scene(
+                density, albedo, views, res=size, density_scale=args.density_scale, max_depth=depth, batch=True
+            )
+        )
         for depth in (2, -1)
     }
 
@@ -92,8 +100,13 @@ def main() -> None:
     ls_seconds = time.perf_counter() - start
     # The paper's layer: the Ls samples themselves in the texture, rays marched through the whole box.
     samples = inscattered_radiance(prepared.sigma_t, args.directions)
-    plain_scene = layer_scene(PreparedDensity(density, args.density_scale, samples, args.directions), albedo, views,
-                              res=size, steps=args.steps)
+    plain_scene = layer_scene(
+        PreparedDensity(density, args.density_scale, samples, args.directions),
+        albedo,
+        views,
+        res=size,
+        steps=args.steps,
+    )
     plain_scene["integrator"]["march_min"] = plain_scene["integrator"]["bbox_min"]
     plain_scene["integrator"]["march_max"] = plain_scene["integrator"]["bbox_max"]
     plain_scene = mi.load_dict(plain_scene)
@@ -162,9 +175,15 @@ def main() -> None:
         "rel_rmse_multi_pixel_area": net_rel_rmse(layer, area_multi, area_multi_noise),
         "ls_seconds": ls_seconds,
         "setting": {
-            "res": args.res, "image": args.image, "views": args.views, "steps": args.steps,
-            "directions": args.directions, "density_scale": args.density_scale, "ls_grid_factor": args.ls_grid_factor,
-            "ref_spp": args.ref_spp, "multi_spp": args.multi_spp,
+            "res": args.res,
+            "image": args.image,
+            "views": args.views,
+            "steps": args.steps,
+            "directions": args.directions,
+            "density_scale": args.density_scale,
+            "ls_grid_factor": args.ls_grid_factor,
+            "ref_spp": args.ref_spp,
+            "multi_spp": args.multi_spp,
         },
         "machine": {"cpu_count": os.cpu_count(), "load_avg_1m": os.getloadavg()[0]},
     }

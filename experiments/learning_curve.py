@@ -27,7 +27,8 @@ VAL_METRICS = ("val_swd", "val_rgb_swd", "val_patch_swd", "val_hue_coverage")
 
 
 def next_doubling(evals: list[tuple[int, float]]) -> float | None:
-    """Factor by which a power law fitted to the second half of ``(step, value)`` changes from the last step to twice it."""
+    """Factor by which a power law fitted to the second half of ``(step, value)`` changes from the last step
+    to twice it."""
     last = max(step for step, _ in evals)
     late = [(s, v) for s, v in evals if s >= last / 2 and s > 0 and v > 0]
     if len(late) < 3:
@@ -50,18 +51,29 @@ def main() -> None:
     losses = np.array([loss for _, loss, _ in train])
     for start in range(0, int(steps.max()), args.window):
         inside = (steps > start) & (steps <= start + args.window)
-        row = {"steps": f"{start + 1}-{start + args.window}", "loss": float(losses[inside].mean()),
-               "loss_hist": float(np.mean([h for (s, _, h) in train if start < s <= start + args.window]))}
+        row = {
+            "steps": f"{start + 1}-{start + args.window}",
+            "loss": float(losses[inside].mean()),
+            "loss_hist": float(np.mean([h for (s, _, h) in train if start < s <= start + args.window])),
+        }
         for key in metrics:
             row[key] = [round(v, 4) for s, v in evals[key] if start < s <= start + args.window] or None
         print(json.dumps(row))
-    summary = {"last_step": int(steps.max()), "seconds": next(r["seconds"] for r in reversed(records) if "seconds" in r),
-               "peak_memory_mb": max(r.get("peak_memory_mb", 0) for r in records)}
+    summary = {
+        "last_step": int(steps.max()),
+        "seconds": next(r["seconds"] for r in reversed(records) if "seconds" in r),
+        "peak_memory_mb": max(r.get("peak_memory_mb", 0) for r in records),
+    }
     for key in metrics:
         values = [v for _, v in evals[key]]
         best = max(values) if key == "val_hue_coverage" else min(values)
-        summary[key] = {"start": round(values[0], 4), "best": round(best, 4), "end": round(values[-1], 4),
-                        "best_step": evals[key][values.index(best)][0], "next_doubling": next_doubling(evals[key])}
+        summary[key] = {
+            "start": round(values[0], 4),
+            "best": round(best, 4),
+            "end": round(values[-1], 4),
+            "best_step": evals[key][values.index(best)][0],
+            "next_doubling": next_doubling(evals[key]),
+        }
     print(json.dumps(summary))
     if args.out:
         chart(args.out, steps, losses, evals)
@@ -92,8 +104,12 @@ def chart(path: Path, steps, losses, evals: dict, width: int = 720, panel: int =
             for x, y in xy:
                 draw.ellipse([x - 2.5, y - 2.5, x + 2.5, y + 2.5], fill=colour)
         draw.rectangle([margin, y0, width - margin, y1], outline="gray")
-        draw.text((margin, y0 - 16), f"{name}: {points[0][1]:.4g} at step {points[0][0]} -> {points[-1][1]:.4g} at step "
-                                     f"{points[-1][0]}   (range {low:.4g}-{high:.4g})", fill="black")
+        draw.text(
+            (margin, y0 - 16),
+            f"{name}: {points[0][1]:.4g} at step {points[0][0]} -> {points[-1][1]:.4g} at step "
+            f"{points[-1][0]}   (range {low:.4g}-{high:.4g})",
+            fill="black",
+        )
     draw.text((margin, panel * len(panels) - 14), f"step 0 - {int(steps.max())}", fill="black")
     path.parent.mkdir(parents=True, exist_ok=True)
     image.save(path)

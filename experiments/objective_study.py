@@ -21,11 +21,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
-
 
 ARMS = {
     "hist-sigmoid-fringe": ("histogram", "sigmoid", "fringe"),
@@ -45,8 +43,11 @@ SCHEDULES = {
     "layer120+path16-patch0.05": dict(layer_steps=120, path_steps=16, patch_weight=0.05),
     "path48-patch0.2": dict(layer_steps=0, path_steps=48, patch_weight=0.2),
 }
-PAIRS = [("smoke64", "hokusai_great_wave"), ("smoke64", "kandinsky_composition_vii"),
-         ("pyroclastic64", "van_gogh_starry_night")]
+PAIRS = [
+    ("smoke64", "hokusai_great_wave"),
+    ("smoke64", "kandinsky_composition_vii"),
+    ("pyroclastic64", "van_gogh_starry_night"),
+]
 
 
 def main() -> None:
@@ -67,8 +68,8 @@ def main() -> None:
 
     import torch
 
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
     from mistyle.fit import FitSettings, LayerViews, fit_albedo
     from mistyle.integrators import prepare_density
@@ -90,7 +91,9 @@ def main() -> None:
         prepared = prepare_density(density, scale)
         layer = LayerViews(prepared, args.fit_res, steps=config.render.steps, radiance=radiance)
         baseline = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
-        metrics, _ = score(density, baseline, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance)
+        metrics, _ = score(
+            density, baseline, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+        )
         row = {"density": density_name, "style": style_name, "arm": "uniform", **metrics}
         print(json.dumps(row), flush=True)
         rows.append(row)
@@ -101,43 +104,65 @@ def main() -> None:
             network = stylizer(density, style)
             for name in list(SCHEDULES) if args.schedules == "all" else args.schedules.split(","):
                 settings = RefineSettings(camera_distance=distance, tv_weight=config.loss.tv_weight, **SCHEDULES[name])
-                albedo, seconds = refine_albedo(density, scale, network, style, settings, radiance=radiance, prepared=prepared)
-                metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
-                                   radiance=radiance)
+                albedo, seconds = refine_albedo(
+                    density, scale, network, style, settings, radiance=radiance, prepared=prepared
+                )
+                metrics, _ = score(
+                    density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+                )
                 row = {"density": density_name, "style": style_name, "arm": name, "seconds": seconds, **metrics}
                 print(json.dumps(row), flush=True)
                 rows.append(row)
             continue
         for arm in args.arms.split(","):
             loss, parametrisation, mask = ARMS[arm]
-            objective = (StyleObjective(stylizer.extractor, config.loss.style, config.loss.rgb_weight) if loss == "histogram"
-                         else SlicedObjective(patch_weight=1.0 if loss == "rgbpatch" else 0.0))
+            objective = (
+                StyleObjective(stylizer.extractor, config.loss.style, config.loss.rgb_weight)
+                if loss == "histogram"
+                else SlicedObjective(patch_weight=1.0 if loss == "rgbpatch" else 0.0)
+            )
             # The histogram objective sees the style as the network does; the sliced one at SLICED_STYLE_SIZE.
             target = stylizer.style_tensor(style) if loss == "histogram" else square_style(style, SLICED_STYLE_SIZE)
-            settings = FitSettings(steps=args.steps, lr=0.05, views_per_step=4, tv_weight=config.loss.tv_weight,
-                                   camera_distance=distance, parametrisation=parametrisation)
-            fit = fit_albedo(layer, target, objective, initial, settings,
-                             masks=layer.body_masks if mask == "body" else None)
+            settings = FitSettings(
+                steps=args.steps,
+                lr=0.05,
+                views_per_step=4,
+                tv_weight=config.loss.tv_weight,
+                camera_distance=distance,
+                parametrisation=parametrisation,
+            )
+            fit = fit_albedo(
+                layer, target, objective, initial, settings, masks=layer.body_masks if mask == "body" else None
+            )
             albedo = np.ascontiguousarray(fit.albedo.permute(1, 2, 3, 0).numpy())
-            metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance)
+            metrics, _ = score(
+                density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+            )
             row = {"density": density_name, "style": style_name, "arm": arm, "seconds": fit.seconds, **metrics}
             print(json.dumps(row), flush=True)
             rows.append(row)
     if not args.quick:
-        write_table(rows, Path(args.doc).with_name(Path(args.doc).stem + ("_refine" if args.schedules else "") + ".md"), args)
+        write_table(
+            rows, Path(args.doc).with_name(Path(args.doc).stem + ("_refine" if args.schedules else "") + ".md"), args
+        )
 
 
 def write_table(rows, path: Path, args) -> None:
     arms = list(dict.fromkeys(row["arm"] for row in rows))
-    lines = ["| arm | RGB SWD (x baseline) | patch SWD (x baseline) | hue coverage | seconds |", "|---|---|---|---|---|"]
+    lines = [
+        "| arm | RGB SWD (x baseline) | patch SWD (x baseline) | hue coverage | seconds |",
+        "|---|---|---|---|---|",
+    ]
     baseline = {(r["density"], r["style"]): r for r in rows if r["arm"] == "uniform"}
     for arm in arms:
         mine = [r for r in rows if r["arm"] == arm]
         ratio = lambda key: np.median([r[key] / baseline[(r["density"], r["style"])][key] for r in mine])  # noqa: E731
-        lines.append(f"| {arm} | {np.median([r['rgb_swd'] for r in mine]):.4f} ({ratio('rgb_swd'):.2f}x) | "
-                     f"{np.median([r['patch_swd'] for r in mine]):.4f} ({ratio('patch_swd'):.2f}x) | "
-                     f"{np.median([r['hue_coverage'] for r in mine]):.2f} | "
-                     f"{np.median([r.get('seconds', 0.0) for r in mine]):.0f} |")
+        lines.append(
+            f"| {arm} | {np.median([r['rgb_swd'] for r in mine]):.4f} ({ratio('rgb_swd'):.2f}x) | "
+            f"{np.median([r['patch_swd'] for r in mine]):.4f} ({ratio('patch_swd'):.2f}x) | "
+            f"{np.median([r['hue_coverage'] for r in mine]):.2f} | "
+            f"{np.median([r.get('seconds', 0.0) for r in mine]):.0f} |"
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     (path.with_suffix(".jsonl")).write_text("".join(json.dumps(r) + "\n" for r in rows))
     path.with_name(path.stem + "_table.md").write_text("\n".join(lines) + "\n")

@@ -32,7 +32,9 @@ def main() -> None:
     parser.add_argument("--image", type=int, default=96)
     parser.add_argument("--res", type=int, default=64)
     parser.add_argument("--lr", type=float, default=0.05)
-    parser.add_argument("--radiance", type=float, default=None, help="constant environment radiance Le (default: the training light)")
+    parser.add_argument(
+        "--radiance", type=float, default=None, help="constant environment radiance Le (default: the training light)"
+    )
     args = parser.parse_args()
     if args.quick:
         args.image, args.res = 48, 32
@@ -57,17 +59,33 @@ def main() -> None:
     density = load_density("examples/smoke_64.vol")
     if args.res != density.shape[0]:
         t = torch.from_numpy(density)[None, None]
-        density = torch.nn.functional.interpolate(t, size=(args.res,) * 3, mode="trilinear", align_corners=False)[0, 0].numpy()
+        density = torch.nn.functional.interpolate(t, size=(args.res,) * 3, mode="trilinear", align_corners=False)[
+            0, 0
+        ].numpy()
     prepared = prepare_density(density, 30.0)
     held_out = CameraPath().held_out(4)
-    styles = [("material/marble", material_texture("marble", 128, seed=3)), ("material/fire", material_texture("fire", 128, seed=3))]
-    styles += [s for s in offline_style_set(size=128, crops_per_photo=1, palettes_per_texture=1, materials_each=0, crops_per_painting=0) if s[0].startswith("photo/coffee") or s[0].startswith("photo/hubble")]
+    styles = [
+        ("material/marble", material_texture("marble", 128, seed=3)),
+        ("material/fire", material_texture("fire", 128, seed=3)),
+    ]
+    styles += [
+        s
+        for s in offline_style_set(
+            size=128, crops_per_photo=1, palettes_per_texture=1, materials_each=0, crops_per_painting=0
+        )
+        if s[0].startswith("photo/coffee") or s[0].startswith("photo/hubble")
+    ]
     styles = styles[: args.styles]
 
     # Opacity 1 - T per pixel: with Ls = 1, albedo 1 and Le = 1 the layer's exact segments sum to 1 - T.
     with torch.no_grad():
-        opacity = render_views(torch.ones((3,) + prepared.shape), PreparedDensity(prepared.density, prepared.density_scale,
-                               np.ones_like(prepared.ls)), held_out, args.image, radiance=1.0)[:, 0]
+        opacity = render_views(
+            torch.ones((3,) + prepared.shape),
+            PreparedDensity(prepared.density, prepared.density_scale, np.ones_like(prepared.ls)),
+            held_out,
+            args.image,
+            radiance=1.0,
+        )[:, 0]
 
     def held_out_swd(albedo: torch.Tensor, style: np.ndarray) -> tuple[float, float]:
         """SWD over every foreground pixel (the metric) and over the opaque ones (opacity > 0.5) only."""
@@ -85,15 +103,29 @@ def main() -> None:
         for name, style in styles:
             style_tensor = torch.from_numpy(style).permute(2, 0, 1)
             before, opaque_before = held_out_swd(torch.full((3,) + prepared.shape, 0.5), style)
+
             def layer(albedo, views, seed=0):
                 return render_views(albedo, prepared, views, args.image, radiance=args.radiance)
 
-            fit = fit_albedo(layer, style_tensor, objective, torch.full((3,) + prepared.shape, 0.5),
-                             FitSettings(steps=args.steps, lr=args.lr))
+            fit = fit_albedo(
+                layer,
+                style_tensor,
+                objective,
+                torch.full((3,) + prepared.shape, 0.5),
+                FitSettings(steps=args.steps, lr=args.lr),
+            )
             after, opaque_after = held_out_swd(fit.albedo, style)
-            row = {"extractor": extractor.name, "style": name, "radiance": args.radiance, "swd_before": before, "swd_after": after,
-                   "swd_opaque_before": opaque_before, "swd_opaque_after": opaque_after, "steps": args.steps,
-                   "seconds": fit.seconds}
+            row = {
+                "extractor": extractor.name,
+                "style": name,
+                "radiance": args.radiance,
+                "swd_before": before,
+                "swd_after": after,
+                "swd_opaque_before": opaque_before,
+                "swd_opaque_after": opaque_after,
+                "steps": args.steps,
+                "seconds": fit.seconds,
+            }
             results.append(row)
             print(json.dumps(row), flush=True)
         keys = ("swd_before", "swd_after", "swd_opaque_before", "swd_opaque_after", "seconds")

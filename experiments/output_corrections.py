@@ -29,17 +29,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from mistyle.benchmark.study import add_metric_arguments
 from mistyle.colour_match import RESPONSE_LEVELS, TRANSPORT_SAMPLES
 from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
-
-
-from mistyle.benchmark.study import add_metric_arguments
 
 ARMS = ("network", "transport s=0", "transport s=2", "defringe", "strength 1.3")
 SHEET_PAIRS = 4
@@ -55,9 +52,8 @@ def main() -> None:
     if args.quick:
         args.res, args.spp, args.out = 32, 4, str(Path(tempfile.mkdtemp()) / "output_corrections")
 
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
-
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.display import display
     from mistyle.io import load_style
@@ -66,7 +62,7 @@ def main() -> None:
     stylizer = Stylizer(args.checkpoint)
     scale, radiance = stylizer.density_scale, stylizer.config.render.radiance
     views = metric_views(stylizer.config.render.camera_distance)
-    paintings = validation_paintings()[:1 if args.quick else None]
+    paintings = validation_paintings()[: 1 if args.quick else None]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     rows, sheet = [], []
@@ -76,16 +72,19 @@ def main() -> None:
         for painting in paintings:
             style = load_style(painting)
             network = stylizer(density, style)
-            albedos = {"network": network,
-                       "transport s=0": transported(network, density, style, response, sigma=0.0),
-                       "transport s=2": transported(network, density, style, response, sigma=2.0),
-                       "defringe": defringed(network, density),
-                       "strength 1.3": extrapolated(stylizer, density, style, 1.3)}
+            albedos = {
+                "network": network,
+                "transport s=0": transported(network, density, style, response, sigma=0.0),
+                "transport s=2": transported(network, density, style, response, sigma=2.0),
+                "defringe": defringed(network, density),
+                "strength 1.3": extrapolated(stylizer, density, style, 1.3),
+            }
             albedos["uniform"] = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
             row, tiles = {"density": spec.name, "style": painting.stem}, [(style, painting.stem[:18])]
             for arm, albedo in albedos.items():
-                metrics, images = score(density, albedo, style, views, res=args.res, spp=args.spp,
-                                        density_scale=scale, radiance=radiance)
+                metrics, images = score(
+                    density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+                )
                 row[arm] = metrics
                 tiles.append((display(images[0]), arm))
             rows.append(row)
@@ -101,11 +100,17 @@ def main() -> None:
 
 def table(rows: list[dict]) -> str:
     """Medians over pairs: RGB and patch SWD as ratios to the same pair's uniform baseline, hue coverage."""
-    lines = [f"Medians over {len(rows)} validation pairs (ratios to the uniform baseline of the same pair; lower "
-             "is better, hue coverage higher is better).", "",
-             "| arm | RGB SWD x uniform | patch SWD x uniform | hue coverage |", "|---|---|---|---|"]
+    lines = [
+        f"Medians over {len(rows)} validation pairs (ratios to the uniform baseline of the same pair; lower "
+        "is better, hue coverage higher is better).",
+        "",
+        "| arm | RGB SWD x uniform | patch SWD x uniform | hue coverage |",
+        "|---|---|---|---|",
+    ]
     for arm in ARMS + ("uniform",):
-        ratio = {key: float(np.median([r[arm][key] / r["uniform"][key] for r in rows])) for key in ("rgb_swd", "patch_swd")}
+        ratio = {
+            key: float(np.median([r[arm][key] / r["uniform"][key] for r in rows])) for key in ("rgb_swd", "patch_swd")
+        }
         coverage = float(np.median([r[arm]["hue_coverage"] for r in rows]))
         lines.append(f"| {arm} | {ratio['rgb_swd']:.3f} | {ratio['patch_swd']:.3f} | {coverage:.3f} |")
     return "\n".join(lines) + "\n"
@@ -136,7 +141,9 @@ def transported(albedo, density, style, response, sigma: float, seed: int = 0) -
     moved = shown.copy()
     moved[inside] += apply_sliced_transport(stages, low[inside]) - low[inside]
     result = np.array(albedo, dtype=np.float32)
-    result[inside] = np.exp(np.interp(np.clip(moved[inside], shown_levels[0], shown_levels[-1]), shown_levels, log_levels))
+    result[inside] = np.exp(
+        np.interp(np.clip(moved[inside], shown_levels[0], shown_levels[-1]), shown_levels, log_levels)
+    )
     return result
 
 
@@ -163,8 +170,13 @@ def extrapolated(stylizer, density, style, strength: float) -> np.ndarray:
 
     kernels = stylizer.kernels(style)
     neutral = stylizer.neutral(kernels, density)
-    sites = {site: {key: neutral.sites[site][key] + strength * (kernels.sites[site][key] - neutral.sites[site][key])
-                    for key in kernels.sites[site]} for site in kernels.sites}
+    sites = {
+        site: {
+            key: neutral.sites[site][key] + strength * (kernels.sites[site][key] - neutral.sites[site][key])
+            for key in kernels.sites[site]
+        }
+        for site in kernels.sites
+    }
     return stylizer._one(density, StylizingKernels(sites), 1.0)
 
 

@@ -62,10 +62,27 @@ def main() -> None:
     parts = {}
     for part, (suffix, name) in PARTS.items():
         # The outermost of same-named functions (an SKPN forward contains its blocks' forwards).
-        parts[part] = max([value[3] for (file, _, function), value in stats.items()
-                           if function == name and file.replace("\\", "/").endswith(suffix)], default=0.0) / args.steps
-    print(json.dumps({"config": args.config, "overrides": args.overrides, "seconds_per_step": round(per_step, 3),
-                      **{part: round(seconds, 3) for part, seconds in parts.items()}}))
+        parts[part] = (
+            max(
+                [
+                    value[3]
+                    for (file, _, function), value in stats.items()
+                    if function == name and file.replace("\\", "/").endswith(suffix)
+                ],
+                default=0.0,
+            )
+            / args.steps
+        )
+    print(
+        json.dumps(
+            {
+                "config": args.config,
+                "overrides": args.overrides,
+                "seconds_per_step": round(per_step, 3),
+                **{part: round(seconds, 3) for part, seconds in parts.items()},
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

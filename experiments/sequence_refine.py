@@ -21,11 +21,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
-
 
 
 def main() -> None:
@@ -34,7 +31,9 @@ def main() -> None:
     parser.add_argument("--styles", default="hokusai_great_wave,gauguin_te_fare")
     parser.add_argument("--res", type=int, default=128)
     parser.add_argument("--arms", default="network,network alone,independent,coherent")
-    parser.add_argument("--temporal-weights", default=None, help="coherent arm: comma-separated weights (default: render_final's)")
+    parser.add_argument(
+        "--temporal-weights", default=None, help="coherent arm: comma-separated weights (default: render_final's)"
+    )
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
     if args.quick:
@@ -42,8 +41,8 @@ def main() -> None:
 
     from dataclasses import replace
 
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_styles
     from mistyle.data.smoke import PlumeConfig, simulate
     from mistyle.fit import refine_albedo
@@ -71,24 +70,42 @@ def main() -> None:
         if "network alone" in chosen:
             arms["network alone"] = alone
         if "independent" in chosen:
-            arms["independent"] = [refine_albedo(d, scale, a, style, settings, radiance=radiance)[0]
-                                   for d, a in zip(densities, network)]
-        weights = [settings.temporal_weight] if args.temporal_weights is None else map(float, args.temporal_weights.split(","))
+            arms["independent"] = [
+                refine_albedo(d, scale, a, style, settings, radiance=radiance)[0] for d, a in zip(densities, network)
+            ]
+        weights = (
+            [settings.temporal_weight]
+            if args.temporal_weights is None
+            else map(float, args.temporal_weights.split(","))
+        )
         for weight in weights if "coherent" in chosen else ():
             # The pipeline's own sequence refinement (Pipeline.refine), with this temporal weight.
-            pipeline = Pipeline(PipelineSettings(refine_steps=settings.layer_steps,
-                                                 refine_path_steps=settings.path_steps), stylizer=stylizer)
+            pipeline = Pipeline(
+                PipelineSettings(refine_steps=settings.layer_steps, refine_path_steps=settings.path_steps),
+                stylizer=stylizer,
+            )
             frames = pipeline.frames(densities, velocities)
             coherent, _ = pipeline.refine(frames, network, style, replace(settings, temporal_weight=weight))
             arms[f"coherent (temporal weight {weight:g})"] = coherent
         for arm, albedos in arms.items():
-            metrics = [score(d, a, style, views, res=args.res, spp=16, density_scale=scale, radiance=radiance)[0]
-                       for d, a in zip(densities, albedos)]
-            print(json.dumps({"style": name, "arm": arm, "frames": args.frames,
-                              "flicker": temporal_flicker(np.stack(albedos), np.stack(velocities)),
-                              "rgb_swd": float(np.mean([m["rgb_swd"] for m in metrics])),
-                              "patch_swd": float(np.mean([m["patch_swd"] for m in metrics])),
-                              "hue_coverage": float(np.mean([m["hue_coverage"] for m in metrics]))}), flush=True)
+            metrics = [
+                score(d, a, style, views, res=args.res, spp=16, density_scale=scale, radiance=radiance)[0]
+                for d, a in zip(densities, albedos)
+            ]
+            print(
+                json.dumps(
+                    {
+                        "style": name,
+                        "arm": arm,
+                        "frames": args.frames,
+                        "flicker": temporal_flicker(np.stack(albedos), np.stack(velocities)),
+                        "rgb_swd": float(np.mean([m["rgb_swd"] for m in metrics])),
+                        "patch_swd": float(np.mean([m["patch_swd"] for m in metrics])),
+                        "hue_coverage": float(np.mean([m["hue_coverage"] for m in metrics])),
+                    }
+                ),
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -21,7 +21,8 @@ Writes ``<out>.jsonl`` (a line per density and style) and ``<out>.md``.
     python experiments/single_style_gap.py            # 2 styles x 400 steps (15 min each) + scoring: about 45 min
     python experiments/single_style_gap.py --quick    # 1 style, 4 steps, small renders
     python experiments/single_style_gap.py --styles seurat_circus_sideshow --steps 1200 \
-        --checkpoint seurat_circus_sideshow=runs/single_seurat_long/steps/step_000800.pt --out results/single_style_gap_/single_style_gap_1200
+        --checkpoint seurat_circus_sideshow=runs/single_seurat_long/steps/step_000800.pt \
+        --out results/single_style_gap/single_style_gap_1200
         # score a one-style network trained elsewhere (here: 800 more steps, learning rate decayed)
 """
 
@@ -37,10 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mistyle.pages import EXPERIMENTS_TITLE, write_index
-
-
 from mistyle.benchmark.study import add_metric_arguments
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 CONFIG = "configs/cpu_sliced_finetune.toml"
 COPIES = 20
@@ -48,12 +47,22 @@ COPIES = 20
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--styles", default="congo_raffia_textiles,seurat_circus_sideshow",
-                        help="validation paintings (stems of train.dataset.validation_paintings)")
+    parser.add_argument(
+        "--styles",
+        default="congo_raffia_textiles,seurat_circus_sideshow",
+        help="validation paintings (stems of train.dataset.validation_paintings)",
+    )
     parser.add_argument("--densities", default="val_smoke64,smoke64", help="names in mistyle.data.heldout")
-    parser.add_argument("--steps", type=int, default=400, help="one-style training steps (of --checkpoint: as labelled)")
-    parser.add_argument("--checkpoint", action="append", default=[], metavar="STYLE=PATH",
-                        help="score this one-style network for STYLE instead of training one (repeatable)")
+    parser.add_argument(
+        "--steps", type=int, default=400, help="one-style training steps (of --checkpoint: as labelled)"
+    )
+    parser.add_argument(
+        "--checkpoint",
+        action="append",
+        default=[],
+        metavar="STYLE=PATH",
+        help="score this one-style network for STYLE instead of training one (repeatable)",
+    )
     parser.add_argument("--runs", default="runs", help="where the one-style runs go (kept: a rerun scores them again)")
     parser.add_argument("--out", default="results/single_style_gap/single_style_gap")
     add_metric_arguments(parser)
@@ -64,9 +73,8 @@ def main() -> None:
         args.styles, args.densities, args.steps = args.styles.split(",")[0], "val_smoke64", 4
         args.res, args.spp, args.runs, args.out = 32, 4, str(temporary / "runs"), str(temporary / "single_style_gap")
 
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
-
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import (
         HELD_OUT_DENSITIES,
         VALIDATION_DENSITIES,
@@ -83,8 +91,10 @@ def main() -> None:
     if unknown:
         raise SystemExit(f"Not validation paintings: {', '.join(unknown)}; choose from {', '.join(sorted(paintings))}.")
     given = dict(item.split("=", 1) for item in args.checkpoint)
-    networks = {name: Path(given[name]) if name in given else one_style_network(paintings[name], Path(args.runs), args.steps)
-                for name in args.styles.split(",")}
+    networks = {
+        name: Path(given[name]) if name in given else one_style_network(paintings[name], Path(args.runs), args.steps)
+        for name in args.styles.split(",")
+    }
     bundled = Stylizer(None)
     scale, radiance = bundled.density_scale, bundled.config.render.radiance
     views = metric_views(bundled.config.render.camera_distance)
@@ -95,15 +105,20 @@ def main() -> None:
         prepared = prepare_density(density, scale)
         for name, checkpoint in networks.items():
             style = load_style(paintings[name])
-            albedos = {"network": bundled(density, style), "one-style network": Stylizer(checkpoint)(density, style),
-                       "uniform": uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)}
+            albedos = {
+                "network": bundled(density, style),
+                "one-style network": Stylizer(checkpoint)(density, style),
+                "uniform": uniform_baseline(density, style, views, density_scale=scale, radiance=radiance),
+            }
             settings = default_refinement(bundled.config).scaled(2 if not args.quick else 0.05)
-            albedos["optimised"], _ = refine_albedo(density, scale, albedos["uniform"], style, settings, radiance=radiance,
-                                                    prepared=prepared)
+            albedos["optimised"], _ = refine_albedo(
+                density, scale, albedos["uniform"], style, settings, radiance=radiance, prepared=prepared
+            )
             row = {"density": density_name, "style": name, "steps": args.steps}
             for method, albedo in albedos.items():
-                row[method] = score(density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale,
-                                    radiance=radiance)[0]
+                row[method] = score(
+                    density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+                )[0]
             rows.append(row)
             print(json.dumps(row), flush=True)
     out = Path(args.out)
@@ -124,10 +139,27 @@ def one_style_network(painting: Path, runs: Path, steps: int) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     for index in range(COPIES):
         shutil.copy(painting, folder / f"copy{index:02d}{painting.suffix}")
-    overrides = {"data.styles": folder, "data.hue_augment": 0, "optim.steps": steps, "optim.lr_decay": 1.0,
-                 "run.eval_every": 10**6, "run.checkpoint_every": min(100, steps), "run.keep_checkpoints": "true"}
-    command = [sys.executable, "-m", "mistyle.train", "--config", CONFIG, "--init", "mistyle/checkpoints/skpn_cpu.pt",
-               "--out", str(run), "--quiet"] + [item for key, value in overrides.items() for item in ("--set", f"{key}={value}")]
+    overrides = {
+        "data.styles": folder,
+        "data.hue_augment": 0,
+        "optim.steps": steps,
+        "optim.lr_decay": 1.0,
+        "run.eval_every": 10**6,
+        "run.checkpoint_every": min(100, steps),
+        "run.keep_checkpoints": "true",
+    }
+    command = [
+        sys.executable,
+        "-m",
+        "mistyle.train",
+        "--config",
+        CONFIG,
+        "--init",
+        "mistyle/checkpoints/skpn_cpu.pt",
+        "--out",
+        str(run),
+        "--quiet",
+    ] + [item for key, value in overrides.items() for item in ("--set", f"{key}={value}")]
     subprocess.run(command, check=True)
     if not checkpoint.exists():
         raise SystemExit(f"Training {painting.stem} left no {checkpoint}.")
@@ -137,17 +169,28 @@ def one_style_network(painting: Path, runs: Path, steps: int) -> Path:
 def table(rows: list[dict]) -> str:
     """Per pair: RGB SWD / patch SWD / hue coverage of each method, and each network's RGB SWD over optimisation's."""
     methods = ("network", "one-style network", "uniform", "optimised")
-    lines = ["RGB SWD / patch SWD / hue coverage (lower, lower, higher is better); the last two columns: each network's "
-             "RGB SWD as a multiple of direct optimisation's.", "",
-             "| density | style | " + " | ".join(methods) + " | network / optimised | one-style / optimised |",
-             "|---|---|" + "---|" * (len(methods) + 2)]
+    lines = [
+        "RGB SWD / patch SWD / hue coverage (lower, lower, higher is better); the last two columns: each network's "
+        "RGB SWD as a multiple of direct optimisation's.",
+        "",
+        "| density | style | " + " | ".join(methods) + " | network / optimised | one-style / optimised |",
+        "|---|---|" + "---|" * (len(methods) + 2),
+    ]
     for r in rows:
         cells = [f"{r[m]['rgb_swd']:.4f} / {r[m]['patch_swd']:.4f} / {r[m]['hue_coverage']:.2f}" for m in methods]
         ratios = [r[m]["rgb_swd"] / r["optimised"]["rgb_swd"] for m in ("network", "one-style network")]
-        lines.append(f"| {r['density']} | {r['style']} | " + " | ".join(cells) + f" | {ratios[0]:.2f} | {ratios[1]:.2f} |")
-    medians = [float(np.median([r[m]["rgb_swd"] / r["optimised"]["rgb_swd"] for r in rows])) for m in ("network", "one-style network")]
-    lines += ["", f"Median RGB SWD over optimisation's: network {medians[0]:.2f}x, one-style network {medians[1]:.2f}x "
-                  f"({rows[0]['steps']} steps on the one style)."]
+        lines.append(
+            f"| {r['density']} | {r['style']} | " + " | ".join(cells) + f" | {ratios[0]:.2f} | {ratios[1]:.2f} |"
+        )
+    medians = [
+        float(np.median([r[m]["rgb_swd"] / r["optimised"]["rgb_swd"] for r in rows]))
+        for m in ("network", "one-style network")
+    ]
+    lines += [
+        "",
+        f"Median RGB SWD over optimisation's: network {medians[0]:.2f}x, one-style network {medians[1]:.2f}x "
+        f"({rows[0]['steps']} steps on the one style).",
+    ]
     return "\n".join(lines) + "\n"
 
 

@@ -45,8 +45,15 @@ def main() -> None:
     first, second = (load_style(records[name]["path"]) for name in args.styles.split(","))
 
     def tile(albedo, target):
-        image = path_trace(density, albedo, view, res=args.res, spp=args.spp, density_scale=stylizer.density_scale,
-                           light=f"constant:{config.render.radiance}")[0][0]
+        image = path_trace(
+            density,
+            albedo,
+            view,
+            res=args.res,
+            spp=args.spp,
+            density_scale=stylizer.density_scale,
+            light=f"constant:{config.render.radiance}",
+        )[0][0]
         return display(image), style_fidelity([image], target)
 
     def swatch(style):

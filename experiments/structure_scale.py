@@ -72,12 +72,25 @@ def main() -> None:
         for scale in scales:
             albedo = stylizer(density, style, scale_structures=scale)
             length = albedo_correlation_length(albedo, density)
-            image = path_trace(density, albedo, view, res=args.res, spp=args.spp, density_scale=stylizer.density_scale,
-                               light=f"constant:{config.render.radiance}")[0][0]
+            image = path_trace(
+                density,
+                albedo,
+                view,
+                res=args.res,
+                spp=args.spp,
+                density_scale=stylizer.density_scale,
+                light=f"constant:{config.render.radiance}",
+            )[0][0]
             row.append((display(image), f"s={scale:g}: albedo {length:.1f} vox"))
             slices.append((middle_slice(albedo, density), f"s={scale:g}"))
-            numbers.append({"style": name, "scale": scale, "albedo_correlation_length": length,
-                            "density_correlation_length": density_length})
+            numbers.append(
+                {
+                    "style": name,
+                    "scale": scale,
+                    "albedo_correlation_length": length,
+                    "density_correlation_length": density_length,
+                }
+            )
             print(json.dumps(numbers[-1]), flush=True)
         rows += [row, slices]
     write_grid(args.out, rows, args.res)

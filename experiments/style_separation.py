@@ -27,11 +27,9 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
-
 
 from mistyle.benchmark.study import add_metric_arguments
 
@@ -41,7 +39,9 @@ def paintings_apart(styles: dict) -> dict:
     ``(M, 3)`` painting colours. The denominators of the separation, the same for every method."""
     from mistyle.objective.metrics import sliced_wasserstein
 
-    return {(a, b): sliced_wasserstein(styles[a], styles[b], order=1) for a, b in itertools.combinations(sorted(styles), 2)}
+    return {
+        (a, b): sliced_wasserstein(styles[a], styles[b], order=1) for a, b in itertools.combinations(sorted(styles), 2)
+    }
 
 
 def separation_summary(renders: dict, styles: dict, apart: dict) -> dict:
@@ -57,20 +57,33 @@ def separation_summary(renders: dict, styles: dict, apart: dict) -> dict:
     pairs = []
     for a, b in itertools.combinations(names, 2):
         renders_apart = sliced_wasserstein(renders[a], renders[b], order=1)
-        pairs.append({"a": a, "b": b, "renders_apart": renders_apart, "styles_apart": apart[(a, b)],
-                      "separation": renders_apart / apart[(a, b)],
-                      "a_prefers_own": to_style[(a, a)] < to_style[(a, b)],
-                      "b_prefers_own": to_style[(b, b)] < to_style[(b, a)]})
+        pairs.append(
+            {
+                "a": a,
+                "b": b,
+                "renders_apart": renders_apart,
+                "styles_apart": apart[(a, b)],
+                "separation": renders_apart / apart[(a, b)],
+                "a_prefers_own": to_style[(a, a)] < to_style[(a, b)],
+                "b_prefers_own": to_style[(b, b)] < to_style[(b, a)],
+            }
+        )
     preference = np.mean([p["a_prefers_own"] for p in pairs] + [p["b_prefers_own"] for p in pairs])
-    return {"paintings": len(names), "separation": float(np.median([p["separation"] for p in pairs])),
-            "own_style_preference": float(preference), "pairs": pairs}
+    return {
+        "paintings": len(names),
+        "separation": float(np.median([p["separation"] for p in pairs])),
+        "own_style_preference": float(preference),
+        "pairs": pairs,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("checkpoints", nargs="*", help="SKPN checkpoints (default: the bundled one)")
     parser.add_argument("--styles", type=int, default=8, help="the first this many validation paintings (0: all 13)")
-    parser.add_argument("--no-optimised", action="store_true", help="leave out direct optimisation (a minute per painting)")
+    parser.add_argument(
+        "--no-optimised", action="store_true", help="leave out direct optimisation (a minute per painting)"
+    )
     parser.add_argument("--optimise-factor", type=float, default=2, help="as mistyle-bench's")
     parser.add_argument("--out", default="results/style_separation/style_separation")
     add_metric_arguments(parser)
@@ -78,8 +91,8 @@ def main() -> None:
 
     import torch
 
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
@@ -103,8 +116,9 @@ def main() -> None:
     renders: dict[str, dict] = {}
 
     def keep(method, name, albedo):
-        _, images = score(density, albedo, styles[name], views, res=args.res, spp=args.spp,
-                          density_scale=scale, radiance=radiance)
+        _, images = score(
+            density, albedo, styles[name], views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+        )
         renders.setdefault(method, {})[name] = np.concatenate([foreground_pixels(image) for image in images])
 
     for name, style in styles.items():
@@ -113,8 +127,11 @@ def main() -> None:
         uniform = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
         keep("uniform", name, uniform)
         if prepared is not None:
-            keep("optimised", name, refine_albedo(density, scale, uniform, style, settings, radiance=radiance,
-                                                  prepared=prepared)[0])
+            keep(
+                "optimised",
+                name,
+                refine_albedo(density, scale, uniform, style, settings, radiance=radiance, prepared=prepared)[0],
+            )
         print(f"{name}: rendered", flush=True)
 
     colours = {name: style.reshape(-1, 3) for name, style in styles.items()}
@@ -122,10 +139,15 @@ def main() -> None:
     results = {method: separation_summary(found, colours, apart) for method, found in renders.items()}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps({"density": VALIDATION_DENSITIES[0].name, "res": args.res, "spp": args.spp,
-                                                    "methods": results}, indent=1))
-    print(f"\n{len(paintings)} validation paintings on {VALIDATION_DENSITIES[0].name}, medians over "
-          f"{len(paintings) * (len(paintings) - 1) // 2} pairs\n")
+    out.with_suffix(".json").write_text(
+        json.dumps(
+            {"density": VALIDATION_DENSITIES[0].name, "res": args.res, "spp": args.spp, "methods": results}, indent=1
+        )
+    )
+    print(
+        f"\n{len(paintings)} validation paintings on {VALIDATION_DENSITIES[0].name}, medians over "
+        f"{len(paintings) * (len(paintings) - 1) // 2} pairs\n"
+    )
     print("| method | separation (renders apart / paintings apart) | own-style preference |")
     print("|---|---|---|")
     for method, summary in results.items():

@@ -49,11 +49,29 @@ def main() -> None:
         style = styles.val[index].permute(1, 2, 0).numpy()
         albedo = stylizer(density, style, match_colours=False)
         with torch.no_grad():
-            layer = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2), prepared, view, args.res,
-                                 radiance=config.render.radiance)[0].permute(1, 2, 0).numpy()
-        traced = [path_trace(density, grid, view, res=args.res, spp=args.spp, density_scale=stylizer.density_scale,
-                             light=f"constant:{config.render.radiance}")[0][0]
-                  for grid in (albedo, stylizer.match_colours([albedo], [density], style)[0])]
+            layer = (
+                render_views(
+                    torch.from_numpy(albedo).permute(3, 0, 1, 2),
+                    prepared,
+                    view,
+                    args.res,
+                    radiance=config.render.radiance,
+                )[0]
+                .permute(1, 2, 0)
+                .numpy()
+            )
+        traced = [
+            path_trace(
+                density,
+                grid,
+                view,
+                res=args.res,
+                spp=args.spp,
+                density_scale=stylizer.density_scale,
+                light=f"constant:{config.render.radiance}",
+            )[0][0]
+            for grid in (albedo, stylizer.match_colours([albedo], [density], style)[0])
+        ]
         swatch = square_style(style, args.res).permute(1, 2, 0).numpy()
         rows.append(np.concatenate([swatch, display(layer)] + [display(image) for image in traced], axis=1))
         print(styles.val_names[index], flush=True)

@@ -37,8 +37,14 @@ def worker(args) -> None:
     started = time.perf_counter()
     for _ in range(args.steps):
         trainer.train_step()
-    print(json.dumps({"seconds_per_step": (time.perf_counter() - started) / args.steps,
-                      "mistyle": str(Path(mistyle.__file__).parent.parent)}))
+    print(
+        json.dumps(
+            {
+                "seconds_per_step": (time.perf_counter() - started) / args.steps,
+                "mistyle": str(Path(mistyle.__file__).parent.parent),
+            }
+        )
+    )
 
 
 def parse_arm(text: str) -> tuple[str, str, list[str]]:
@@ -51,7 +57,9 @@ def parse_arm(text: str) -> tuple[str, str, list[str]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--config", default="configs/cpu.toml")
-    parser.add_argument("--arm", action="append", default=[], help="name=REVISION[:key=value,...] (REVISION empty: this tree)")
+    parser.add_argument(
+        "--arm", action="append", default=[], help="name=REVISION[:key=value,...] (REVISION empty: this tree)"
+    )
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--steps", type=int, default=10)
     parser.add_argument("--warmup", type=int, default=3)
@@ -63,11 +71,14 @@ def main() -> None:
     arms = [parse_arm(text) for text in args.arm or ["this=:"]]
     trees = {}
     with tempfile.TemporaryDirectory() as scratch:
-        for name, revision, _ in arms:
+        for _, revision, _ in arms:
             if revision and revision not in trees:
                 tree = Path(scratch) / revision
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), revision],
-                               check=True, capture_output=True)
+                subprocess.run(
+                    ["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), revision],
+                    check=True,
+                    capture_output=True,
+                )
                 trees[revision] = tree
         config = str((ROOT / args.config).resolve())
         seconds = {name: [] for name, _, _ in arms}
@@ -75,8 +86,17 @@ def main() -> None:
             for round_index in range(args.rounds):
                 for name, revision, overrides in arms:
                     tree = trees.get(revision, ROOT)
-                    command = [sys.executable, str(Path(__file__).resolve()), "--worker", "--config", config,
-                               "--steps", str(args.steps), "--warmup", str(args.warmup)]
+                    command = [
+                        sys.executable,
+                        str(Path(__file__).resolve()),
+                        "--worker",
+                        "--config",
+                        config,
+                        "--steps",
+                        str(args.steps),
+                        "--warmup",
+                        str(args.warmup),
+                    ]
                     command += [item for override in overrides for item in ("--set", override)]
                     env = dict(os.environ, PYTHONPATH=str(tree))
                     result = subprocess.run(command, cwd=ROOT, env=env, check=True, capture_output=True, text=True)
@@ -84,16 +104,42 @@ def main() -> None:
                     if Path(record.pop("mistyle")).resolve() != tree.resolve():  # the arm ran the code it names
                         raise SystemExit(f"arm {name}: imported mistyle from elsewhere than {tree}")
                     seconds[name].append(record["seconds_per_step"])
-                    print(json.dumps({"round": round_index, "arm": name, "revision": revision or "working tree",
-                                      "overrides": overrides, **record}), flush=True)
+                    print(
+                        json.dumps(
+                            {
+                                "round": round_index,
+                                "arm": name,
+                                "revision": revision or "working tree",
+                                "overrides": overrides,
+                                **record,
+                            }
+                        ),
+                        flush=True,
+                    )
         finally:
             for tree in trees.values():
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True)
+                subprocess.run(
+                    ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True
+                )
     first = statistics.median(seconds[arms[0][0]])
-    summary = {name: {"median_seconds_per_step": round(statistics.median(values), 3),
-                      "speedup": round(first / statistics.median(values), 2)} for name, values in seconds.items()}
-    print(json.dumps({"config": args.config, "steps": args.steps, "rounds": args.rounds, "load": os.getloadavg()[0],
-                      "summary": summary}))
+    summary = {
+        name: {
+            "median_seconds_per_step": round(statistics.median(values), 3),
+            "speedup": round(first / statistics.median(values), 2),
+        }
+        for name, values in seconds.items()
+    }
+    print(
+        json.dumps(
+            {
+                "config": args.config,
+                "steps": args.steps,
+                "rounds": args.rounds,
+                "load": os.getloadavg()[0],
+                "summary": summary,
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -22,15 +22,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-from mistyle.pages import EXPERIMENTS_TITLE, write_index
-
-
 from mistyle.benchmark.study import add_metric_arguments
+from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 
 def checkpoint_files(items: list[str]) -> list[Path]:
@@ -45,17 +42,21 @@ def main() -> None:
     parser.add_argument("checkpoints", nargs="+")
     parser.add_argument("--out", default="results/validation_curve/validation_curve")
     parser.add_argument("--styles", type=int, default=0, help="use only this many paintings (0: all of the split)")
-    parser.add_argument("--paintings", choices=("validation", "training"), default="validation",
-                        help="score on the held-out validation paintings (choosing checkpoints), or on as many "
-                             "training paintings, evenly spaced (how much of the network's skill carries to unseen styles)")
+    parser.add_argument(
+        "--paintings",
+        choices=("validation", "training"),
+        default="validation",
+        help="score on the held-out validation paintings (choosing checkpoints), or on as many "
+        "training paintings, evenly spaced (how much of the network's skill carries to unseen styles)",
+    )
     parser.add_argument("--offset", type=int, default=0, help="steps trained before the run's --init")
     add_metric_arguments(parser)
     args = parser.parse_args()
 
     import torch
 
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.api import Stylizer
+    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style
     from mistyle.model.checkpoint import load_checkpoint
@@ -84,22 +85,51 @@ def main() -> None:
                 key = (spec.name, painting.stem)
                 if key not in baselines:
                     albedo = uniform_baseline(density, style, views, density_scale=scale, radiance=radiance)
-                    baselines[key] = score(density, albedo, style, views, res=args.res, spp=args.spp,
-                                           density_scale=scale, radiance=radiance)[0]
+                    baselines[key] = score(
+                        density,
+                        albedo,
+                        style,
+                        views,
+                        res=args.res,
+                        spp=args.spp,
+                        density_scale=scale,
+                        radiance=radiance,
+                    )[0]
                 albedo = stylizer(density, style)
-                metrics, _ = score(density, albedo, style, views, res=args.res, spp=args.spp,
-                                   density_scale=scale, radiance=radiance)
+                metrics, _ = score(
+                    density, albedo, style, views, res=args.res, spp=args.spp, density_scale=scale, radiance=radiance
+                )
                 metrics.update(albedo_statistics(albedo, density))
                 base = baselines[key]
-                row = {"checkpoint": str(path), "step": step, "density": spec.name, "style": painting.stem, **metrics,
-                       "rgb_swd_ratio": metrics["rgb_swd"] / base["rgb_swd"],
-                       "patch_swd_ratio": metrics["patch_swd"] / base["patch_swd"],
-                       "uniform_hue_coverage": base["hue_coverage"]}
+                row = {
+                    "checkpoint": str(path),
+                    "step": step,
+                    "density": spec.name,
+                    "style": painting.stem,
+                    **metrics,
+                    "rgb_swd_ratio": metrics["rgb_swd"] / base["rgb_swd"],
+                    "patch_swd_ratio": metrics["patch_swd"] / base["patch_swd"],
+                    "uniform_hue_coverage": base["hue_coverage"],
+                }
                 mine.append(row)
         rows += mine
-        summary = {"checkpoint": str(path), "step": step, "pairs": len(mine),
-                   **{key: float(np.median([r[key] for r in mine]))
-                      for key in ("rgb_swd_ratio", "patch_swd_ratio", "hue_coverage", "rgb_swd", "patch_swd", "albedo_level", "albedo_spread")}}
+        summary = {
+            "checkpoint": str(path),
+            "step": step,
+            "pairs": len(mine),
+            **{
+                key: float(np.median([r[key] for r in mine]))
+                for key in (
+                    "rgb_swd_ratio",
+                    "patch_swd_ratio",
+                    "hue_coverage",
+                    "rgb_swd",
+                    "patch_swd",
+                    "albedo_level",
+                    "albedo_spread",
+                )
+            },
+        }
         print(json.dumps(summary), flush=True)
     out.with_suffix(".jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     chart(out.with_suffix(".png"), rows)
@@ -122,8 +152,10 @@ def chart(path: Path, rows: list[dict], size=(640, 300)) -> None:
     from PIL import Image, ImageDraw
 
     steps = sorted({r["step"] for r in rows})
-    series = {key: [float(np.median([r[key] for r in rows if r["step"] == s])) for s in steps]
-              for key in ("rgb_swd_ratio", "patch_swd_ratio", "hue_coverage")}
+    series = {
+        key: [float(np.median([r[key] for r in rows if r["step"] == s])) for s in steps]
+        for key in ("rgb_swd_ratio", "patch_swd_ratio", "hue_coverage")
+    }
     width, height, margin = size[0], size[1], 40
     image = Image.new("RGB", size, "white")
     draw = ImageDraw.Draw(image)
@@ -131,15 +163,18 @@ def chart(path: Path, rows: list[dict], size=(640, 300)) -> None:
     x_of = lambda s: margin + (width - 2 * margin) * (s - steps[0]) / max(steps[-1] - steps[0], 1)  # noqa: E731
     y_of = lambda v: height - margin - (height - 2 * margin) * (v - low) / (high - low)  # noqa: E731
     draw.line([(margin, y_of(1.0)), (width - margin, y_of(1.0))], fill="gray")  # the uniform baseline's ratio
-    for (key, values), colour in zip(series.items(), ("red", "blue", "green")):
+    for values, colour in zip(series.values(), ("red", "blue", "green")):
         xy = [(x_of(s), y_of(v)) for s, v in zip(steps, values)]
         if len(xy) > 1:
             draw.line(xy, fill=colour, width=2)
         for x, y in xy:
             draw.ellipse([x - 3, y - 3, x + 3, y + 3], fill=colour)
     draw.rectangle([margin, margin, width - margin, height - margin], outline="gray")
-    draw.text((margin, 8), "validation medians: RGB SWD x uniform (red), patch SWD x uniform (blue), hue coverage (green)",
-              fill="black")
+    draw.text(
+        (margin, 8),
+        "validation medians: RGB SWD x uniform (red), patch SWD x uniform (blue), hue coverage (green)",
+        fill="black",
+    )
     draw.text((margin, 22), f"grey line: the uniform baseline (1.0); y 0-{high:.2f}", fill="black")
     draw.text((margin, height - margin + 8), f"training step {steps[0]} - {steps[-1]}", fill="black")
     image.save(path)

@@ -36,8 +36,17 @@ from .io import load_density, load_style
 from .pathtrace import path_trace
 from .pipeline import Pipeline, PipelineSettings, Stylizer
 
-__all__ = ["Pipeline", "PipelineSettings", "Stylizer", "display", "load_density", "load_style", "path_trace",
-           "render", "stylize"]
+__all__ = [
+    "Pipeline",
+    "PipelineSettings",
+    "Stylizer",
+    "display",
+    "load_density",
+    "load_style",
+    "path_trace",
+    "render",
+    "stylize",
+]
 
 
 @functools.lru_cache(maxsize=2)
@@ -45,8 +54,17 @@ def _stylizer(checkpoint, device, vgg_weights) -> Stylizer:
     return Stylizer(checkpoint, device, vgg_weights)
 
 
-def stylize(density, style_image, checkpoint=None, scale_structures: float = 1.0, device: str = "cpu",
-            vgg_weights=None, strength: float = 1.0, match_colours: bool = True, refine: bool = False) -> np.ndarray:
+def stylize(
+    density,
+    style_image,
+    checkpoint=None,
+    scale_structures: float = 1.0,
+    device: str = "cpu",
+    vgg_weights=None,
+    strength: float = 1.0,
+    match_colours: bool = True,
+    refine: bool = False,
+) -> np.ndarray:
     """Albedo for ``density`` in the look of ``style_image``: the network's arrangement with the
     style's colours (``colour_match``), and with ``refine=True`` refined against the style.
 
@@ -69,15 +87,34 @@ def stylize(density, style_image, checkpoint=None, scale_structures: float = 1.0
     """
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
     steps = {} if refine else {"refine_steps": 0, "refine_path_steps": 0}
-    settings = PipelineSettings(checkpoint=key, device=device, vgg_weights=vgg_weights, strength=strength,
-                                scale_structures=scale_structures, colour_match=match_colours, **steps)
+    settings = PipelineSettings(
+        checkpoint=key,
+        device=device,
+        vgg_weights=vgg_weights,
+        strength=strength,
+        scale_structures=scale_structures,
+        colour_match=match_colours,
+        **steps,
+    )
     stylized = Pipeline(settings, stylizer=_stylizer(key, device, vgg_weights)).stylize(density, style_image)
     return np.stack(stylized.albedos) if stylized.frames.sequence else stylized.albedos[0]
 
 
-def render(density, albedo, view: float = HELD_OUT_VIEW, res: int = 256, spp: int = 64, max_depth: int = -1,
-           density_scale: float = DEFAULT_DENSITY_SCALE, light: str = "constant", coat_ior: float | None = None,
-           coat_mesh=None, camera_distance: float = ORBIT_DISTANCE, device: str = "cpu", seed: int = 0) -> np.ndarray:
+def render(
+    density,
+    albedo,
+    view: float = HELD_OUT_VIEW,
+    res: int = 256,
+    spp: int = 64,
+    max_depth: int = -1,
+    density_scale: float = DEFAULT_DENSITY_SCALE,
+    light: str = "constant",
+    coat_ior: float | None = None,
+    coat_mesh=None,
+    camera_distance: float = ORBIT_DISTANCE,
+    device: str = "cpu",
+    seed: int = 0,
+) -> np.ndarray:
     """Path-trace the medium with Mitsuba's ``volpath``; returns ``(res, res, 3)`` linear RGB.
 
     Args:
@@ -92,7 +129,21 @@ def render(density, albedo, view: float = HELD_OUT_VIEW, res: int = 256, spp: in
     from .scenes import CameraPath, View
     from .scenes.cameras import validate_orbit_position
 
-    camera = view if isinstance(view, View) else CameraPath(distance=camera_distance).view(validate_orbit_position(view))
-    images, _ = path_trace(density, albedo, [camera], res=res, spp=spp, max_depth=max_depth, density_scale=density_scale,
-                           light=light, coat_ior=coat_ior, coat_mesh=coat_mesh, device=device, seed=seed)
+    camera = (
+        view if isinstance(view, View) else CameraPath(distance=camera_distance).view(validate_orbit_position(view))
+    )
+    images, _ = path_trace(
+        density,
+        albedo,
+        [camera],
+        res=res,
+        spp=spp,
+        max_depth=max_depth,
+        density_scale=density_scale,
+        light=light,
+        coat_ior=coat_ior,
+        coat_mesh=coat_mesh,
+        device=device,
+        seed=seed,
+    )
     return images[0]

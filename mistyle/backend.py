@@ -85,8 +85,10 @@ def require_variant():
     import mitsuba as mi
 
     if mi.variant() not in VARIANTS:
-        raise BackendError("No mistyle Mitsuba variant is active; call mistyle.backend.use_variant('cpu') "
-                           "(or 'cuda') before building scenes.")
+        raise BackendError(
+            "No mistyle Mitsuba variant is active; call mistyle.backend.use_variant('cpu') "
+            "(or 'cuda') before building scenes."
+        )
     return mi
 
 

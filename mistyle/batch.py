@@ -68,8 +68,10 @@ def style_files(path: Path) -> list[Path]:
         return [path]  # load_style reports a missing or unreadable file
     images = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in STYLE_SUFFIXES)
     if not images:
-        raise ValueError(f"The style folder {path} holds no images ({', '.join(STYLE_SUFFIXES)}); "
-                         "give image files or a folder of them.")
+        raise ValueError(
+            f"The style folder {path} holds no images ({', '.join(STYLE_SUFFIXES)}); "
+            "give image files or a folder of them."
+        )
     return images
 
 
@@ -81,7 +83,9 @@ def parse_mix_item(text: str) -> tuple[Path, float]:
     except ValueError:
         value = None
     if not path or value is None or not (value >= 0 and value < float("inf")):
-        raise ValueError(f"--mix takes IMAGE:WEIGHT items with weights >= 0, e.g. --mix a.png:0.7 b.png:0.3; got {text!r}.")
+        raise ValueError(
+            f"--mix takes IMAGE:WEIGHT items with weights >= 0, e.g. --mix a.png:0.7 b.png:0.3; got {text!r}."
+        )
     return Path(path), value
 
 
@@ -101,27 +105,41 @@ def style_choices(styles: list[Path] | None, mix: list[str] | None) -> list[Styl
     return [StyleChoice(safe_name(image.stem), ((image, 1.0),)) for image in files]
 
 
-def plan_outputs(densities: list[Path] | None, meshes: list[Path] | None, styles: list[Path] | None,
-                 mix: list[str] | None, out: Path, overwrite: bool) -> list[Output]:
+def plan_outputs(
+    densities: list[Path] | None,
+    meshes: list[Path] | None,
+    styles: list[Path] | None,
+    mix: list[str] | None,
+    out: Path,
+    overwrite: bool,
+) -> list[Output]:
     """Every (density, style) pair's output folder, checked before any work: distinct names, and no
     existing output replaced without ``overwrite``."""
-    sources = [DensitySource(Path(p)) for p in densities or []] + [DensitySource(Path(p), mesh=True) for p in meshes or []]
+    sources = [DensitySource(Path(p)) for p in densities or []] + [
+        DensitySource(Path(p), mesh=True) for p in meshes or []
+    ]
     choices = style_choices(styles, mix)
     pairs = [(source, choice) for source in sources for choice in choices]
     single = len(pairs) == 1
-    outputs = [Output(source, choice, Path(out) if single else Path(out) / f"{source.name}__{choice.name}")
-               for source, choice in pairs]
+    outputs = [
+        Output(source, choice, Path(out) if single else Path(out) / f"{source.name}__{choice.name}")
+        for source, choice in pairs
+    ]
     seen: dict[str, Output] = {}
     for output in outputs:
         if output.name in seen:
             first = seen[output.name]
-            raise ValueError(f"Two inputs would share the output {output.name}: {first.density.path} with "
-                             f"{first.style.describe()} and {output.density.path} with {output.style.describe()}; "
-                             "rename one of the files.")
+            raise ValueError(
+                f"Two inputs would share the output {output.name}: {first.density.path} with "
+                f"{first.style.describe()} and {output.density.path} with {output.style.describe()}; "
+                "rename one of the files."
+            )
         seen[output.name] = output
     if not overwrite:
         for output in outputs:
             folder = output.folder
             if folder.is_dir() and any(p for p in folder.iterdir() if not p.name.startswith(".")):
-                raise ValueError(f"{folder} already holds a render; pass --overwrite to replace it, or choose another --out.")
+                raise ValueError(
+                    f"{folder} already holds a render; pass --overwrite to replace it, or choose another --out."
+                )
     return outputs

@@ -69,9 +69,7 @@ def render_views(
     if not views or not all(isinstance(v, View) for v in views):
         raise ValueError("views must be a non-empty list of mistyle.scenes.View.")
 
-    renderer = _renderer(
-        albedo_batch.device.type, densities[0], height, width, len(views), steps, scheme, radiance
-    )
+    renderer = _renderer(albedo_batch.device.type, densities[0], height, width, len(views), steps, scheme, radiance)
     images = []
     for item in range(batch):
         # (3, D, H, W) -> the (Z, Y, X, 3) layout of mi.Texture3f; autograd undoes the permute.
@@ -105,8 +103,11 @@ class _LayerRenderer:
         placeholder_views = [View(origin=(0.0, 0.0, ORBIT_DISTANCE + v)) for v in range(view_count)]
         albedo = np.zeros(prepared.shape + (3,), dtype=np.float32)
         self.mi = mi
-        self.scene = mi.load_dict(layer_scene(prepared, albedo, placeholder_views, res=(height, width), steps=steps,
-                                              scheme=scheme, radiance=radiance))
+        self.scene = mi.load_dict(
+            layer_scene(
+                prepared, albedo, placeholder_views, res=(height, width), steps=steps, scheme=scheme, radiance=radiance
+            )
+        )
         self.params = mi.traverse(self.scene)
         self.current_density: PreparedDensity | None = None
         self.current_views: list[View] | None = None
@@ -239,16 +240,34 @@ class PathTracedViews:
         res: image side in pixels; spp: paths per pixel of each view.
     """
 
-    def __init__(self, density: np.ndarray, density_scale: float, *, res: int, spp: int = 8,
-                 radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu"):
+    def __init__(
+        self,
+        density: np.ndarray,
+        density_scale: float,
+        *,
+        res: int,
+        spp: int = 8,
+        radiance: float = DEFAULT_ENV_RADIANCE,
+        device: str = "cpu",
+    ):
         import drjit as dr
 
         mi = use_variant(device)
         start = View(origin=(0.0, 0.0, ORBIT_DISTANCE))
         placeholder = np.zeros(density.shape + (3,), np.float32)
         self.mi, self.spp, self.device = mi, int(spp), device
-        self.scene = mi.load_dict(pathtraced_scene(density, placeholder, [start], res=res, density_scale=density_scale,
-                                                   spp=spp, light=LightSpec("constant", radiance), integrator="prbvolpath"))
+        self.scene = mi.load_dict(
+            pathtraced_scene(
+                density,
+                placeholder,
+                [start],
+                res=res,
+                density_scale=density_scale,
+                spp=spp,
+                light=LightSpec("constant", radiance),
+                integrator="prbvolpath",
+            )
+        )
         self.params = mi.traverse(self.scene)
         albedo_key = albedo_parameter(self.params)
         params, scene = self.params, self.scene
@@ -273,6 +292,7 @@ class PathTracedViews:
         images = []
         for index, view in enumerate(views):
             self.params["sensor000.to_world"] = self.mi.ScalarTransform4f().look_at(
-                origin=view.origin, target=view.target, up=view.up)
+                origin=view.origin, target=view.target, up=view.up
+            )
             images.append(self._render(grid, seed + index).permute(2, 0, 1))
         return torch.stack(images)

@@ -12,9 +12,8 @@ a grey response sweep and one low-resolution render of the matched medium.
    foreground (``response.uniform_display_response``).
    Each voxel's albedo is mapped to the colour ``f(albedo)`` a medium of that albedo would show.
 2. **Weights.** A voxel counts in proportion to how much of it the orbit's cameras see: its density
-   times its mean transmittance from the four horizontal sides of the box (``visible_weight``). On
-   the 13 validation pairs this weighting took the stage from 1.26x to 1.08x direct optimisation's
-   RGB SWD, against density weights (median of per-pair ratios).
+   times its mean transmittance from the four horizontal sides of the box (``visible_weight``); on
+   the validation pairs it beat density weights (``results/output_corrections/``).
 3. **Transport.** An iterated sliced optimal transport (Pitie et al. 2007, "Automated colour grading
    using colour distribution transfer") carries the weighted distribution of shown colours onto
    the style's pixel colours: ``TRANSPORT_ROUNDS`` rounds of three orthogonal random directions, each
@@ -27,9 +26,8 @@ a grey response sweep and one low-resolution render of the matched medium.
    transport (``FEEDBACK_ROUNDS`` rounds), carrying that render's foreground display colours onto
    the style's pixels, is appended to the map: every voxel's shown colour moves by it too. An affine
    map commutes with the averages along rays, so for the map's affine part one round is exact.
-   On the 13 validation pairs it took the stage from 1.08x to 0.98x direct optimisation's RGB SWD
-   pooled over the metric views (1.31x to 1.26x view by view), and hue coverage from 0.82 to 0.88
-   (experiments/colour_match_feedback.py).
+   With and without it on the validation pairs: ``results/colour_match_feedback/``
+   (``experiments/colour_match_feedback.py``).
 5. Each occupied voxel moves by its displacement under the whole map times ``strength`` and maps back
    through ``f^{-1}`` (interpolated in log albedo). Empty voxels keep their albedo.
 
@@ -85,8 +83,9 @@ def visible_weight(density: np.ndarray, density_scale: float) -> np.ndarray:
     return density * transmittance / 4.0
 
 
-def fit_sliced_transport(source: np.ndarray, target: np.ndarray, rng: np.random.Generator,
-                         rounds: int = TRANSPORT_ROUNDS) -> list:
+def fit_sliced_transport(
+    source: np.ndarray, target: np.ndarray, rng: np.random.Generator, rounds: int = TRANSPORT_ROUNDS
+) -> list:
     """Iterated sliced optimal transport of the samples ``source (N, 3)`` onto ``target (M, 3)``: a list
     of stages ``(direction (3,), source quantiles, target quantiles)``, for ``apply_sliced_transport``."""
     current, levels, stages = np.array(source, dtype=np.float64), np.linspace(0, 1, TRANSPORT_QUANTILES), []
@@ -186,8 +185,17 @@ def distinct_colours(colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ordered[starts], index
 
 
-def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray, *, density_scale: float,
-                     radiance: float, camera_distance: float, seed: int = 0, feedback: bool = True) -> ColourMatch:
+def fit_colour_match(
+    albedo: np.ndarray,
+    density: np.ndarray,
+    style: np.ndarray,
+    *,
+    density_scale: float,
+    radiance: float,
+    camera_distance: float,
+    seed: int = 0,
+    feedback: bool = True,
+) -> ColourMatch:
     """The ``ColourMatch`` carrying the colours ``albedo (Z, Y, X, 3)`` shows on ``density (Z, Y, X)``
     onto ``style (H, W, 3)``'s (module docstring); ``feedback=False`` leaves out step 4.
 
@@ -195,19 +203,29 @@ def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray,
         ValueError: an albedo of another shape than the density's.
         InvisibleMedium: a medium no pixel of the response render sees, even at albedo 1."""
     from .conventions import FOREGROUND_THRESHOLD
-    from .response import albedo_renders, uniform_display_response
     from .display import display
+    from .response import albedo_renders, uniform_display_response
     from .scenes import CameraPath
 
     density = np.asarray(density, dtype=np.float32)
     albedo = np.asarray(albedo, dtype=np.float32)
     if albedo.shape != density.shape + (3,):
-        raise ValueError(f"albedo must be the density's shape plus 3 channels {density.shape + (3,)}, got {albedo.shape}.")
+        raise ValueError(
+            f"albedo must be the density's shape plus 3 channels {density.shape + (3,)}, got {albedo.shape}."
+        )
     pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
     orbit = CameraPath(distance=camera_distance)
     try:
-        shown_levels = uniform_display_response(density, density_scale, radiance, [orbit.view(RESPONSE_VIEW)],
-                                                RESPONSE_LEVELS, res=32, spp=4, pack_channels=True)
+        shown_levels = uniform_display_response(
+            density,
+            density_scale,
+            radiance,
+            [orbit.view(RESPONSE_VIEW)],
+            RESPONSE_LEVELS,
+            res=32,
+            spp=4,
+            pack_channels=True,
+        )
     except ValueError as error:  # no pixel sees the medium
         raise InvisibleMedium(f"{error} The colour match needs a visible medium.") from None
     shown_levels = shown_levels + np.arange(len(shown_levels)) * 1e-9  # strictly increasing, so that it inverts
@@ -221,11 +239,13 @@ def fit_colour_match(albedo: np.ndarray, density: np.ndarray, style: np.ndarray,
     if feedback:
         views = orbit.turntable(FEEDBACK_VIEWS)
         transported, resume = match.applied(albedo, density)
-        (renders,) = albedo_renders(density, density_scale, radiance, views, [transported],
-                                    res=FEEDBACK_RES, spp=FEEDBACK_SPP, batch=True)
+        (renders,) = albedo_renders(
+            density, density_scale, radiance, views, [transported], res=FEEDBACK_RES, spp=FEEDBACK_SPP, batch=True
+        )
         rendered = display(renders[renders.max(axis=-1) > FOREGROUND_THRESHOLD]).astype(np.float64)
         if len(rendered):  # the response saw the medium; a render of darker albedos may not
-            stages = fit_sliced_transport(rendered, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng,
-                                          rounds=FEEDBACK_ROUNDS)
+            stages = fit_sliced_transport(
+                rendered, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng, rounds=FEEDBACK_ROUNDS
+            )
             match = replace(match, stages=match.stages + tuple(stages), resume=resume)
     return match

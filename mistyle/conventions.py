@@ -7,9 +7,9 @@ Numbers (each chosen by measurement where a comment says so):
   told otherwise.
 * ``DEFAULT_ENV_RADIANCE``: the training light, a constant white environment. Single scattering
   under a unit environment cannot exceed a radiance of about 0.7 even for white albedo, which the
-  tone curve shows as mid grey, so bright styles were out of reach; measured with
-  ``experiments/optimize_albedo.py --quick`` (held-out SWD after 60 steps, 3 styles): Le = 2: 0.224,
-  4: 0.178, 8: 0.162, 16: 0.167. Le = 8 puts white albedo at about 0.93 on screen.
+  tone curve shows as mid grey, so bright styles were out of reach. Le = 8 gave the lowest held-out
+  SWD of 2, 4, 8 and 16 with ``experiments/optimize_albedo.py --quick`` and puts white albedo near the
+  top of the display range.
 * ``ORBIT_DISTANCE``: radius of the camera orbit (``mistyle.scenes.CameraPath``) by default.
 * ``HELD_OUT_VIEW``: the orbit position of the first view that evaluations, reports and final
   renders use. Training samples positions uniformly, so no position is strictly unseen; this one

@@ -3,9 +3,10 @@
 Stylizes the bundled smoke frame ``examples/smoke_64.vol`` with the bundled style
 ``examples/style_marble.png`` using the bundled checkpoint (trained with ``configs/cpu.toml``),
 refines the albedo against the style (``--refine``), path-traces a small turntable
-with Mitsuba's ``volpath`` (multiple scattering, the training light), and writes the albedo grid, EXR/PNG frames, an MP4
-and a GIF, ``sheet.png``, ``scene.xml`` and ``report.json`` to ``out/demo`` (replacing an earlier demo). Any option of ``python -m mistyle.render_final``
-can be appended, e.g. ``python -m mistyle.demo --style my.png --coat dielectric:1.5``.
+with Mitsuba's ``volpath`` (multiple scattering, the training light), and writes the albedo grid, EXR/PNG
+frames, an MP4 and a GIF, ``sheet.png``, ``scene.xml`` and ``report.json`` to ``out/demo`` (replacing an
+earlier demo). Any option of ``python -m mistyle.render_final`` can be appended, e.g.
+``python -m mistyle.demo --style my.png --coat dielectric:1.5``.
 """
 
 from __future__ import annotations
@@ -14,8 +15,14 @@ import sys
 from pathlib import Path
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
-DEFAULTS = {"--density": str(EXAMPLES / "smoke_64.vol"), "--style": str(EXAMPLES / "style_marble.png"),
-            "--out": "out/demo", "--turntable": "8", "--res": "128", "--spp": "32"}
+DEFAULTS = {
+    "--density": str(EXAMPLES / "smoke_64.vol"),
+    "--style": str(EXAMPLES / "style_marble.png"),
+    "--out": "out/demo",
+    "--turntable": "8",
+    "--res": "128",
+    "--spp": "32",
+}
 
 
 def main(argv=None) -> int:

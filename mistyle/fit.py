@@ -55,7 +55,9 @@ class FitSettings:
 
     def __post_init__(self):
         if self.parametrisation not in PARAMETRISATIONS:
-            raise ValueError(f"Unknown parametrisation {self.parametrisation!r}; use one of {', '.join(PARAMETRISATIONS)}.")
+            raise ValueError(
+                f"Unknown parametrisation {self.parametrisation!r}; use one of {', '.join(PARAMETRISATIONS)}."
+            )
 
 
 @dataclass
@@ -85,15 +87,23 @@ class _Albedo:
             self.free.clamp_(math.log(MIN_ALBEDO), 0.0)
 
 
-def fit_albedo(render: Renderer, style: torch.Tensor, objective, initial: torch.Tensor,
-               settings: FitSettings = FitSettings(), progress=None, masks: MaskMaker | None = None,
-               penalty: Callable[[torch.Tensor], torch.Tensor] | None = None) -> AlbedoFit:
+def fit_albedo(
+    render: Renderer,
+    style: torch.Tensor,
+    objective,
+    initial: torch.Tensor,
+    settings: FitSettings | None = None,
+    progress=None,
+    masks: MaskMaker | None = None,
+    penalty: Callable[[torch.Tensor], torch.Tensor] | None = None,
+) -> AlbedoFit:
     """Fit an albedo grid to ``style (3, S, S)`` starting from ``initial (3, Z, Y, X)`` in [0, 1].
 
     ``objective``: ``objective.style.StyleObjective`` or ``SlicedObjective``. ``penalty(albedo)``, when
     given, is added to every step's loss (e.g. the temporal term of a sequence). ``progress(step,
     steps, loss)`` is called after every step when given.
     """
+    settings = FitSettings() if settings is None else settings
     variable = _Albedo(initial, settings.parametrisation)
     optimizer = torch.optim.Adam([variable.free], lr=settings.lr)
     targets = objective.targets(style[None])
@@ -104,8 +114,9 @@ def fit_albedo(render: Renderer, style: torch.Tensor, objective, initial: torch.
         albedo = variable.albedo()
         views = orbit.sample(settings.views_per_step, rng)
         images = render(albedo, views, step * settings.views_per_step)
-        loss = (objective.loss(images[None], targets, None if masks is None else masks(views))
-                + settings.tv_weight * tv_loss(albedo[None]))
+        loss = objective.loss(
+            images[None], targets, None if masks is None else masks(views)
+        ) + settings.tv_weight * tv_loss(albedo[None])
         if penalty is not None:
             loss = loss + penalty(albedo)
         optimizer.zero_grad()
@@ -126,7 +137,9 @@ class LayerViews:
     (``objective.masks.body_mask``), for this renderer or any other with the same cameras.
     """
 
-    def __init__(self, prepared, res: int, steps: int = 48, radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu"):
+    def __init__(
+        self, prepared, res: int, steps: int = 48, radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu"
+    ):
         self.prepared, self.res, self.steps, self.radiance = prepared, int(res), int(steps), float(radiance)
         self.device = device
 
@@ -140,8 +153,9 @@ class LayerViews:
 
         white = torch.ones((3,) + tuple(self.prepared.density.shape), dtype=torch.float32, device=self.device)
         with torch.no_grad():
-            images = render_views(white, self.prepared, list(views), res or self.res, steps=self.steps,
-                                  radiance=self.radiance)
+            images = render_views(
+                white, self.prepared, list(views), res or self.res, steps=self.steps, radiance=self.radiance
+            )
         return body_mask(images)
 
 
@@ -170,23 +184,40 @@ class RefineSettings:
     patch_weight: float = 0.05
     camera_distance: float = ORBIT_DISTANCE
     layer_steps_per_ray: int = 48
-    temporal_weight: float = 100.0  # sequences: 10 / 100 / 1000 gave flicker 0.0089 / 0.0056 / 0.0067 (docs/style_fidelity.md)
+    temporal_weight: float = 100.0  # sequences: the least flicker of 10 / 100 / 1000 (docs/style_fidelity.md)
     seed: int = 0
 
-    def scaled(self, factor: float) -> "RefineSettings":
+    def scaled(self, factor: float) -> RefineSettings:
         """The same schedule with ``factor`` times the steps."""
         from dataclasses import replace
 
         return replace(self, layer_steps=round(self.layer_steps * factor), path_steps=round(self.path_steps * factor))
 
     def fit_settings(self, steps: int, views: int) -> FitSettings:
-        return FitSettings(steps=steps, lr=self.lr, views_per_step=views, tv_weight=self.tv_weight,
-                           camera_distance=self.camera_distance, parametrisation="log", seed=self.seed)
+        return FitSettings(
+            steps=steps,
+            lr=self.lr,
+            views_per_step=views,
+            tv_weight=self.tv_weight,
+            camera_distance=self.camera_distance,
+            parametrisation="log",
+            seed=self.seed,
+        )
 
 
-def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray, style: np.ndarray,
-                  settings: RefineSettings, *, radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu",
-                  prepared=None, anchor: np.ndarray | None = None, progress=None) -> tuple[np.ndarray, float]:
+def refine_albedo(
+    density: np.ndarray,
+    density_scale: float,
+    albedo: np.ndarray,
+    style: np.ndarray,
+    settings: RefineSettings,
+    *,
+    radiance: float = DEFAULT_ENV_RADIANCE,
+    device: str = "cpu",
+    prepared=None,
+    anchor: np.ndarray | None = None,
+    progress=None,
+) -> tuple[np.ndarray, float]:
     """Refine ``albedo (Z, Y, X, 3)`` towards the display-space ``style (H, W, 3)``: returns
     ``(refined albedo (Z, Y, X, 3), seconds)``.
 
@@ -216,15 +247,34 @@ def refine_albedo(density: np.ndarray, density_scale: float, albedo: np.ndarray,
         penalty = lambda grid: settings.temporal_weight * ((grid - target_albedo) ** 2).mean()  # noqa: E731
 
     if settings.layer_steps:
-        layer = LayerViews(prepared, settings.layer_res, steps=settings.layer_steps_per_ray, radiance=radiance, device=device)
-        current = fit_albedo(layer, target, objective, current, settings.fit_settings(settings.layer_steps, settings.views_per_step),
-                             progress=reporter("layer"), masks=layer.body_masks, penalty=penalty).albedo
+        layer = LayerViews(
+            prepared, settings.layer_res, steps=settings.layer_steps_per_ray, radiance=radiance, device=device
+        )
+        current = fit_albedo(
+            layer,
+            target,
+            objective,
+            current,
+            settings.fit_settings(settings.layer_steps, settings.views_per_step),
+            progress=reporter("layer"),
+            masks=layer.body_masks,
+            penalty=penalty,
+        ).albedo
     if settings.path_steps:
-        masks = LayerViews(prepared, settings.path_res, steps=settings.layer_steps_per_ray, radiance=radiance,
-                           device=device).body_masks
-        render = PathTracedViews(density, density_scale, res=settings.path_res, spp=settings.spp, radiance=radiance,
-                                 device=device)
-        current = fit_albedo(render, target, objective, current,
-                             settings.fit_settings(settings.path_steps, settings.path_views_per_step),
-                             progress=reporter("path"), masks=masks, penalty=penalty).albedo
+        masks = LayerViews(
+            prepared, settings.path_res, steps=settings.layer_steps_per_ray, radiance=radiance, device=device
+        ).body_masks
+        render = PathTracedViews(
+            density, density_scale, res=settings.path_res, spp=settings.spp, radiance=radiance, device=device
+        )
+        current = fit_albedo(
+            render,
+            target,
+            objective,
+            current,
+            settings.fit_settings(settings.path_steps, settings.path_views_per_step),
+            progress=reporter("path"),
+            masks=masks,
+            penalty=penalty,
+        ).albedo
     return np.ascontiguousarray(current.permute(1, 2, 3, 0).cpu().numpy()), time.perf_counter() - started

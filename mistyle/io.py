@@ -53,8 +53,9 @@ def check_writable_dir(directory) -> Path:
         with tempfile.TemporaryFile(dir=directory):
             pass
     except OSError as error:
-        raise ValueError(f"Cannot write to the output directory {directory} ({error.strerror or error}); "
-                         "choose another --out.") from None
+        raise ValueError(
+            f"Cannot write to the output directory {directory} ({error.strerror or error}); choose another --out."
+        ) from None
     return directory
 
 
@@ -79,14 +80,16 @@ def staged_directory(directory):
         parent.mkdir(parents=True, exist_ok=True)
         lock = open(parent / f".{directory.name}.lock", "w")  # noqa: SIM115 - held for the whole block
     except OSError as error:
-        raise ValueError(f"Cannot write to the output directory {directory} ({error.strerror or error}); "
-                         "choose another --out.") from None
+        raise ValueError(
+            f"Cannot write to the output directory {directory} ({error.strerror or error}); choose another --out."
+        ) from None
     try:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            raise ValueError(f"Another mistyle run is writing to {directory}; wait for it to finish or choose "
-                             "another --out.") from None
+            raise ValueError(
+                f"Another mistyle run is writing to {directory}; wait for it to finish or choose another --out."
+            ) from None
         if directory.exists() and not directory.is_dir():
             raise ValueError(f"The output path {directory} is a file; choose a folder for --out.")
         staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.partial-", dir=parent))
@@ -178,8 +181,16 @@ def write_mp4(path, frames: list[np.ndarray], fps: int) -> Path:
 
     height, width = frames[0].shape[:2]
     with atomic_output(path) as tmp:
-        writer = imageio_ffmpeg.write_frames(str(tmp), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
-                                             macro_block_size=2, quality=8, output_params=["-f", "mp4"])
+        writer = imageio_ffmpeg.write_frames(
+            str(tmp),
+            (width, height),
+            fps=fps,
+            codec="libx264",
+            pix_fmt_out="yuv420p",
+            macro_block_size=2,
+            quality=8,
+            output_params=["-f", "mp4"],
+        )
         writer.send(None)
         for frame in frames:
             writer.send(np.ascontiguousarray(frame))
@@ -223,12 +234,18 @@ def read_vol(path) -> np.ndarray:
         raise ValueError(f"{path} is not a Mitsuba .vol file (missing the 'VOL' header).")
     magic, version, encoding, x, y, z, c, *_bbox = _VOL_HEADER.unpack_from(raw)
     if version != 3 or encoding != 1:
-        raise ValueError(f"{path}: only .vol version 3 with float32 data is supported (got version {version}, encoding {encoding}).")
+        raise ValueError(
+            f"{path}: only .vol version 3 with float32 data is supported (got version {version}, encoding {encoding})."
+        )
     if min(x, y, z, c) < 1:
-        raise ValueError(f"{path}: the header gives the grid size {x}x{y}x{z} with {c} channels; every size must be >= 1.")
+        raise ValueError(
+            f"{path}: the header gives the grid size {x}x{y}x{z} with {c} channels; every size must be >= 1."
+        )
     count = x * y * z * c
     if len(raw) - _VOL_HEADER.size != 4 * count:
-        raise ValueError(f"{path}: header says {x}x{y}x{z}x{c} floats but the file holds {(len(raw) - _VOL_HEADER.size) // 4}.")
+        raise ValueError(
+            f"{path}: header says {x}x{y}x{z}x{c} floats but the file holds {(len(raw) - _VOL_HEADER.size) // 4}."
+        )
     data = np.frombuffer(raw, dtype="<f4", offset=_VOL_HEADER.size, count=count).reshape(z, y, x, c)
     data = np.array(data, dtype=np.float32)
     return data[..., 0] if c == 1 else data
@@ -268,12 +285,17 @@ def load_density_frames(path, grid: str | None = None) -> DensityFrames:
     frames = [_read_density_file(file, grid) for file in files]
     shapes = {frame["density"].shape for frame in frames}
     if len(shapes) > 1:
-        raise ValueError(f"The frames in {path} have different shapes {sorted(shapes)}; a sequence needs one grid size.")
+        raise ValueError(
+            f"The frames in {path} have different shapes {sorted(shapes)}; a sequence needs one grid size."
+        )
     velocities = [frame.get("velocity") for frame in frames]
     transforms = [frame.get("transform") for frame in frames]
-    return DensityFrames([frame["density"] for frame in frames],
-                         velocities if all(v is not None for v in velocities) else None,
-                         [file.stem for file in files], transforms if all(t is not None for t in transforms) else None)
+    return DensityFrames(
+        [frame["density"] for frame in frames],
+        velocities if all(v is not None for v in velocities) else None,
+        [file.stem for file in files],
+        transforms if all(t is not None for t in transforms) else None,
+    )
 
 
 def _read_density_file(path: Path, grid: str | None = None) -> dict:
@@ -283,8 +305,10 @@ def _read_density_file(path: Path, grid: str | None = None) -> dict:
         raise ValueError(f"Density {path} is not a file.")
     suffix = path.suffix.lower()
     if suffix not in DENSITY_SUFFIXES:
-        raise ValueError(f"Unsupported density file {path}: use a Mitsuba .vol, an OpenVDB .vdb, a numpy .npy "
-                         "(Z, Y, X) grid or an .npz with a 'density' array.")
+        raise ValueError(
+            f"Unsupported density file {path}: use a Mitsuba .vol, an OpenVDB .vdb, a numpy .npy "
+            "(Z, Y, X) grid or an .npz with a 'density' array."
+        )
     if suffix == ".vdb":
         from .vdb import read_vdb
 
@@ -309,7 +333,9 @@ def _read_density_file(path: Path, grid: str | None = None) -> dict:
     if velocity is not None:
         velocity = np.asarray(velocity, np.float32)
         if velocity.shape != density.shape + (3,):
-            raise ValueError(f"{path}: velocity {velocity.shape} does not match the density grid {density.shape} (+ 3).")
+            raise ValueError(
+                f"{path}: velocity {velocity.shape} does not match the density grid {density.shape} (+ 3)."
+            )
     return {"density": density, "velocity": velocity}
 
 
@@ -365,8 +391,10 @@ def _style_file(path: Path, notes: list) -> np.ndarray:
             image.load()
             rgb = _pil_to_array(image, str(path), notes)
     except Image.DecompressionBombError:
-        raise ValueError(f"{path} has more than {2 * Image.MAX_IMAGE_PIXELS} pixels, Pillow's safety limit; "
-                         "downscale it (a style needs no more than a few megapixels).") from None
+        raise ValueError(
+            f"{path} has more than {2 * Image.MAX_IMAGE_PIXELS} pixels, Pillow's safety limit; "
+            "downscale it (a style needs no more than a few megapixels)."
+        ) from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as error:
         raise ValueError(f"{path} is not a readable image ({error}); use a PNG, JPEG or EXR file.") from None
     return _style_array(rgb, str(path), notes)
@@ -428,8 +456,10 @@ def _style_array(array: np.ndarray, name: str, notes: list) -> np.ndarray:
     elif np.issubdtype(array.dtype, np.floating):
         values = array.astype(np.float32)
         if not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
-            raise ValueError(f"{name} must hold finite values in [0, 1] (display-encoded sRGB), "
-                             f"got [{np.nanmin(values):.4g}, {np.nanmax(values):.4g}].")
+            raise ValueError(
+                f"{name} must hold finite values in [0, 1] (display-encoded sRGB), "
+                f"got [{np.nanmin(values):.4g}, {np.nanmax(values):.4g}]."
+            )
     else:
         raise ValueError(f"{name} has the pixel type {array.dtype}; use uint8, uint16 or float in [0, 1].")
     channels = values.shape[-1]
@@ -440,6 +470,8 @@ def _style_array(array: np.ndarray, name: str, notes: list) -> np.ndarray:
         values = np.repeat(values, 3, axis=-1)
         notes.append(f"{name}: greyscale replicated to RGB")
     if min(values.shape[:2]) < MIN_STYLE_SIZE:
-        raise ValueError(f"{name} is {values.shape[1]}x{values.shape[0]} pixels; a style image needs at least "
-                         f"{MIN_STYLE_SIZE}x{MIN_STYLE_SIZE}.")
+        raise ValueError(
+            f"{name} is {values.shape[1]}x{values.shape[0]} pixels; a style image needs at least "
+            f"{MIN_STYLE_SIZE}x{MIN_STYLE_SIZE}."
+        )
     return np.ascontiguousarray(np.clip(values, 0.0, 1.0), dtype=np.float32)

@@ -34,8 +34,10 @@ def _panel(image: np.ndarray, size: int):
     picture = Image.fromarray((np.clip(image, 0.0, 1.0) * 255 + 0.5).astype(np.uint8))
     scale = size / max(picture.size)
     # Small renders are enlarged without smoothing, so their pixels stay visible as pixels.
-    picture = picture.resize((max(1, round(picture.width * scale)), max(1, round(picture.height * scale))),
-                             Image.LANCZOS if scale < 1 else Image.NEAREST)
+    picture = picture.resize(
+        (max(1, round(picture.width * scale)), max(1, round(picture.height * scale))),
+        Image.LANCZOS if scale < 1 else Image.NEAREST,
+    )
     square = Image.new("RGB", (size, size))
     square.paste(picture, ((size - picture.width) // 2, (size - picture.height) // 2))
     return square
@@ -90,41 +92,56 @@ def write_index(folder, title: str, notes: list[str] | None = None) -> Path:
     from .io import atomic_write_bytes
 
     folder = Path(folder)
-    parts = [f"<!doctype html><meta charset='utf-8'><title>{html.escape(title)}</title>",
-             "<style>body{font-family:sans-serif;margin:1em}img{max-width:100%;border:1px solid #ccc}"
-             "figure{display:inline-block;margin:.5em;vertical-align:top;max-width:46%}"
-             "figcaption{font-size:small}pre{background:#f4f4f4;padding:.5em;overflow:auto}</style>",
-             f"<h1>{html.escape(title)}</h1>"]
+    parts = [
+        f"<!doctype html><meta charset='utf-8'><title>{html.escape(title)}</title>",
+        "<style>body{font-family:sans-serif;margin:1em}img{max-width:100%;border:1px solid #ccc}"
+        "figure{display:inline-block;margin:.5em;vertical-align:top;max-width:46%}"
+        "figcaption{font-size:small}pre{background:#f4f4f4;padding:.5em;overflow:auto}</style>",
+        f"<h1>{html.escape(title)}</h1>",
+    ]
     parts += [f"<p>{html.escape(note)}</p>" for note in notes or []]
 
     def link(path: Path) -> str:
         return html.escape(path.relative_to(folder).as_posix(), quote=True)
 
-    renders = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".") and (p / SHEET_FILE).is_file())
+    renders = sorted(
+        p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(".") and (p / SHEET_FILE).is_file()
+    )
     if renders:
         parts.append("<h2>Renders</h2>")
         for render in renders:
             report_path = render / "report.json"
             report = json.loads(report_path.read_text()) if report_path.is_file() else {}
             caption = html.escape(render.name) + (f"<br>{html.escape(_metrics_line(report))}" if report else "")
-            parts.append(f"<figure><a href='{link(render)}/'><img src='{link(render / SHEET_FILE)}' loading='lazy'></a>"
-                         f"<figcaption>{caption}</figcaption></figure>")
+            parts.append(
+                f"<figure><a href='{link(render)}/'><img src='{link(render / SHEET_FILE)}' loading='lazy'></a>"
+                f"<figcaption>{caption}</figcaption></figure>"
+            )
     files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".") and p.name != INDEX_FILE)
     images = [p for p in files if p.suffix.lower() in IMAGE_SUFFIXES]
     if images:
         parts.append("<h2>Figures</h2>")
-        parts += [f"<figure><a href='{link(p)}'><img src='{link(p)}' loading='lazy'></a>"
-                  f"<figcaption>{html.escape(p.name)}</figcaption></figure>" for p in images]
+        parts += [
+            f"<figure><a href='{link(p)}'><img src='{link(p)}' loading='lazy'></a>"
+            f"<figcaption>{html.escape(p.name)}</figcaption></figure>"
+            for p in images
+        ]
     videos = [p for p in files if p.suffix.lower() in VIDEO_SUFFIXES]
     if videos:
         parts.append("<h2>Videos</h2>")
-        parts += [f"<figure><video src='{link(p)}' controls loop muted></video><figcaption>{html.escape(p.name)}"
-                  "</figcaption></figure>" for p in videos]
+        parts += [
+            f"<figure><video src='{link(p)}' controls loop muted></video><figcaption>{html.escape(p.name)}"
+            "</figcaption></figure>"
+            for p in videos
+        ]
     tables = [p for p in files if p.name.endswith(TABLE_ENDINGS)]
     for table in tables:
         parts.append(f"<h2>{html.escape(table.name)}</h2><pre>{html.escape(table.read_text())}</pre>")
     data = [p for p in files if p.suffix.lower() in DATA_SUFFIXES and p not in tables]
     if data:
-        parts.append("<h2>Data</h2><ul>" + "".join(f"<li><a href='{link(p)}'>{html.escape(p.name)}</a></li>" for p in data)
-                     + "</ul>")
+        parts.append(
+            "<h2>Data</h2><ul>"
+            + "".join(f"<li><a href='{link(p)}'>{html.escape(p.name)}</a></li>" for p in data)
+            + "</ul>"
+        )
     return atomic_write_bytes(folder / INDEX_FILE, "\n".join(parts).encode())

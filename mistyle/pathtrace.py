@@ -65,10 +65,23 @@ def net_rel_rmse(image: np.ndarray, reference: np.ndarray, reference_noise_var: 
     return float(np.sqrt(max(mse, 0.0)) / np.sqrt(np.mean(reference**2)))
 
 
-def path_trace(density, albedo, views, *, res: int = 256, spp: int = 64, max_depth: int = -1,
-               density_scale: float = DEFAULT_DENSITY_SCALE, light="constant", coat_ior: float | None = None,
-               coat_mesh=None, device: str = "cpu", seed: int = 0, progress=None,
-               bricks: int | None = None) -> tuple[list[np.ndarray], list[float]]:
+def path_trace(
+    density,
+    albedo,
+    views,
+    *,
+    res: int = 256,
+    spp: int = 64,
+    max_depth: int = -1,
+    density_scale: float = DEFAULT_DENSITY_SCALE,
+    light="constant",
+    coat_ior: float | None = None,
+    coat_mesh=None,
+    device: str = "cpu",
+    seed: int = 0,
+    progress=None,
+    bricks: int | None = None,
+) -> tuple[list[np.ndarray], list[float]]:
     """``render`` for several ``View``s of one scene: ``([(res, res, 3)] images, [seconds per view])``.
 
     ``progress(done, count, seconds)`` is called after each view when given. ``bricks``: voxels per
@@ -88,9 +101,22 @@ def path_trace(density, albedo, views, *, res: int = 256, spp: int = 64, max_dep
     light = light if isinstance(light, LightSpec) else LightSpec.parse(light)
     if bricks is None:
         bricks = 0 if coat_ior is not None else DEFAULT_BRICK
-    scene = mi.load_dict(pathtraced_scene(grid, colours, views, res=res, density_scale=density_scale, spp=spp,
-                                          max_depth=max_depth, light=light, coat_ior=coat_ior, coat_mesh=coat_mesh,
-                                          seed=seed, bricks=bricks))
+    scene = mi.load_dict(
+        pathtraced_scene(
+            grid,
+            colours,
+            views,
+            res=res,
+            density_scale=density_scale,
+            spp=spp,
+            max_depth=max_depth,
+            light=light,
+            coat_ior=coat_ior,
+            coat_mesh=coat_mesh,
+            seed=seed,
+            bricks=bricks,
+        )
+    )
     images, seconds = [], []
     for index in range(len(views)):
         started = time.perf_counter()

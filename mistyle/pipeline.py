@@ -83,12 +83,18 @@ def style_target(images: list[np.ndarray], weights, height: int = 256) -> np.nda
         width = round(height * len(images) * weight)
         if width < 1:
             continue
-        scaled = np.asarray(Image.fromarray((image * 255 + 0.5).astype(np.uint8)).resize(
-            (max(1, round(image.shape[1] * height / image.shape[0])), height), Image.LANCZOS), dtype=np.float32) / 255
+        scaled = (
+            np.asarray(
+                Image.fromarray((image * 255 + 0.5).astype(np.uint8)).resize(
+                    (max(1, round(image.shape[1] * height / image.shape[0])), height), Image.LANCZOS
+                ),
+                dtype=np.float32,
+            )
+            / 255
+        )
         repeats = -(-width // scaled.shape[1])
         strips.append(np.tile(scaled, (1, repeats, 1))[:, :width])
     return np.concatenate(strips, axis=1)
-
 
 
 class Stylizer:
@@ -107,10 +113,14 @@ class Stylizer:
         path = Path(checkpoint) if checkpoint is not None else DEFAULT_CHECKPOINT
         if not path.is_file():
             if checkpoint is None:
-                raise ValueError(f"The bundled checkpoint {path} is missing; train one with "
-                                 "`python -m mistyle.train --config configs/cpu.toml --out runs/cpu` and pass --checkpoint.")
-            raise ValueError(f"Checkpoint {path} does not exist; give a file written by `python -m mistyle.train` "
-                             "(e.g. runs/cpu/final.pt), or leave --checkpoint out for the bundled one.")
+                raise ValueError(
+                    f"The bundled checkpoint {path} is missing; train one with "
+                    "`python -m mistyle.train --config configs/cpu.toml --out runs/cpu` and pass --checkpoint."
+                )
+            raise ValueError(
+                f"Checkpoint {path} does not exist; give a file written by `python -m mistyle.train` "
+                "(e.g. runs/cpu/final.pt), or leave --checkpoint out for the bundled one."
+            )
         self.trained = load_model(path, vgg_weights)
         self.device = torch.device(device)
         self.trained.model.to(self.device)
@@ -152,8 +162,12 @@ class Stylizer:
 
         model = self.trained.model
         with torch.no_grad():
-            return StylizingKernels.blend([(model.predict_kernels(self.style_inputs(load_style(image, notes))), weight)
-                                           for image, weight in style_parts(style)])
+            return StylizingKernels.blend(
+                [
+                    (model.predict_kernels(self.style_inputs(load_style(image, notes))), weight)
+                    for image, weight in style_parts(style)
+                ]
+            )
 
     def weakened(self, kernels, grid: np.ndarray, strength: float):
         """``kernels`` at ``strength``: blended with ``SKPN.neutral_kernels`` whose grey is the luma of the
@@ -172,8 +186,15 @@ class Stylizer:
         grey = float(np.tensordot(grid / grid.sum(), full, axes=3) @ LUMA_WEIGHTS)
         return self.trained.model.neutral_kernels(kernels, grey)
 
-    def __call__(self, density, style, scale_structures: float = 1.0, notes: list | None = None,
-                 strength: float = 1.0, match_colours: bool = True) -> np.ndarray:
+    def __call__(
+        self,
+        density,
+        style,
+        scale_structures: float = 1.0,
+        notes: list | None = None,
+        strength: float = 1.0,
+        match_colours: bool = True,
+    ) -> np.ndarray:
         """Albedo ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) of ``density`` for ``style`` (see ``kernels``)
         at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame).
 
@@ -194,8 +215,10 @@ class Stylizer:
         for index, frame in enumerate(frames):
             grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
             if not grid.any():
-                raise ValueError(f"{'Frame ' + str(index) + ' of the density' if sequence else 'The density'} is all zero; "
-                                 "there is no medium to stylize.")
+                raise ValueError(
+                    f"{'Frame ' + str(index) + ' of the density' if sequence else 'The density'} is all zero; "
+                    "there is no medium to stylize."
+                )
             if index == 0:
                 inputs = self.weakened(inputs, grid, strength)
             grids.append(grid)
@@ -205,8 +228,9 @@ class Stylizer:
             albedos = self.match_colours(albedos, grids, target, strength, notes)
         return np.stack(albedos) if sequence else albedos[0]
 
-    def match_colours(self, albedos: list, grids: list, target: np.ndarray, strength: float = 1.0,
-                      notes: list | None = None) -> list:
+    def match_colours(
+        self, albedos: list, grids: list, target: np.ndarray, strength: float = 1.0, notes: list | None = None
+    ) -> list:
         """The frames' albedos ``[(Z, Y, X, 3)]`` on ``grids`` with the colours of the picture ``target (H, W, 3)``
         (``colour_match``), through the map fitted on the first frame, moved ``strength`` of the way. A medium
         too thin to be seen keeps its albedos (said in ``notes``)."""
@@ -214,12 +238,20 @@ class Stylizer:
 
         render = self.config.render
         try:
-            match = fit_colour_match(albedos[0], grids[0], target, density_scale=self.density_scale,
-                                     radiance=render.radiance, camera_distance=render.camera_distance)
+            match = fit_colour_match(
+                albedos[0],
+                grids[0],
+                target,
+                density_scale=self.density_scale,
+                radiance=render.radiance,
+                camera_distance=render.camera_distance,
+            )
         except InvisibleMedium:
             if notes is not None:
-                notes.append("colour match skipped: the medium is too thin to be seen at this density scale, "
-                             "so the network's own colours are kept")
+                notes.append(
+                    "colour match skipped: the medium is too thin to be seen at this density scale, "
+                    "so the network's own colours are kept"
+                )
             return albedos
         return [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
 
@@ -239,13 +271,14 @@ class Stylizer:
         return np.ascontiguousarray(albedo[0].permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
 
 
-
 def check_finite(what: str, arrays) -> None:
     """``ValueError`` naming the stage whose output holds NaN/inf, instead of handing it on."""
     for index, array in enumerate(arrays):
         if not np.all(np.isfinite(array)):
-            raise ValueError(f"{what} {index} holds NaN/inf values; nothing was written. Check the density's range "
-                             "(normalise it and use --density-scale) and the light's strength.")
+            raise ValueError(
+                f"{what} {index} holds NaN/inf values; nothing was written. Check the density's range "
+                "(normalise it and use --density-scale) and the light's strength."
+            )
 
 
 def default_refinement(config, camera_distance: float | None = None):
@@ -348,8 +381,12 @@ class Pipeline:
     progress bars appear on a terminal only (``mistyle.progress``).
     """
 
-    def __init__(self, settings: PipelineSettings | None = None, stylizer: Stylizer | None = None,
-                 log: Callable[[str], None] | None = None):
+    def __init__(
+        self,
+        settings: PipelineSettings | None = None,
+        stylizer: Stylizer | None = None,
+        log: Callable[[str], None] | None = None,
+    ):
         self.settings = settings if settings is not None else PipelineSettings()
         s = self.settings
         self.stylizer = stylizer if stylizer is not None else Stylizer(s.checkpoint, s.device, s.vgg_weights)
@@ -400,8 +437,13 @@ class Pipeline:
         defaults = default_refinement(self.config, self.camera_distance)
         unrefined = frames > 1 or s.strength < 1.0
         layer = s.refine_steps if s.refine_steps is not None else 0 if unrefined else defaults.layer_steps
-        path = (s.refine_path_steps if s.refine_path_steps is not None
-                else 0 if unrefined or s.refine_steps == 0 else defaults.path_steps)
+        path = (
+            s.refine_path_steps
+            if s.refine_path_steps is not None
+            else 0
+            if unrefined or s.refine_steps == 0
+            else defaults.path_steps
+        )
         return replace(defaults, layer_steps=layer, path_steps=path)
 
     def frames(self, density, velocities=None) -> Frames:
@@ -422,8 +464,9 @@ class Pipeline:
                 raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
             grids.append(grid)
         if len({grid.shape for grid in grids}) > 1:
-            raise ValueError(f"The frames have different shapes {sorted({g.shape for g in grids})}; "
-                             "a sequence needs one grid size.")
+            raise ValueError(
+                f"The frames have different shapes {sorted({g.shape for g in grids})}; a sequence needs one grid size."
+            )
         if velocities is not None and len(velocities) != len(grids):
             raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
         return Frames(grids, None if velocities is None else list(velocities), self.density_scale)
@@ -443,18 +486,28 @@ class Pipeline:
         target = style_target([image for image, _ in parts], [weight for _, weight in parts])
         refinement = self.refinement(len(frames.densities))
         if s.strength < 1.0 and s.refine_steps is None:
-            notes.append(f"strength {s.strength:g}: not refined against the style (which would undo the strength); "
-                         "name the refinement steps to refine anyway")
+            notes.append(
+                f"strength {s.strength:g}: not refined against the style (which would undo the strength); "
+                "name the refinement steps to refine anyway"
+            )
         report: dict = {}
 
         started = time.perf_counter()
         stacked = np.stack(frames.densities) if frames.sequence else frames.densities[0]
-        network = self.stylizer(stacked, parts if len(parts) > 1 else parts[0][0], s.scale_structures, notes=notes,
-                                strength=s.strength, match_colours=s.colour_match)
+        network = self.stylizer(
+            stacked,
+            parts if len(parts) > 1 else parts[0][0],
+            s.scale_structures,
+            notes=notes,
+            strength=s.strength,
+            match_colours=s.colour_match,
+        )
         network = list(network) if frames.sequence else [network]
         report["stylize_seconds"] = time.perf_counter() - started
         check_finite("The network's albedo of frame", network)
-        self.log(f"stylized {len(network)} frame(s) of {frames.densities[0].shape} in {report['stylize_seconds']:.2f} s")
+        self.log(
+            f"stylized {len(network)} frame(s) of {frames.densities[0].shape} in {report['stylize_seconds']:.2f} s"
+        )
         if frames.sequence and frames.velocities is not None:
             report["temporal_flicker"] = temporal_flicker(np.stack(network), np.stack(frames.velocities))
         elif frames.sequence:
@@ -485,6 +538,7 @@ class Pipeline:
         for index, (grid, albedo) in enumerate(zip(frames.densities, albedos)):
             label = f"refining frame {index}" if frames.sequence else "refining"
             with bar(refinement.layer_steps + refinement.path_steps, label) as progress_bar:
+
                 def progress(stage, done, count, loss, progress_bar=progress_bar):
                     progress_bar.set_postfix_str(f"{stage}, loss {loss:.4g}", refresh=False)
                     progress_bar.update(1)
@@ -492,21 +546,33 @@ class Pipeline:
                 anchor = None
                 if index > 0:
                     previous = refined[-1]
-                    anchor = (warp_grid(previous, frames.velocities[index - 1])
-                              if frames.velocities is not None else previous)
+                    anchor = (
+                        warp_grid(previous, frames.velocities[index - 1]) if frames.velocities is not None else previous
+                    )
                     albedo = anchor
-                result, took = refine_albedo(grid, frames.density_scale, albedo, target, refinement,
-                                             radiance=self.radiance, device=self.settings.device,
-                                             prepared=frames.prepared(index), anchor=anchor, progress=progress)
-            self.log(f"{label}: {refinement.layer_steps} layer + {refinement.path_steps} path-traced steps "
-                     f"in {took:.1f} s")
+                result, took = refine_albedo(
+                    grid,
+                    frames.density_scale,
+                    albedo,
+                    target,
+                    refinement,
+                    radiance=self.radiance,
+                    device=self.settings.device,
+                    prepared=frames.prepared(index),
+                    anchor=anchor,
+                    progress=progress,
+                )
+            self.log(
+                f"{label}: {refinement.layer_steps} layer + {refinement.path_steps} path-traced steps in {took:.1f} s"
+            )
             refined.append(result)
             seconds += took
         return refined, seconds
 
     # ------------------------------------------------------------------------ render
-    def path_trace(self, frames: Frames, albedos: list, views: list | None = None, coat_mesh=None,
-                   progress=None) -> tuple[list, list]:
+    def path_trace(
+        self, frames: Frames, albedos: list, views: list | None = None, coat_mesh=None, progress=None
+    ) -> tuple[list, list]:
         """Path-trace frame ``i`` with ``albedos[i]`` from ``views`` (default ``self.views()``): every view
         of a single frame, or for a sequence frame ``i`` from view ``i mod len(views)``. Returns
         ``(images (res, res, 3) linear RGB, seconds per image)``; ``progress(done, count, seconds)``
@@ -515,8 +581,14 @@ class Pipeline:
 
         images, seconds = [], []
         for frame, frame_views in self.render_plan(frames, views):
-            frame_images, took = path_trace(frames.densities[frame], albedos[frame], frame_views,
-                                            coat_mesh=coat_mesh, progress=progress, **self.trace_options())
+            frame_images, took = path_trace(
+                frames.densities[frame],
+                albedos[frame],
+                frame_views,
+                coat_mesh=coat_mesh,
+                progress=progress,
+                **self.trace_options(),
+            )
             images += frame_images
             seconds += took
         check_finite("The path-traced image", images)
@@ -533,9 +605,16 @@ class Pipeline:
     def trace_options(self) -> dict:
         """``pathtrace.path_trace``'s options for the final render (also the exported scene's)."""
         render = self.settings.render
-        return {"res": render.res, "spp": render.spp, "max_depth": render.max_depth,
-                "density_scale": self.density_scale, "light": self.light(), "coat_ior": render.coat_ior,
-                "device": self.settings.device, "bricks": render.bricks}
+        return {
+            "res": render.res,
+            "spp": render.spp,
+            "max_depth": render.max_depth,
+            "density_scale": self.density_scale,
+            "light": self.light(),
+            "coat_ior": render.coat_ior,
+            "device": self.settings.device,
+            "bricks": render.bricks,
+        }
 
     def layer_images(self, frames: Frames, frame: int, albedo: np.ndarray, views: list) -> list[np.ndarray]:
         """The fast layer's images ``(res, res, 3)`` of ``albedo`` on ``frame`` under the training light."""
@@ -545,8 +624,14 @@ class Pipeline:
 
         grid = torch.from_numpy(albedo).permute(3, 0, 1, 2).to(self.settings.device)
         with torch.no_grad():
-            images = render_views(grid, frames.prepared(frame), views, self.settings.render.res,
-                                  steps=self.config.render.steps, radiance=self.radiance)
+            images = render_views(
+                grid,
+                frames.prepared(frame),
+                views,
+                self.settings.render.res,
+                steps=self.config.render.steps,
+                radiance=self.radiance,
+            )
         images = [image.permute(1, 2, 0).cpu().numpy() for image in images]
         check_finite("The fast layer's image", images)
         return images

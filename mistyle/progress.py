@@ -33,5 +33,13 @@ def status(message: str) -> None:
 def bar(total: int, description: str, unit: str = "step", initial: int = 0) -> tqdm:
     """A progress bar on stderr; use as a context manager and ``.update(1)`` per unit done
     (``bar.disable`` is true where it is not drawn)."""
-    return tqdm(total=total, desc=description, unit=unit, initial=initial, file=sys.stderr, dynamic_ncols=True,
-                leave=False, disable=True if _quiet else None)  # None: only on a terminal
+    return tqdm(
+        total=total,
+        desc=description,
+        unit=unit,
+        initial=initial,
+        file=sys.stderr,
+        dynamic_ncols=True,
+        leave=False,
+        disable=True if _quiet else None,
+    )  # None: only on a terminal

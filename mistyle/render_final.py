@@ -1,4 +1,4 @@
-"""``mistyle-render`` (``python -m mistyle.render_final``): stylize densities (or meshes, or sequences) and path-trace them.
+"""``mistyle-render`` (``python -m mistyle.render_final``): stylize densities, meshes or sequences, path-trace them.
 
 The method is ``mistyle.pipeline``; this module is argparse -> ``PipelineSettings`` -> ``Pipeline`` -> files.
 
@@ -15,7 +15,8 @@ One output per (density, style) pair (``mistyle.batch``): a single pair into ``-
 ``--overwrite``. Each output holds:
 
 - ``sheet.png``: style | fast layer | final render, with the metrics under them;
-- ``density.vol`` and the path-traced albedo (``albedo.vol``, or ``albedo_refined.vol`` when refined), both with the medium box as bounding box, and ``scene.xml``, the Mitsuba 3 scene
+- ``density.vol`` and the path-traced albedo (``albedo.vol``, or ``albedo_refined.vol`` when refined),
+  both with the medium box as bounding box, and ``scene.xml``, the Mitsuba 3 scene
   that reproduces the final render (``mi.load_file``; ``mistyle.scenes.export``) -- with ``--mesh``
   the density is the voxelized mesh; per frame ``*_frameNNNN.*`` for sequences;
 - ``volume.vdb`` (OpenVDB: ``density`` and the albedo as ``Cd``) when the density came from a
@@ -23,7 +24,8 @@ One output per (density, style) pair (``mistyle.batch``): a single pair into ``-
   ``--vdb``; ``albedo.npy`` (the feed-forward albedo: the network's, with the style's colours unless
   ``--no-colour-match``);
 - per image ``*.exr`` (linear) and ``*.png`` (the training tone curve) and ``*_network_layer.png``
-  (the fast layer's image of the feed-forward albedo under the training light), ``turntable.mp4``/``.gif`` or ``sequence.mp4``/``.gif``;
+  (the fast layer's image of the feed-forward albedo under the training light), ``turntable.mp4``/``.gif``
+  or ``sequence.mp4``/``.gif``;
 - ``report.json`` with timings and the style metrics of the path-traced images against the style:
   ``rgb_swd``, ``patch_swd`` and ``hue_coverage`` (the fidelity benchmark's,
   ``objective.metrics.style_fidelity``), ``swd_final`` (sliced W2 of colours), ``swd_layer`` (the
@@ -71,18 +73,36 @@ def parser() -> argparse.ArgumentParser:
     from .fit import RefineSettings
     from .scenes.bricks import DEFAULT_BRICK
 
-    p = argparse.ArgumentParser(prog="mistyle-render", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="mistyle-render", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     source = p.add_mutually_exclusive_group(required=True)
-    source.add_argument("--density", type=Path, nargs="+", action="extend",
-                        help=".vol, .vdb, .npy or .npz densities (one output each), or a folder of frames")
+    source.add_argument(
+        "--density",
+        type=Path,
+        nargs="+",
+        action="extend",
+        help=".vol, .vdb, .npy or .npz densities (one output each), or a folder of frames",
+    )
     source.add_argument("--mesh", type=Path, nargs="+", action="extend", help="closed .ply/.obj meshes, voxelized")
-    p.add_argument("--grid", default=None, help="the float grid to read from .vdb densities (default: 'density', or the only one)")
+    p.add_argument(
+        "--grid", default=None, help="the float grid to read from .vdb densities (default: 'density', or the only one)"
+    )
     styles = p.add_mutually_exclusive_group(required=True)
-    styles.add_argument("--style", type=Path, nargs="+", action="extend",
-                        help="style images (PNG/JPEG/EXR) or folders of them: one output each")
-    styles.add_argument("--mix", nargs="+", action="extend", metavar="IMAGE:WEIGHT",
-                        help="one style mixed from several, e.g. --mix a.png:0.7 b.png:0.3 (weights normalised)")
+    styles.add_argument(
+        "--style",
+        type=Path,
+        nargs="+",
+        action="extend",
+        help="style images (PNG/JPEG/EXR) or folders of them: one output each",
+    )
+    styles.add_argument(
+        "--mix",
+        nargs="+",
+        action="extend",
+        metavar="IMAGE:WEIGHT",
+        help="one style mixed from several, e.g. --mix a.png:0.7 b.png:0.3 (weights normalised)",
+    )
     p.add_argument("--strength", type=float, default=1.0, help="0: a uniform grey medium ... 1: the full style")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--overwrite", action="store_true", help="replace outputs that already exist")
@@ -93,26 +113,48 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--view", type=float, default=HELD_OUT_VIEW, help="camera position on the training orbit, in [0, 1)")
     p.add_argument("--turntable", type=int, default=0, help="render N frames around the orbit (a video)")
     p.add_argument("--camera-distance", type=float, default=None, help="orbit radius (default: the checkpoint's)")
-    p.add_argument("--light", default=LIGHT_KINDS[0], help="constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]")
+    p.add_argument(
+        "--light", default=LIGHT_KINDS[0], help="constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]"
+    )
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--max-depth", type=int, default=-1, help="-1: full multiple scattering; 2: single scattering")
     p.add_argument("--res", type=int, default=256)
-    p.add_argument("--density-scale", type=float, default=None, help="extinction per unit density (default: training's)")
+    p.add_argument(
+        "--density-scale", type=float, default=None, help="extinction per unit density (default: training's)"
+    )
     p.add_argument("--coat", type=_coat, default=None, metavar="dielectric[:ior]", help="smooth dielectric boundary")
-    p.add_argument("--bricks", type=int, default=None, metavar="VOXELS",
-                   help=f"path-trace the medium as bricks of this many voxels, each with its own majorant (default "
-                        f"{DEFAULT_BRICK}; 0: one medium; always 0 with --coat)")
+    p.add_argument(
+        "--bricks",
+        type=int,
+        default=None,
+        metavar="VOXELS",
+        help=f"path-trace the medium as bricks of this many voxels, each with its own majorant (default "
+        f"{DEFAULT_BRICK}; 0: one medium; always 0 with --coat)",
+    )
     p.add_argument("--scale-structures", type=float, default=1.0, help="resample the density by f before stylizing")
     p.add_argument("--mesh-res", type=int, default=64, help="voxels along the mesh's longest side")
-    p.add_argument("--no-colour-match", dest="colour_match", action="store_false",
-                   help="keep the network's own colours (default: its arrangement gets the style's colours, "
-                        "mistyle.colour_match)")
-    p.add_argument("--refine", type=int, default=None, metavar="STEPS",
-                   help=f"refine the albedo for STEPS steps against the style through the fast layer "
-                        f"(default: {RefineSettings.layer_steps} for a single frame at full strength, else 0)")
-    p.add_argument("--refine-path", type=int, default=None, metavar="STEPS",
-                   help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
-                        f"{RefineSettings.path_steps} for a single frame at full strength, else 0)")
+    p.add_argument(
+        "--no-colour-match",
+        dest="colour_match",
+        action="store_false",
+        help="keep the network's own colours (default: its arrangement gets the style's colours, mistyle.colour_match)",
+    )
+    p.add_argument(
+        "--refine",
+        type=int,
+        default=None,
+        metavar="STEPS",
+        help=f"refine the albedo for STEPS steps against the style through the fast layer "
+        f"(default: {RefineSettings.layer_steps} for a single frame at full strength, else 0)",
+    )
+    p.add_argument(
+        "--refine-path",
+        type=int,
+        default=None,
+        metavar="STEPS",
+        help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
+        f"{RefineSettings.path_steps} for a single frame at full strength, else 0)",
+    )
     p.add_argument("--fps", type=int, default=12)
     p.add_argument("--device", choices=DEVICES, default="cpu")
     return p
@@ -147,13 +189,29 @@ def settings_from(args):
     """The ``pipeline.PipelineSettings`` that ``args`` ask for."""
     from .pipeline import PipelineSettings, RenderSettings
 
-    render = RenderSettings(res=args.res, spp=args.spp, max_depth=args.max_depth, light=args.light,
-                            coat_ior=args.coat, bricks=args.bricks, view=args.view, turntable=args.turntable)
-    return PipelineSettings(checkpoint=args.checkpoint, device=args.device, vgg_weights=args.vgg_weights,
-                            strength=args.strength, scale_structures=args.scale_structures,
-                            colour_match=args.colour_match, refine_steps=args.refine,
-                            refine_path_steps=args.refine_path, density_scale=args.density_scale,
-                            camera_distance=args.camera_distance, render=render)
+    render = RenderSettings(
+        res=args.res,
+        spp=args.spp,
+        max_depth=args.max_depth,
+        light=args.light,
+        coat_ior=args.coat,
+        bricks=args.bricks,
+        view=args.view,
+        turntable=args.turntable,
+    )
+    return PipelineSettings(
+        checkpoint=args.checkpoint,
+        device=args.device,
+        vgg_weights=args.vgg_weights,
+        strength=args.strength,
+        scale_structures=args.scale_structures,
+        colour_match=args.colour_match,
+        refine_steps=args.refine,
+        refine_path_steps=args.refine_path,
+        density_scale=args.density_scale,
+        camera_distance=args.camera_distance,
+        render=render,
+    )
 
 
 @dataclass
@@ -251,12 +309,16 @@ def check_options(args) -> None:
         (0 <= args.turntable <= 3600, f"--turntable must lie in [0, 3600] frames, got {args.turntable}"),
         (1 <= args.fps <= 240, f"--fps must lie in [1, 240], got {args.fps}"),
         (args.refine is None or 0 <= args.refine <= 10000, f"--refine must lie in [0, 10000] steps, got {args.refine}"),
-        (args.refine_path is None or 0 <= args.refine_path <= 10000,
-         f"--refine-path must lie in [0, 10000] steps, got {args.refine_path}"),
+        (
+            args.refine_path is None or 0 <= args.refine_path <= 10000,
+            f"--refine-path must lie in [0, 10000] steps, got {args.refine_path}",
+        ),
         (8 <= args.mesh_res <= 512, f"--mesh-res must lie in [8, 512], got {args.mesh_res}"),
         (args.bricks is None or 0 <= args.bricks <= 4096, f"--bricks must lie in [0, 4096] voxels, got {args.bricks}"),
-        (not (args.bricks and args.coat is not None),
-         "--bricks needs one medium under --coat (the coat is an optical boundary on the box); drop --bricks"),
+        (
+            not (args.bricks and args.coat is not None),
+            "--bricks needs one medium under --coat (the coat is an optical boundary on the box); drop --bricks",
+        ),
     ]
     for ok, message in checks:
         if not ok:
@@ -277,7 +339,11 @@ def load(args, output, pipeline, styles: dict) -> Job:
         from .data.mesh import fit_to_box, load_mesh, voxelize
 
         vertices, faces = load_mesh(output.density.path)
-        densities, velocities, names = [voxelize(vertices, faces, args.mesh_res, supersample=2)], None, [output.density.name]
+        densities, velocities, names = (
+            [voxelize(vertices, faces, args.mesh_res, supersample=2)],
+            None,
+            [output.density.name],
+        )
         if args.coat is not None:
             placed, _ = fit_to_box(np.asarray(vertices, np.float64), args.mesh_res, 0.05)
             coat_mesh = (placed, faces)
@@ -288,8 +354,18 @@ def load(args, output, pipeline, styles: dict) -> Job:
         if not grid.any():
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
     frames = pipeline.frames(densities, velocities)
-    return Job(args=args, output=output, pipeline=pipeline, style_parts=parts, frames=frames, names=names,
-               views=pipeline.views(), coat_mesh=coat_mesh, transforms=transforms, notes=notes)
+    return Job(
+        args=args,
+        output=output,
+        pipeline=pipeline,
+        style_parts=parts,
+        frames=frames,
+        names=names,
+        views=pipeline.views(),
+        coat_mesh=coat_mesh,
+        transforms=transforms,
+        notes=notes,
+    )
 
 
 def write_coat_mesh(job: Job) -> None:
@@ -303,13 +379,27 @@ def write_coat_mesh(job: Job) -> None:
 def _inputs_record(job: Job) -> dict:
     args, pipeline = job.args, job.pipeline
     refinement = pipeline.refinement(len(job.frames.densities))
-    return {"density": str(job.output.density.path), "mesh": job.output.density.mesh, "grid": args.grid,
-            "style": job.output.style.describe(), "strength": args.strength, "frames": len(job.frames.densities),
-            "shape_zyx": list(job.frames.densities[0].shape), "checkpoint": str(pipeline.stylizer.path),
-            "light": args.light, "spp": args.spp, "max_depth": args.max_depth, "res": args.res,
-            "density_scale": pipeline.density_scale, "coat_ior": args.coat, "scale_structures": args.scale_structures,
-            "colour_match": args.colour_match, "refine_steps": refinement.layer_steps,
-            "refine_path_steps": refinement.path_steps, "views": len(job.views)}
+    return {
+        "density": str(job.output.density.path),
+        "mesh": job.output.density.mesh,
+        "grid": args.grid,
+        "style": job.output.style.describe(),
+        "strength": args.strength,
+        "frames": len(job.frames.densities),
+        "shape_zyx": list(job.frames.densities[0].shape),
+        "checkpoint": str(pipeline.stylizer.path),
+        "light": args.light,
+        "spp": args.spp,
+        "max_depth": args.max_depth,
+        "res": args.res,
+        "density_scale": pipeline.density_scale,
+        "coat_ior": args.coat,
+        "scale_structures": args.scale_structures,
+        "colour_match": args.colour_match,
+        "refine_steps": refinement.layer_steps,
+        "refine_path_steps": refinement.path_steps,
+        "views": len(job.views),
+    }
 
 
 def _frame_suffix(job: Job, index: int) -> str:
@@ -344,11 +434,18 @@ def render_frames(job: Job, stylized, report: dict):
     total = sum(len(views) for _, views in plan)
     started = time.perf_counter()
     with bar(total, "path tracing", unit="image") as progress_bar:
-        images, render_seconds = pipeline.path_trace(job.frames, stylized.albedos, job.views,
-                                                     coat_mesh=job.coat_mesh_path,
-                                                     progress=lambda done, count, seconds: progress_bar.update(1))
-    layer_images = [image for frame, views in plan
-                    for image in pipeline.layer_images(job.frames, frame, stylized.network[frame], views)]
+        images, render_seconds = pipeline.path_trace(
+            job.frames,
+            stylized.albedos,
+            job.views,
+            coat_mesh=job.coat_mesh_path,
+            progress=lambda done, count, seconds: progress_bar.update(1),
+        )
+    layer_images = [
+        image
+        for frame, views in plan
+        for image in pipeline.layer_images(job.frames, frame, stylized.network[frame], views)
+    ]
     report["render_seconds"] = time.perf_counter() - started
     log(f"path traced {total} image(s) of {args.res}^2 at {args.spp} spp in {report['render_seconds']:.1f} s")
     report["render_seconds_per_image"] = float(np.mean(render_seconds))
@@ -361,8 +458,10 @@ def render_frames(job: Job, stylized, report: dict):
         write_png(job.out / f"{stem}_network_layer.png", display(layer_images[index]), srgb=False)
     if len(images) > 1:
         frames = [(display(image) * 255 + 0.5).astype(np.uint8) for image in images]
-        report["video"] = [write_mp4(job.out / f"{kind}.mp4", frames, args.fps).name,
-                           write_gif(job.out / f"{kind}.gif", frames, args.fps).name]
+        report["video"] = [
+            write_mp4(job.out / f"{kind}.mp4", frames, args.fps).name,
+            write_gif(job.out / f"{kind}.gif", frames, args.fps).name,
+        ]
     return images, layer_images
 
 
@@ -384,18 +483,35 @@ def write_assets(job: Job, stylized) -> list[str]:
         density, albedo = job.frames.densities[frame], stylized.albedos[frame]
         if stylized.refined:
             written.append(write_medium_grid(job.out / f"albedo{suffix}.vol", stylized.network[frame]).name)
-        paths = write_scene_files(job.out, density, albedo, views, suffix=suffix, coat_mesh=job.coat_mesh_path,
-                                  albedo_name="albedo_refined" if stylized.refined else "albedo", **scene_options)
+        paths = write_scene_files(
+            job.out,
+            density,
+            albedo,
+            views,
+            suffix=suffix,
+            coat_mesh=job.coat_mesh_path,
+            albedo_name="albedo_refined" if stylized.refined else "albedo",
+            **scene_options,
+        )
         written += [path.name for path in paths.values()]
         if job.transforms is not None or job.args.vdb:
             from .vdb import ALBEDO_GRID, DENSITY_GRID, VdbTransform, write_vdb
 
-            transform = job.transforms[frame] if job.transforms is not None else VdbTransform.for_medium_box(density.shape)
+            transform = (
+                job.transforms[frame] if job.transforms is not None else VdbTransform.for_medium_box(density.shape)
+            )
             # The albedo only where there is medium: elsewhere it is never seen, and zeros stay inactive (small files).
             shown = albedo * (density > 0)[..., None]
-            metadata = {"mistyle_style": job.output.style.describe(), "mistyle_checkpoint": str(job.pipeline.stylizer.path)}
-            path = write_vdb(job.out / f"volume{suffix}.vdb", transform, {DENSITY_GRID: density, ALBEDO_GRID: shown},
-                             metadata=metadata)
+            metadata = {
+                "mistyle_style": job.output.style.describe(),
+                "mistyle_checkpoint": str(job.pipeline.stylizer.path),
+            }
+            path = write_vdb(
+                job.out / f"volume{suffix}.vdb",
+                transform,
+                {DENSITY_GRID: density, ALBEDO_GRID: shown},
+                metadata=metadata,
+            )
             written.append(path.name)
     return written
 
@@ -416,15 +532,28 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     report.update(style_fidelity(images, style))
     atomic_write_bytes(job.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
     seconds = report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds"]
-    lines = [f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
-             f"RGB SWD {report['rgb_swd']:.4f}   patch SWD {report['patch_swd']:.4f}   hue coverage {report['hue_coverage']:.2f}",
-             f"strength {job.args.strength:g}, refine {stylized.refinement.layer_steps}+{stylized.refinement.path_steps} "
-             f"steps, "
-             f"{job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s"]
-    write_sheet(job.out / SHEET_FILE, [("style", style), ("fast layer (network)", display(layer_images[0])),
-                                       ("final render", display(images[0]))], lines)
-    print(json.dumps({k: report[k] for k in ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd",
-                                             "hue_coverage") if k in report}))
+    lines = [
+        f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
+        f"RGB SWD {report['rgb_swd']:.4f}   patch SWD {report['patch_swd']:.4f}   "
+        f"hue coverage {report['hue_coverage']:.2f}",
+        f"strength {job.args.strength:g}, refine {stylized.refinement.layer_steps}+{stylized.refinement.path_steps} "
+        f"steps, "
+        f"{job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s",
+    ]
+    write_sheet(
+        job.out / SHEET_FILE,
+        [("style", style), ("fast layer (network)", display(layer_images[0])), ("final render", display(images[0]))],
+        lines,
+    )
+    print(
+        json.dumps(
+            {
+                k: report[k]
+                for k in ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd", "hue_coverage")
+                if k in report
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -15,8 +15,18 @@ import numpy as np
 from .conventions import FOREGROUND_THRESHOLD
 
 
-def albedo_renders(density: np.ndarray, density_scale: float, radiance: float, views, albedos, *, res: int,
-                   spp: int, max_depth: int = -1, batch: bool = False) -> list[np.ndarray]:
+def albedo_renders(
+    density: np.ndarray,
+    density_scale: float,
+    radiance: float,
+    views,
+    albedos,
+    *,
+    res: int,
+    spp: int,
+    max_depth: int = -1,
+    batch: bool = False,
+) -> list[np.ndarray]:
     """``volpath`` renders ``(V, res, res, 3)`` of ``density`` with each albedo of ``albedos`` (grids
     ``(Z, Y, X, 3)``, or grey levels for a uniform albedo), in one scene: only the albedo changes
     between renders. ``batch``: all views in one launch (faster, other noise than one sensor each)."""
@@ -25,9 +35,20 @@ def albedo_renders(density: np.ndarray, density_scale: float, radiance: float, v
 
     mi = active_variant()
     shape = density.shape
-    scene = mi.load_dict(pathtraced_scene(density, np.zeros(shape + (3,), np.float32), views, res=res,
-                                          density_scale=density_scale, spp=spp, max_depth=max_depth,
-                                          light=LightSpec("constant", radiance), seed=17, batch=batch))
+    scene = mi.load_dict(
+        pathtraced_scene(
+            density,
+            np.zeros(shape + (3,), np.float32),
+            views,
+            res=res,
+            density_scale=density_scale,
+            spp=spp,
+            max_depth=max_depth,
+            light=LightSpec("constant", radiance),
+            seed=17,
+            batch=batch,
+        )
+    )
     params = mi.traverse(scene)
     albedo_key = albedo_parameter(params)
     renders = []
@@ -38,16 +59,26 @@ def albedo_renders(density: np.ndarray, density_scale: float, radiance: float, v
         if batch:
             renders.append(split_views(mi.render(scene), len(views)))
         else:
-            renders.append(np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32)
-                                     for index in range(len(views))]))
+            renders.append(
+                np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32) for index in range(len(views))])
+            )
     return renders
 
 
 MATCH_LEVELS = tuple(np.geomspace(1e-4, 1.0, 17))
 
 
-def uniform_display_response(density: np.ndarray, density_scale: float, radiance: float, views, levels, *,
-                             res: int, spp: int, pack_channels: bool = False) -> np.ndarray:
+def uniform_display_response(
+    density: np.ndarray,
+    density_scale: float,
+    radiance: float,
+    views,
+    levels,
+    *,
+    res: int,
+    spp: int,
+    pack_channels: bool = False,
+) -> np.ndarray:
     """``f(a)`` at each of ``levels``: the mean display value of the path-traced foreground (the pixels
     that see the medium at the top level) of ``density`` with uniform grey albedo ``a``, made monotone
     against noise. Under a white light every channel renders independently, so ``f`` serves each.
@@ -71,8 +102,16 @@ def uniform_display_response(density: np.ndarray, density_scale: float, radiance
     return np.maximum.accumulate([float(display(images[mask]).mean()) for images in per_level])
 
 
-def matched_uniform_albedo(density: np.ndarray, density_scale: float, radiance: float, style: np.ndarray, views, *,
-                           res: int = 64, spp: int = 16) -> np.ndarray:
+def matched_uniform_albedo(
+    density: np.ndarray,
+    density_scale: float,
+    radiance: float,
+    style: np.ndarray,
+    views,
+    *,
+    res: int = 64,
+    spp: int = 16,
+) -> np.ndarray:
     """The uniform RGB albedo ``(3,)`` whose path-traced foreground has the style's mean display colour.
 
     The must-beat baseline of the fidelity benchmark: the best a medium of one colour can do. Under a

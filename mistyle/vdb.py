@@ -78,8 +78,10 @@ class VdbTransform:
         if matrix.shape != (4, 4) or not np.all(np.isfinite(matrix)):
             raise ValueError(f"A VDB transform needs a finite 4x4 index-to-world matrix, got shape {matrix.shape}.")
         if not np.array_equal(matrix[3], [0.0, 0.0, 0.0, 1.0]):
-            raise ValueError("The index-to-world matrix must be affine (last row 0, 0, 0, 1; column vectors, "
-                             f"translation in matrix[:3, 3]), got last row {matrix[3].tolist()}.")
+            raise ValueError(
+                "The index-to-world matrix must be affine (last row 0, 0, 0, 1; column vectors, "
+                f"translation in matrix[:3, 3]), got last row {matrix[3].tolist()}."
+            )
         if np.linalg.cond(matrix[:3, :3]) > 1e12:
             raise ValueError("The index-to-world matrix is singular; voxels need a non-zero size along every axis.")
         index_min = tuple(self.index_min)
@@ -121,8 +123,7 @@ class VdbTransform:
         """
         size_xyz = np.array(_shape3(shape_zyx)[::-1], dtype=np.float64)
         low = np.array(self.index_min, dtype=np.float64) - 0.5
-        corners = np.array([[low[a] + size_xyz[a] * bit for a, bit in enumerate(bits)]
-                            for bits in np.ndindex(2, 2, 2)])
+        corners = np.array([[low[a] + size_xyz[a] * bit for a, bit in enumerate(bits)] for bits in np.ndindex(2, 2, 2)])
         world = self.index_to_world(corners)
         return world.min(axis=0), world.max(axis=0)
 
@@ -168,9 +169,15 @@ def _clean_env() -> dict:
 def _probe(python: str, env: dict | None) -> str | None:
     """``None`` if ``python`` imports numpy and OpenVDB's module, else why not (one line)."""
     try:
-        result = subprocess.run([python, "-c", _PROBE], check=False, capture_output=True, text=True,
-                                timeout=_PROBE_TIMEOUT_S, env=env,
-                                stdin=subprocess.DEVNULL)
+        result = subprocess.run(
+            [python, "-c", _PROBE],
+            check=False,
+            capture_output=True,
+            text=True,
+            timeout=_PROBE_TIMEOUT_S,
+            env=env,
+            stdin=subprocess.DEVNULL,
+        )
     except (OSError, subprocess.SubprocessError) as error:
         return f"cannot run it ({error})"
     if result.returncode == 0:
@@ -193,9 +200,11 @@ def _import_in_process() -> bool:
 @functools.cache
 def _find_route(override: str | None) -> _Route:
     """The interpreter to run the converter with; cached per value of ``$MISTYLE_VDB_PYTHON``."""
-    fix = ("Install OpenVDB's Python module with `apt-get install python3-openvdb` (Debian/Ubuntu; `make setup` "
-           f"tries this), or set {INTERPRETER_ENV} to a Python interpreter that can `import pyopenvdb` (or "
-           "`openvdb`) and numpy.")
+    fix = (
+        "Install OpenVDB's Python module with `apt-get install python3-openvdb` (Debian/Ubuntu; `make setup` "
+        f"tries this), or set {INTERPRETER_ENV} to a Python interpreter that can `import pyopenvdb` (or "
+        "`openvdb`) and numpy."
+    )
     if override:
         python = shutil.which(override) or override
         why = _probe(python, None)
@@ -215,8 +224,10 @@ def _find_route(override: str | None) -> _Route:
         if python == sys.executable and _import_in_process():
             return _Route(python, True, False)
         return _Route(python, False, True)
-    raise VdbUnavailable("Reading and writing OpenVDB (.vdb) files needs OpenVDB's Python module, and no "
-                         f"interpreter here has it (tried {', '.join(tried)}). {fix}")
+    raise VdbUnavailable(
+        "Reading and writing OpenVDB (.vdb) files needs OpenVDB's Python module, and no "
+        f"interpreter here has it (tried {', '.join(tried)}). {fix}"
+    )
 
 
 def vdb_interpreter() -> str:
@@ -231,21 +242,33 @@ def vdb_interpreter() -> str:
 def _run_converter(route: _Route, *args: str) -> None:
     """Run ``vdb_convert.py`` with ``args``; its one-line error becomes a ``ValueError``."""
     try:
-        result = subprocess.run([route.python, str(CONVERTER), *args], check=False, capture_output=True, text=True,
-                                env=route.env(), stdin=subprocess.DEVNULL)
+        result = subprocess.run(
+            [route.python, str(CONVERTER), *args],
+            check=False,
+            capture_output=True,
+            text=True,
+            env=route.env(),
+            stdin=subprocess.DEVNULL,
+        )
     except OSError as error:
-        raise VdbUnavailable(f"Cannot run the OpenVDB interpreter {route.python} ({error}); set {INTERPRETER_ENV} "
-                             "to a Python with OpenVDB's module.") from None
+        raise VdbUnavailable(
+            f"Cannot run the OpenVDB interpreter {route.python} ({error}); set {INTERPRETER_ENV} "
+            "to a Python with OpenVDB's module."
+        ) from None
     if result.returncode == 0:
         return
     lines = [line for line in result.stderr.strip().splitlines() if line.strip()]
     errors = [line for line in lines if line.startswith("error: ")]
     if result.returncode == 2 and errors:
-        raise ValueError(errors[-1][len("error: "):])
-    how = (f"was killed by signal {-result.returncode}" if result.returncode < 0
-           else f"stopped with exit status {result.returncode}")
-    raise ValueError(f"The OpenVDB converter ({route.python} {CONVERTER.name}) {how}: "
-                     f"{lines[-1] if lines else 'no message'}.")
+        raise ValueError(errors[-1][len("error: ") :])
+    how = (
+        f"was killed by signal {-result.returncode}"
+        if result.returncode < 0
+        else f"stopped with exit status {result.returncode}"
+    )
+    raise ValueError(
+        f"The OpenVDB converter ({route.python} {CONVERTER.name}) {how}: {lines[-1] if lines else 'no message'}."
+    )
 
 
 def _convert_in_process(function, *args):
@@ -294,8 +317,10 @@ def read_vdb(path, grid: str | None = None) -> tuple[np.ndarray, VdbTransform, s
     transform = VdbTransform(np.array(meta["matrix"], dtype=np.float64).T, tuple(meta["index_min"]))
     expected = tuple(hi - lo + 1 for lo, hi in zip(meta["index_min"], meta["index_max"]))[::-1]
     if array.shape[:3] != expected:
-        raise ValueError(f"The OpenVDB converter returned a {array.shape} array for the index box "
-                         f"{meta['index_min']}..{meta['index_max']}; this is a bug in mistyle.vdb.")
+        raise ValueError(
+            f"The OpenVDB converter returned a {array.shape} array for the index box "
+            f"{meta['index_min']}..{meta['index_max']}; this is a bug in mistyle.vdb."
+        )
     return np.ascontiguousarray(array, dtype=np.float32), transform, meta["grid"]
 
 
@@ -321,21 +346,26 @@ def _grid_spec(name, value, shape) -> tuple[str, np.ndarray]:
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"VDB grid names are non-empty strings, got {name!r}.")
     array = np.asarray(value)
-    if not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)
-            or array.dtype == np.bool_):
+    if not (
+        np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer) or array.dtype == np.bool_
+    ):
         raise ValueError(f"VDB grid '{name}' has the type {array.dtype}; give real numbers.")
     if array.ndim == 3:
         kind = "float"
     elif array.ndim == 4 and array.shape[-1] == 3:
         kind = "vec3"
     else:
-        raise ValueError(f"VDB grid '{name}' must be (Z, Y, X) (a scalar such as a density) or (Z, Y, X, 3) "
-                         f"(a colour such as an albedo), got shape {array.shape}.")
+        raise ValueError(
+            f"VDB grid '{name}' must be (Z, Y, X) (a scalar such as a density) or (Z, Y, X, 3) "
+            f"(a colour such as an albedo), got shape {array.shape}."
+        )
     if min(array.shape) < 1:
         raise ValueError(f"VDB grid '{name}' is empty (shape {array.shape}).")
     if shape is not None and array.shape[:3] != shape:
-        raise ValueError(f"VDB grid '{name}' is {array.shape[:3]} (Z, Y, X) but the grids before it are {shape}; "
-                         "all grids of a file share one voxel box.")
+        raise ValueError(
+            f"VDB grid '{name}' is {array.shape[:3]} (Z, Y, X) but the grids before it are {shape}; "
+            "all grids of a file share one voxel box."
+        )
     values = array.astype(np.float32)
     if not np.all(np.isfinite(values)):
         raise ValueError(f"VDB grid '{name}' holds NaN or infinite values (or values beyond float32).")
@@ -356,8 +386,9 @@ def write_vdb(path, transform: VdbTransform, grids: dict, metadata: dict | None 
         ValueError: bad shapes, non-finite values, bad metadata, or an unwritable path.
     """
     if not isinstance(transform, VdbTransform):
-        raise ValueError(f"write_vdb needs a VdbTransform (e.g. VdbTransform.for_medium_box(shape)), got "
-                         f"{type(transform).__name__}.")
+        raise ValueError(
+            f"write_vdb needs a VdbTransform (e.g. VdbTransform.for_medium_box(shape)), got {type(transform).__name__}."
+        )
     if not isinstance(grids, dict) or not grids:
         raise ValueError("write_vdb needs at least one grid, as a dict {name: array}.")
     specs, shape = [], None

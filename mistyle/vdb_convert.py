@@ -38,8 +38,11 @@ import sys
 
 # Run as a script, Python puts this file's folder (mistyle/) first on sys.path, where mistyle's own
 # modules could shadow others; the helper needs none of them.
-if __name__ == "__main__" and sys.path and os.path.abspath(sys.path[0] or os.curdir) == os.path.dirname(
-        os.path.abspath(__file__)):
+if (
+    __name__ == "__main__"
+    and sys.path
+    and os.path.abspath(sys.path[0] or os.curdir) == os.path.dirname(os.path.abspath(__file__))
+):
     del sys.path[0]
 
 import numpy as np
@@ -171,8 +174,10 @@ def choose_grid(path: str, grids: list[dict], name: str | None) -> dict:
         if not matches:
             raise ConvertError(f"{path} has no grid named '{name}'; it holds {_describe(grids)}.")
         if matches[0]["type"] not in (FLOAT_TYPE, VEC3_TYPE):
-            raise ConvertError(f"Grid '{name}' of {path} holds {matches[0]['type']} values; mistyle reads float "
-                               f"(scalar) and vec3s (colour) grids. The file holds {_describe(grids)}.")
+            raise ConvertError(
+                f"Grid '{name}' of {path} holds {matches[0]['type']} values; mistyle reads float "
+                f"(scalar) and vec3s (colour) grids. The file holds {_describe(grids)}."
+            )
         return matches[0]
     floats = [g for g in grids if g["type"] == FLOAT_TYPE]
     if not floats:
@@ -182,8 +187,10 @@ def choose_grid(path: str, grids: list[dict], name: str | None) -> dict:
             return grid
     if len(floats) == 1:
         return floats[0]
-    raise ConvertError(f"{path} holds several float grids ({_describe(floats)}) and none is named "
-                       f"'{DENSITY_GRID}'; name the one to read (--grid NAME, or grid=NAME in mistyle.vdb.read_vdb).")
+    raise ConvertError(
+        f"{path} holds several float grids ({_describe(floats)}) and none is named "
+        f"'{DENSITY_GRID}'; name the one to read (--grid NAME, or grid=NAME in mistyle.vdb.read_vdb)."
+    )
 
 
 def _dense_box(grid, active_min, active_max) -> tuple[tuple, tuple, str]:
@@ -195,7 +202,8 @@ def _dense_box(grid, active_min, active_max) -> tuple[tuple, tuple, str]:
     except Exception:  # absent (a file from another tool) or of another type
         return active_min, active_max, "active voxels"
     if len(recorded_min) == len(recorded_max) == 3 and all(
-            r0 <= a0 and a1 <= r1 for r0, a0, a1, r1 in zip(recorded_min, active_min, active_max, recorded_max)):
+        r0 <= a0 and a1 <= r1 for r0, a0, a1, r1 in zip(recorded_min, active_min, active_max, recorded_max)
+    ):
         return recorded_min, recorded_max, "mistyle metadata"
     return active_min, active_max, "active voxels"
 
@@ -219,9 +227,11 @@ def read_grid(path: str, grid_name: str | None = None) -> tuple[np.ndarray, dict
         raise ConvertError(f"Cannot read grid '{name}' of {path} ({_one_line(error)}).") from None
     transform = grid.transform
     if not transform.isLinear:
-        raise ConvertError(f"Grid '{name}' of {path} has a non-linear ({transform.typeName}, e.g. frustum) "
-                           "transform, which has no single voxel box; resample it onto a linear transform "
-                           "first (e.g. Houdini's VDB Resample).")
+        raise ConvertError(
+            f"Grid '{name}' of {path} has a non-linear ({transform.typeName}, e.g. frustum) "
+            "transform, which has no single voxel box; resample it onto a linear transform "
+            "first (e.g. Houdini's VDB Resample)."
+        )
     active = int(grid.activeVoxelCount())
     if active == 0:
         raise ConvertError(f"Grid '{name}' of {path} is empty (it has no active voxels).")
@@ -230,9 +240,11 @@ def read_grid(path: str, grid_name: str | None = None) -> tuple[np.ndarray, dict
     size_xyz = tuple(hi - lo + 1 for lo, hi in zip(index_min, index_max))
     count = int(np.prod(size_xyz, dtype=np.int64))
     if count > MAX_DENSE_VOXELS:
-        raise ConvertError(f"Grid '{name}' of {path} spans {size_xyz[0]}x{size_xyz[1]}x{size_xyz[2]} voxels "
-                           f"({count} dense), more than the {MAX_DENSE_VOXELS} mistyle copies into memory; "
-                           "crop or resample it first.")
+        raise ConvertError(
+            f"Grid '{name}' of {path} spans {size_xyz[0]}x{size_xyz[1]}x{size_xyz[2]} voxels "
+            f"({count} dense), more than the {MAX_DENSE_VOXELS} mistyle copies into memory; "
+            "crop or resample it first."
+        )
     vector = chosen["type"] == VEC3_TYPE
     dense = np.zeros(size_xyz + ((3,) if vector else ()), dtype=np.float32)  # C-contiguous, as the binding needs
     grid.copyToArray(dense, ijk=index_min)
@@ -324,11 +336,14 @@ def write_grids(path: str, matrix, index_min, grids: list[dict], metadata: dict 
         if expected_ndim is None:
             raise ConvertError(f"Grid '{name}': kind must be 'float' or 'vec3', got {kind!r}.")
         if array.ndim != expected_ndim or (kind == "vec3" and array.shape[-1] != 3) or min(array.shape) < 1:
-            raise ConvertError(f"Grid '{name}' ({kind}) must be {'(Z, Y, X)' if kind == 'float' else '(Z, Y, X, 3)'} "
-                               f"with every size >= 1, got shape {array.shape}.")
+            raise ConvertError(
+                f"Grid '{name}' ({kind}) must be {'(Z, Y, X)' if kind == 'float' else '(Z, Y, X, 3)'} "
+                f"with every size >= 1, got shape {array.shape}."
+            )
         if shape is not None and array.shape[:3] != shape:
-            raise ConvertError(f"Grid '{name}' is {array.shape[:3]} but the others are {shape}; "
-                               "all grids share one box.")
+            raise ConvertError(
+                f"Grid '{name}' is {array.shape[:3]} but the others are {shape}; all grids share one box."
+            )
         shape = array.shape[:3]
         if not np.all(np.isfinite(array)):
             raise ConvertError(f"Grid '{name}' holds NaN or infinite values.")
@@ -397,12 +412,19 @@ def _write_command(path: str, workdir: str) -> None:
         grids = []
         for spec in meta["grids"]:
             file = os.path.join(workdir, os.path.basename(spec["file"]))  # only files inside the work folder
-            grids.append({"name": spec["name"], "kind": spec["kind"], "class": spec.get("class"),
-                          "array": np.load(file, allow_pickle=False)})
+            grids.append(
+                {
+                    "name": spec["name"],
+                    "kind": spec["kind"],
+                    "class": spec.get("class"),
+                    "array": np.load(file, allow_pickle=False),
+                }
+            )
         matrix, index_min, metadata = meta["matrix"], meta["index_min"], meta.get("metadata") or {}
     except (OSError, ValueError, KeyError, TypeError) as error:
-        raise ConvertError(f"The work folder {workdir} does not hold a valid meta.json and its arrays "
-                           f"({_one_line(error)}).") from None
+        raise ConvertError(
+            f"The work folder {workdir} does not hold a valid meta.json and its arrays ({_one_line(error)})."
+        ) from None
     write_grids(path, matrix, index_min, grids, metadata)
 
 

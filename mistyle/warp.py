@@ -19,9 +19,14 @@ def semi_lagrangian_warp(volume: torch.Tensor, velocity: torch.Tensor) -> torch.
         ``(B, C, D, H, W)``.
     """
     if volume.dim() != 5 or velocity.dim() != 5 or velocity.shape[1] != 3:
-        raise ValueError(f"Expected volume (B,C,D,H,W) and velocity (B,3,D,H,W), got {tuple(volume.shape)} and {tuple(velocity.shape)}.")
+        raise ValueError(
+            f"Expected volume (B,C,D,H,W) and velocity (B,3,D,H,W), "
+            f"got {tuple(volume.shape)} and {tuple(velocity.shape)}."
+        )
     if volume.shape[0] != velocity.shape[0] or volume.shape[2:] != velocity.shape[2:]:
-        raise ValueError(f"volume {tuple(volume.shape)} and velocity {tuple(velocity.shape)} must share batch and grid.")
+        raise ValueError(
+            f"volume {tuple(volume.shape)} and velocity {tuple(velocity.shape)} must share batch and grid."
+        )
     batch, _, depth, height, width = volume.shape
     z, y, x = torch.meshgrid(
         *(torch.arange(n, dtype=volume.dtype, device=volume.device) for n in (depth, height, width)), indexing="ij"

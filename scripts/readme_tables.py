@@ -25,9 +25,11 @@ def blocks() -> dict[str, str]:
 
     rows = read_rows(ROOT / "results" / "benchmark" / "rows.jsonl")
     commits = sorted({row.commit for row in rows})
-    source = (f"From `results/benchmark/rows.jsonl` ({len(rows)} rows, commit(s) {', '.join(commits)}): "
-              "medians over the held-out pairs; \"x uniform\" is the median of per-pair ratios to the uniform "
-              "baseline; seconds to make the albedo on this project's 2-core CPU.\n\n")
+    source = (
+        f"From `results/benchmark/rows.jsonl` ({len(rows)} rows, commit(s) {', '.join(commits)}): "
+        'medians over the held-out pairs; "x uniform" is the median of per-pair ratios to the uniform '
+        "baseline; seconds to make the albedo on this project's 2-core CPU.\n\n"
+    )
     return {"benchmark": source + table(rows)}
 
 
@@ -36,7 +38,7 @@ def rewritten(text: str) -> str:
         pattern = re.compile(rf"(<!-- generated: {name} -->\n).*?(<!-- end: {name} -->)", re.S)
         if not pattern.search(text):
             raise SystemExit(f"README.md has no <!-- generated: {name} --> ... <!-- end: {name} --> block.")
-        text = pattern.sub(lambda match: match.group(1) + body + match.group(2), text)
+        text = pattern.sub(lambda match, body=body: match.group(1) + body + match.group(2), text)
     return text
 
 

@@ -24,7 +24,13 @@ def test_variant_follows_the_torch_device():
 
 @pytest.mark.parametrize(
     "name,major",
-    [("libLLVM.so.19.1", 19), ("libLLVM-15.so.1", 15), ("libLLVM-14.0.6.so.1", 14), ("libLLVM-17.so", 17), ("libfoo.so", None)],
+    [
+        ("libLLVM.so.19.1", 19),
+        ("libLLVM-15.so.1", 15),
+        ("libLLVM-14.0.6.so.1", 14),
+        ("libLLVM-17.so", 17),
+        ("libfoo.so", None),
+    ],
 )
 def test_llvm_version_is_read_from_the_library_name(name, major):
     assert llvm_major_from_path(f"/usr/lib/{name}") == major

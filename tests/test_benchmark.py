@@ -30,8 +30,11 @@ def test_splits_name_their_pairs_and_refuse_unknown_names():
     assert {spec.name for spec, _ in pairs} == {"smoke64", "pyroclastic64"}
     assert len(pairs) == 2 * len(held_out_styles())
     assert [style for _, style in split_pairs("heldout", ["smoke64"], ["munch_the_scream"])] == ["munch_the_scream"]
-    for bad, message in ((("nope",), "Unknown split"), (("heldout", ["smoke32"]), "no density smoke32"),
-                         (("quick", None, ["munch_the_scream"]), "no style munch_the_scream")):
+    for bad, message in (
+        (("nope",), "Unknown split"),
+        (("heldout", ["smoke32"]), "no density smoke32"),
+        (("quick", None, ["munch_the_scream"]), "no style munch_the_scream"),
+    ):
         with pytest.raises(ValueError, match=message):
             split_pairs(*bad)
 
@@ -91,8 +94,21 @@ def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
 
 
 def test_command_refuses_bad_input_in_one_line(tmp_path, capsys):
-    assert main(["--methods", "network,magic", "--out", str(tmp_path / "x"), "--styles", "munch_the_scream",
-                 "--densities", "smoke64"]) == 2
+    assert (
+        main(
+            [
+                "--methods",
+                "network,magic",
+                "--out",
+                str(tmp_path / "x"),
+                "--styles",
+                "munch_the_scream",
+                "--densities",
+                "smoke64",
+            ]
+        )
+        == 2
+    )
     assert "Unknown method(s) magic" in capsys.readouterr().err
     assert main(["--report-only", "--out", str(tmp_path / "none")]) == 2
     assert "run the benchmark first" in capsys.readouterr().err

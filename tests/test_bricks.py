@@ -72,13 +72,24 @@ def test_every_level_returns_the_whole_mediums_field_inside_its_bricks(mi):
     assert checked == (level >= 0).sum() > 4
 
 
-def mean_difference_z(mi, density, albedo, view, res, density_scale, bricks, spp, seed,
-                      light: str = "constant") -> tuple[float, float]:
+def mean_difference_z(
+    mi, density, albedo, view, res, density_scale, bricks, spp, seed, light: str = "constant"
+) -> tuple[float, float]:
     """``(z, mean)``: the bricked render's mean minus one medium's over its standard error (two seeds each,
     the noise measured from the seed pairs), and the plain render's mean."""
+
     def renders(brick):
-        scene = mi.load_dict(pathtraced_scene(density, albedo, [CameraPath().view(view)], res=res,
-                                              density_scale=density_scale, bricks=brick, light=LightSpec.parse(light)))
+        scene = mi.load_dict(
+            pathtraced_scene(
+                density,
+                albedo,
+                [CameraPath().view(view)],
+                res=res,
+                density_scale=density_scale,
+                bricks=brick,
+                light=LightSpec.parse(light),
+            )
+        )
         return [np.asarray(mi.render(scene, spp=spp, seed=s))[..., :3] for s in (seed, 1000 * seed)]
 
     plain, bricked = renders(0), renders(bricks)
@@ -90,8 +101,18 @@ def mean_difference_z(mi, density, albedo, view, res, density_scale, bricks, spp
 @pytest.mark.parametrize("light", ["constant", "point:1.5,1.2,0.5:100", "area:50"])
 def test_bricks_render_the_same_image_as_one_medium(mi, light):
     density = sparse_smoke()
-    z, mean = mean_difference_z(mi, density, colour_noise_albedo(density.shape, seed=1), 0.1, res=24,
-                                density_scale=10.0, bricks=4, spp=256, seed=3, light=light)
+    z, mean = mean_difference_z(
+        mi,
+        density,
+        colour_noise_albedo(density.shape, seed=1),
+        0.1,
+        res=24,
+        density_scale=10.0,
+        bricks=4,
+        spp=256,
+        seed=3,
+        light=light,
+    )
     assert abs(z) < 4.0 and mean > 0.01
 
 

@@ -38,14 +38,15 @@ def test_sliced_transport_carries_one_gaussian_cloud_onto_another():
     target = rng.normal(size=(20000, 3)) @ mixing + [0.6, 0.3, 0.4]
     moved = apply_sliced_transport(fit_sliced_transport(source, target, rng), source)
     np.testing.assert_allclose(moved.mean(axis=0), target.mean(axis=0), atol=5e-3)
-    # Twelve rounds leave each covariance entry within 4e-3 of the target (entries 1e-3 to 4e-2; the source's differ by up to 3e-2).
+    # Twelve rounds leave each covariance entry within 4e-3 of the target (entries 1e-3 to 4e-2; the
+    # source's differ by up to 3e-2).
     np.testing.assert_allclose(np.cov(moved.T), np.cov(target.T), atol=4e-3)
 
 
 def _two_colour_style(size: int = 32) -> np.ndarray:
     style = np.zeros((size, size, 3), np.float32)
     style[:, : size // 2] = [0.85, 0.25, 0.15]
-    style[:, size // 2:] = [0.15, 0.3, 0.8]
+    style[:, size // 2 :] = [0.15, 0.3, 0.8]
     return style
 
 
@@ -82,7 +83,9 @@ def test_the_match_gives_the_arrangement_the_styles_colours(mi, blob_density):
 def test_strength_moves_the_albedo_part_of_the_way(mi, blob_density):
     albedo = np.full(blob_density.shape + (3,), 0.4, np.float32)
     albedo[..., 0] += np.linspace(0.0, 0.3, blob_density.shape[0], dtype=np.float32)[:, None, None]
-    match = fit_colour_match(albedo, blob_density, _two_colour_style(), density_scale=20.0, radiance=1.0, camera_distance=1.7)
+    match = fit_colour_match(
+        albedo, blob_density, _two_colour_style(), density_scale=20.0, radiance=1.0, camera_distance=1.7
+    )
     np.testing.assert_allclose(match.apply(albedo, blob_density, 0.0), albedo, rtol=1e-5)
     inside = blob_density > 0
     shown = {s: match.shown(match.apply(albedo, blob_density, s)[inside].astype(np.float64)) for s in (0.0, 0.5, 1.0)}
@@ -94,8 +97,14 @@ def test_strength_moves_the_albedo_part_of_the_way(mi, blob_density):
 
 def test_the_match_refuses_an_albedo_of_another_shape(blob_density):
     with pytest.raises(ValueError, match="albedo must be the density's shape"):
-        fit_colour_match(np.zeros((4, 4, 4, 3), np.float32), blob_density, _two_colour_style(), density_scale=20.0,
-                         radiance=1.0, camera_distance=1.7)
+        fit_colour_match(
+            np.zeros((4, 4, 4, 3), np.float32),
+            blob_density,
+            _two_colour_style(),
+            density_scale=20.0,
+            radiance=1.0,
+            camera_distance=1.7,
+        )
 
 
 def test_stylize_matches_colours_by_default_and_it_brings_the_render_closer_to_the_style(mi):
@@ -116,13 +125,21 @@ def test_stylize_matches_colours_by_default_and_it_brings_the_render_closer_to_t
     network = stylizer(density, style, match_colours=False)
     matched = mistyle.stylize(density, style)
     assert not np.allclose(network, matched)
-    unfed = fit_colour_match(network, density, style, density_scale=stylizer.density_scale,
-                             radiance=stylizer.config.render.radiance,
-                             camera_distance=stylizer.config.render.camera_distance, feedback=False)
+    unfed = fit_colour_match(
+        network,
+        density,
+        style,
+        density_scale=stylizer.density_scale,
+        radiance=stylizer.config.render.radiance,
+        camera_distance=stylizer.config.render.camera_distance,
+        feedback=False,
+    )
     scores = {}
     for name, albedo in (("network", network), ("matched", matched), ("no feedback", unfed.apply(network, density))):
-        images = [mistyle.render(density, albedo, view=view, res=48, spp=8, density_scale=stylizer.density_scale)
-                  for view in (0.1, 0.45)]
+        images = [
+            mistyle.render(density, albedo, view=view, res=48, spp=8, density_scale=stylizer.density_scale)
+            for view in (0.1, 0.45)
+        ]
         scores[name] = style_fidelity(np.stack(images), style)["rgb_swd"]
     assert scores["matched"] < 0.8 * scores["network"], scores
     assert scores["matched"] < 0.9 * scores["no feedback"], scores
@@ -136,8 +153,11 @@ def test_a_sequence_shares_its_first_frames_map(mi, blob_density):
     style = _two_colour_style()
     frames = np.stack([blob_density, np.ascontiguousarray(blob_density[::-1, :, ::-1])])
     network = stylizer(frames, style, match_colours=False)
-    settings = dict(density_scale=stylizer.density_scale, radiance=stylizer.config.render.radiance,
-                    camera_distance=stylizer.config.render.camera_distance)
+    settings = dict(
+        density_scale=stylizer.density_scale,
+        radiance=stylizer.config.render.radiance,
+        camera_distance=stylizer.config.render.camera_distance,
+    )
     first = fit_colour_match(network[0], frames[0], style, **settings)
     own = fit_colour_match(network[1], frames[1], style, **settings)
     sequence = stylizer(frames, style)
@@ -151,8 +171,14 @@ def test_a_medium_too_thin_to_see_keeps_the_networks_colours_with_a_note(mi, blo
 
     faint = (blob_density * 1e-7).astype(np.float32)
     with pytest.raises(InvisibleMedium, match="needs a visible medium"):
-        fit_colour_match(np.full(faint.shape + (3,), 0.5, np.float32), faint, _two_colour_style(), density_scale=20.0,
-                         radiance=1.0, camera_distance=1.7)
+        fit_colour_match(
+            np.full(faint.shape + (3,), 0.5, np.float32),
+            faint,
+            _two_colour_style(),
+            density_scale=20.0,
+            radiance=1.0,
+            camera_distance=1.7,
+        )
     stylizer, notes = Stylizer(), []
     albedo = stylizer(faint, _two_colour_style(), notes=notes)
     np.testing.assert_array_equal(albedo, stylizer(faint, _two_colour_style(), match_colours=False))
@@ -171,8 +197,9 @@ def test_apply_is_the_map_voxel_by_voxel():
 
     rng = np.random.default_rng(5)
     levels = np.linspace(0.05, 0.9, 9)
-    stages = fit_sliced_transport(rng.uniform(0.1, 0.5, size=(400, 3)), rng.uniform(0.2, 0.9, size=(400, 3)), rng,
-                                  rounds=3)
+    stages = fit_sliced_transport(
+        rng.uniform(0.1, 0.5, size=(400, 3)), rng.uniform(0.2, 0.9, size=(400, 3)), rng, rounds=3
+    )
     match = ColourMatch(np.log(RESPONSE_LEVELS), levels, tuple(stages))
     albedo = rng.choice([0.02, 0.1, 0.3, 0.7], size=(6, 5, 4, 3)).astype(np.float32)  # colours repeat
     albedo[0, 0, 0] = [0.123, 0.456, 0.789]
@@ -204,8 +231,10 @@ def test_apply_resumes_from_the_fit_with_the_same_result(mi, blob_density):
     from dataclasses import replace
 
     albedo = np.random.default_rng(2).uniform(0.05, 0.9, size=blob_density.shape + (3,)).astype(np.float32)
-    match = fit_colour_match(albedo, blob_density, _two_colour_style(), density_scale=20.0, radiance=1.0,
-                             camera_distance=1.7)
+    match = fit_colour_match(
+        albedo, blob_density, _two_colour_style(), density_scale=20.0, radiance=1.0, camera_distance=1.7
+    )
     assert match.resume is not None and 0 < match.resume[2] < len(match.stages)
-    np.testing.assert_array_equal(match.apply(albedo, blob_density, 0.8),
-                                  replace(match, resume=None).apply(albedo, blob_density, 0.8))
+    np.testing.assert_array_equal(
+        match.apply(albedo, blob_density, 0.8), replace(match, resume=None).apply(albedo, blob_density, 0.8)
+    )

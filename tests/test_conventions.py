@@ -144,3 +144,55 @@ def test_torch_reference_camera_matches_mitsuba_rays(mi):
         # Mitsuba starts rays on the near clip plane: same line, same direction.
         offset = np.array(ray.o)[:, 0] - origins[0, row, col].numpy()
         np.testing.assert_allclose(np.cross(offset, directions[0, row, col].numpy()), 0.0, atol=1e-6)
+
+
+# Parameters and fields whose defaults are conventions: they must name the constant, not repeat its value.
+CONVENTION_DEFAULTS = {
+    "density_scale": "DEFAULT_DENSITY_SCALE",
+    "directions": "LS_DIRECTIONS",
+    "radiance": "DEFAULT_ENV_RADIANCE",
+    "camera_distance": "ORBIT_DISTANCE",
+}
+
+
+def literal_convention_defaults():
+    """``(file, line, name)`` of every literal number given as the default of a convention's parameter,
+    dataclass field or ``--option`` in the package (``conventions.py`` itself excepted)."""
+    import ast
+    from pathlib import Path
+
+    import mistyle
+
+    root = Path(mistyle.__file__).parent
+    found = []
+    for path in root.rglob("*.py"):
+        if path.name == "conventions.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            pairs = []
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                positional = node.args.posonlyargs + node.args.args
+                pairs += list(
+                    zip([a.arg for a in positional[len(positional) - len(node.args.defaults) :]], node.args.defaults)
+                )
+                pairs += [(a.arg, d) for a, d in zip(node.args.kwonlyargs, node.args.kw_defaults) if d is not None]
+            elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.value is not None:
+                pairs.append((node.target.id, node.value))
+            elif isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "add_argument" and node.args:
+                option = node.args[0].value if isinstance(node.args[0], ast.Constant) else ""
+                default = next((k.value for k in node.keywords if k.arg == "default"), None)
+                if isinstance(option, str) and default is not None:
+                    pairs.append((option.lstrip("-").replace("-", "_"), default))
+            found += [
+                (path.name, value.lineno, name)
+                for name, value in pairs
+                if name in CONVENTION_DEFAULTS
+                and isinstance(value, ast.Constant)
+                and isinstance(value.value, (int, float))
+                and not isinstance(value.value, bool)
+            ]
+    return found
+
+
+def test_convention_defaults_name_their_constant():
+    assert literal_convention_defaults() == [], f"use the constants of mistyle.conventions ({CONVENTION_DEFAULTS})"

@@ -11,7 +11,9 @@ def test_dain_equals_instance_norm_when_the_mask_is_all_ones():
     x = torch.randn(2, 4, 5, 6, 7, generator=GEN)
     gamma, beta = torch.rand(2, 4, generator=GEN), torch.rand(2, 4, generator=GEN)
     ones = torch.ones(2, 1, 5, 6, 7)
-    reference = torch.nn.functional.instance_norm(x, eps=1e-5) * gamma[..., None, None, None] + beta[..., None, None, None]
+    reference = (
+        torch.nn.functional.instance_norm(x, eps=1e-5) * gamma[..., None, None, None] + beta[..., None, None, None]
+    )
     torch.testing.assert_close(dain(x, ones, gamma, beta), reference, rtol=1e-5, atol=1e-5)
     torch.testing.assert_close(dain(x, None, gamma, beta), reference, rtol=1e-5, atol=1e-5)
 

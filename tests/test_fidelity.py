@@ -66,7 +66,9 @@ def test_patches_are_only_taken_wholly_inside_the_mask():
     assert image_patches(image, mask, 1).shape == (9, 75)
     assert image_patches(image, None, 1).shape == (16 * 16, 75)
     assert image_patches(image, mask, 2).shape[0] == 0  # a 3x3 inside at half resolution
-    torch_patches = masked_patches(torch.from_numpy(image).permute(2, 0, 1)[None], torch.from_numpy(mask)[None, None].float(), 5)
+    torch_patches = masked_patches(
+        torch.from_numpy(image).permute(2, 0, 1)[None], torch.from_numpy(mask)[None, None].float(), 5
+    )
     np.testing.assert_allclose(torch_patches.numpy(), image_patches(image, mask, 1))
     assert patch_swd([image], [np.ones((20, 20), bool)], image) == 0.0
 
@@ -116,7 +118,9 @@ def test_sliced_objective_prefers_the_style_and_ignores_pixels_outside_the_mask(
     masked[:, :4] = 0.0  # outside the mask: any colour
     mask = torch.ones(1, 1, 32, 32)
     mask[..., :4] = 0
-    assert float(objective.loss(as_render(masked), targets, mask)) < 0.1 * float(objective.loss(as_render(grey), targets))
+    assert float(objective.loss(as_render(masked), targets, mask)) < 0.1 * float(
+        objective.loss(as_render(grey), targets)
+    )
 
 
 def test_body_mask_keeps_pixels_a_white_albedo_makes_bright():
@@ -150,18 +154,25 @@ def test_refinement_brings_a_path_traced_render_closer_to_the_style(mi, blob_den
 
 
 def test_matched_uniform_albedo_reproduces_the_style_mean(mi, blob_density):
-    from mistyle.response import matched_uniform_albedo
-    from mistyle.display import display
     from mistyle.api import path_trace
+    from mistyle.display import display
     from mistyle.objective.metrics import foreground_mask
+    from mistyle.response import matched_uniform_albedo
     from mistyle.scenes import CameraPath
 
     style = np.broadcast_to(np.float32([0.7, 0.45, 0.2]), (16, 16, 3))
     views = CameraPath(distance=2.0).turntable(2)
     colour = matched_uniform_albedo(blob_density, 20.0, 8.0, style, views, res=24, spp=32)
     assert colour[0] > colour[1] > colour[2]
-    images, _ = path_trace(blob_density, np.broadcast_to(colour, blob_density.shape + (3,)).copy(), views, res=24, spp=64,
-                           density_scale=20.0, light="constant:8")
+    images, _ = path_trace(
+        blob_density,
+        np.broadcast_to(colour, blob_density.shape + (3,)).copy(),
+        views,
+        res=24,
+        spp=64,
+        density_scale=20.0,
+        light="constant:8",
+    )
     shown = np.concatenate([display(image)[foreground_mask(image)] for image in images])
     np.testing.assert_allclose(shown.mean(0), style[0, 0], atol=0.04)
 
@@ -175,8 +186,9 @@ def test_the_temporal_anchor_holds_a_refined_frame_near_the_previous_one(mi, blo
     start = np.full(blob_density.shape + (3,), 0.3, np.float32)
     settings = RefineSettings(layer_steps=12, path_steps=0, layer_res=16, patch_weight=0.0, camera_distance=2.0)
     free, _ = refine_albedo(blob_density, 20.0, start, style, settings, radiance=8.0)
-    held, _ = refine_albedo(blob_density, 20.0, start, style, replace(settings, temporal_weight=1e4), radiance=8.0,
-                            anchor=start)
+    held, _ = refine_albedo(
+        blob_density, 20.0, start, style, replace(settings, temporal_weight=1e4), radiance=8.0, anchor=start
+    )
     assert np.abs(held - start).mean() < 0.5 * np.abs(free - start).mean()
 
 

@@ -46,7 +46,9 @@ def test_generation_is_deterministic_and_resumable(dataset, tmp_path, mi):
     untouched = (again / "plume0000" / "frame0004.npz").stat().st_mtime_ns
     generate_smoke(SmokeDatasetSpec(**SPEC), again, log=quiet)
     assert (again / "plume0000" / "frame0004.npz").stat().st_mtime_ns == untouched
-    np.testing.assert_array_equal(load_frame(victim)["velocity"], load_frame(dataset / "plume0001" / "frame0005.npz")["velocity"])
+    np.testing.assert_array_equal(
+        load_frame(victim)["velocity"], load_frame(dataset / "plume0001" / "frame0005.npz")["velocity"]
+    )
     assert not list(again.rglob("*.tmp*"))
 
 
@@ -116,8 +118,23 @@ def test_a_full_disk_leaves_no_half_written_frame(tmp_path, mi, monkeypatch, cap
         real_savez(handle, **arrays)
 
     monkeypatch.setattr(generate.np, "savez_compressed", savez_until_full)
-    status = data_cli(["smoke", "--res", "12", "--plumes", "1", "--frames", "6", "--keep", "2-6",
-                       "--directions", "16", "--out", str(tmp_path)])
+    status = data_cli(
+        [
+            "smoke",
+            "--res",
+            "12",
+            "--plumes",
+            "1",
+            "--frames",
+            "6",
+            "--keep",
+            "2-6",
+            "--directions",
+            "16",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert status == 1 and "disk" in capsys.readouterr().err
     files = sorted(p.name for p in tmp_path.rglob("*") if p.is_file())
     assert files == ["frame0002.npz", "frame0003.npz"]  # no temporary leftovers, no manifest yet

@@ -35,6 +35,7 @@ def test_no_held_out_style_is_in_the_offline_training_set():
     data = skimage_data_dir()
     training_files = [data / name for name in list(PHOTOS.values()) + list(TEXTURES.values())]
     assert not held & {file_digest(path) for path in training_files}
+
     # ...nor the same picture re-encoded: compare small thumbnails of every pair.
     def thumbnail(path):
         image = load_style(path)

@@ -93,9 +93,7 @@ def test_ls_is_only_computed_where_the_layer_uses_it(mi, blob_density):
     np.testing.assert_allclose(sparse[used], dense[used], rtol=1e-6)
     assert np.all(sparse[~used] == 1.0)
     views, albedo = CameraPath().turntable(2), torch.rand((3,) + blob_density.shape)
-    images = [
-        render_views(albedo, PreparedDensity(blob_density, 25.0, ls), views, 16) for ls in (dense, sparse)
-    ]
+    images = [render_views(albedo, PreparedDensity(blob_density, 25.0, ls), views, 16) for ls in (dense, sparse)]
     torch.testing.assert_close(images[0], images[1], rtol=0, atol=0)
 
 
@@ -150,7 +148,9 @@ def test_trilinear_nodes_keep_linear_fields_and_fit_a_convex_one_better():
 
     z, y, x = np.meshgrid(*(np.arange(n, dtype=np.float64) for n in (9, 10, 11)), indexing="ij")
     ramp = 0.2 + 0.03 * x - 0.02 * y + 0.01 * z
-    inner = (slice(3, -3),) * 3  # the outer nodes also fit the ramp's rise past the outer centres, which the texture clamps
+    inner = (
+        slice(3, -3),
+    ) * 3  # the outer nodes also fit the ramp's rise past the outer centres, which the texture clamps
     np.testing.assert_allclose(trilinear_nodes(ramp)[inner], ramp[inner], atol=1e-4)
     np.testing.assert_allclose(trilinear_nodes(np.full((5, 6, 7), 0.3)), 0.3, atol=1e-6)
     # Along one axis, an exponential (Ls inside a medium's surface is like one): the trilinear
@@ -161,7 +161,10 @@ def test_trilinear_nodes_keep_linear_fields_and_fit_a_convex_one_better():
     samples = np.broadcast_to(field(np.arange(n, dtype=np.float64))[:, None, None], (n, 3, 3))
     nodes = trilinear_nodes(samples)[:, 1, 1].astype(np.float64)
     u = np.linspace(3, n - 4, 200)  # away from the ends, where the fit extrapolates
-    errors = {name: np.interp(u, np.arange(n), values) - field(u) for name, values in (("samples", samples[:, 1, 1]), ("nodes", nodes))}
+    errors = {
+        name: np.interp(u, np.arange(n), values) - field(u)
+        for name, values in (("samples", samples[:, 1, 1]), ("nodes", nodes))
+    }
     assert np.sqrt(np.mean(errors["nodes"] ** 2)) < 0.5 * np.sqrt(np.mean(errors["samples"] ** 2))
     assert errors["samples"].mean() > 0 and abs(errors["nodes"].mean()) < 0.15 * errors["samples"].mean()
 

@@ -29,7 +29,9 @@ def test_homogeneous_slab_matches_closed_form(mi, scheme):
     shape, sigma, a = (8, 8, 8), 3.0, 0.6
     prepared = PreparedDensity(np.full(shape, sigma, np.float32), 1.0, np.ones(shape, np.float32))
     view = View(origin=(0.3, 0.2, 2.0), fov_deg=30.0)
-    image = render_views(torch.full((3,) + shape, a), prepared, [view], (9, 9), steps=32, scheme=scheme, radiance=2.5)[0, 0]
+    image = render_views(torch.full((3,) + shape, a), prepared, [view], (9, 9), steps=32, scheme=scheme, radiance=2.5)[
+        0, 0
+    ]
     origins, directions = camera_rays([view], 9, 9)
     t0, t1, hit = clip_to_box(origins, directions, MediumBox(shape).bbox_min, MediumBox(shape).bbox_max)
     expected = a * (1 - torch.exp(-sigma * (t1 - t0).clamp_min(0)))[0] * hit[0]
@@ -99,8 +101,10 @@ def test_marching_only_where_the_medium_is_converges_to_the_same_image_sooner(mi
     assert np.abs(render(4096, whole_box=False) - converged).max() < 1e-4 * converged.max()
     # Per step count the error also depends on how the samples fall on the voxel lattice; on average
     # the shorter segments win (here by 1.6x).
-    error = {whole: np.mean([np.sqrt(np.mean((render(n, whole) - converged) ** 2)) for n in (8, 12, 16, 32, 48)])
-             for whole in (True, False)}
+    error = {
+        whole: np.mean([np.sqrt(np.mean((render(n, whole) - converged) ** 2)) for n in (8, 12, 16, 32, 48)])
+        for whole in (True, False)
+    }
     assert error[False] < 0.8 * error[True]
     scene = layer_scene(blob, albedo, VIEWS, res=SIZE)
     scene["integrator"]["march_max"] = mi.ScalarPoint3f(2.0, 0.0, 0.0)

@@ -33,8 +33,11 @@ def test_layer_agrees_with_single_scattering_path_tracer(mi):
     layer = layer.reshape(2, 12, 4, 12, 4, 3).mean(axis=(2, 4))  # the path tracer integrates over pixels
 
     def path_traced(spp, seed):
-        scene = mi.load_dict(pathtraced_scene(density, albedo, views, res=12, density_scale=6.0, spp=spp, max_depth=2,
-                                              seed=seed, batch=True))
+        scene = mi.load_dict(
+            pathtraced_scene(
+                density, albedo, views, res=12, density_scale=6.0, spp=spp, max_depth=2, seed=seed, batch=True
+            )
+        )
         return split_views(mi.render(scene, seed=seed), 2)
 
     reference, noise_var = two_seed_reference(path_traced, spp=512)

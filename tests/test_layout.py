@@ -75,8 +75,12 @@ def test_every_unit_has_a_layer():
 
 
 def test_imports_only_go_down_the_layers():
-    upward = sorted((source, target) for source, targets in unit_graph().items() for target in targets
-                    if target in RANK and target != source and RANK[target] >= RANK[source])
+    upward = sorted(
+        (source, target)
+        for source, targets in unit_graph().items()
+        for target in targets
+        if target in RANK and target != source and RANK[target] >= RANK[source]
+    )
     assert not upward, f"imports that go up or sideways: {upward}"
 
 

@@ -61,8 +61,9 @@ def test_stylize_refine_runs_the_commands_default_settings():
 @pytest.mark.slow
 def test_stylize_refine_is_the_commands_default_output(mi, tmp_path, density_file, one_thread):
     out = render_cli(tmp_path, density_file)
-    assert np.array_equal(mistyle.stylize(read_vol(density_file), STYLE, refine=True),
-                          read_vol(out / "albedo_refined.vol"))
+    assert np.array_equal(
+        mistyle.stylize(read_vol(density_file), STYLE, refine=True), read_vol(out / "albedo_refined.vol")
+    )
 
 
 def test_refinement_rule():
@@ -77,8 +78,10 @@ def test_refinement_rule():
     assert (named.layer_steps, named.path_steps) == (5, 2) and named.tv_weight == default.tv_weight
 
 
-@pytest.mark.parametrize("change, message", [({"strength": 2.0}, "strength"), ({"refine_steps": -1}, "refine_steps"),
-                                             ({"device": "tpu"}, "device")])
+@pytest.mark.parametrize(
+    "change, message",
+    [({"strength": 2.0}, "strength"), ({"refine_steps": -1}, "refine_steps"), ({"device": "tpu"}, "device")],
+)
 def test_settings_refuse_bad_values(change, message):
     with pytest.raises(ValueError, match=message):
         PipelineSettings(**change)

@@ -23,8 +23,18 @@ def checkpoint(tmp_path_factory):
     config.model.style_channels = make_extractor("filterbank").channels
     torch.manual_seed(0)
     path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
-    torch.save({"format": 1, "mistyle_version": __version__, "step": 0, "config": config_to_dict(config),
-                "extractor": "filterbank", "density_scale": 20.0, "model": SKPN(config.model).state_dict()}, path)
+    torch.save(
+        {
+            "format": 1,
+            "mistyle_version": __version__,
+            "step": 0,
+            "config": config_to_dict(config),
+            "extractor": "filterbank",
+            "density_scale": 20.0,
+            "model": SKPN(config.model).state_dict(),
+        },
+        path,
+    )
     return path
 
 
@@ -85,8 +95,9 @@ def test_environment_map_lights_the_side_it_is_bright_on(mi, blob_density, tmp_p
     def top_over_bottom(bright_rows):
         sky = np.ones((8, 16, 3), np.float32)
         sky[bright_rows] = 6.0
-        image = mistyle.render(blob_density, albedo, view=0.25, res=24, spp=32,
-                               light=f"envmap:{write_exr(tmp_path / 'sky.exr', sky)}")
+        image = mistyle.render(
+            blob_density, albedo, view=0.25, res=24, spp=32, light=f"envmap:{write_exr(tmp_path / 'sky.exr', sky)}"
+        )
         luminance = image.mean(axis=-1)
         return luminance[:12].mean() / luminance[12:].mean()
 
@@ -96,17 +107,53 @@ def test_environment_map_lights_the_side_it_is_bright_on(mi, blob_density, tmp_p
 
 def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "out"
-    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "24", "--spp", "4", "--turntable", "3",
-                 "--refine", "1"])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(inputs / "blob.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            "--res",
+            "24",
+            "--spp",
+            "4",
+            "--turntable",
+            "3",
+            "--refine",
+            "1",
+        ]
+    )
     assert code == 0
     names = {p.name for p in out.iterdir()}
-    assert {"albedo.vol", "albedo.npy", "report.json", "turntable.mp4", "turntable.gif", "turntable_0000.exr",
-            "turntable_0002.png", "turntable_0001_network_layer.png", "sheet.png", "scene.xml", "density.vol",
-            "albedo_refined.vol"} <= names
+    assert {
+        "albedo.vol",
+        "albedo.npy",
+        "report.json",
+        "turntable.mp4",
+        "turntable.gif",
+        "turntable_0000.exr",
+        "turntable_0002.png",
+        "turntable_0001_network_layer.png",
+        "sheet.png",
+        "scene.xml",
+        "density.vol",
+        "albedo_refined.vol",
+    } <= names
     report = json.loads((out / "report.json").read_text())
-    for key in ("stylize_seconds", "render_seconds", "swd_final", "swd_layer", "rgb_swd", "patch_swd", "hue_coverage",
-                "refine_seconds"):
+    for key in (
+        "stylize_seconds",
+        "render_seconds",
+        "swd_final",
+        "swd_layer",
+        "rgb_swd",
+        "patch_swd",
+        "hue_coverage",
+        "refine_seconds",
+    ):
         assert key in report, key
     assert (out / "turntable.mp4").stat().st_size > 1000 and (out / "turntable.mp4").read_bytes()[4:8] == b"ftyp"
     assert np.load(out / "albedo.npy").shape == (16, 18, 20, 3)
@@ -118,16 +165,35 @@ def two_moving_frames(tmp_path, blob_density):
     frames = tmp_path / "frames"
     frames.mkdir()
     for index in range(2):
-        np.savez(frames / f"frame{index:04d}.npz", density=np.roll(blob_density, index, axis=2),
-                 velocity=np.tile(np.float32([1, 0, 0]), blob_density.shape + (1,)))
+        np.savez(
+            frames / f"frame{index:04d}.npz",
+            density=np.roll(blob_density, index, axis=2),
+            velocity=np.tile(np.float32([1, 0, 0]), blob_density.shape + (1,)),
+        )
     return frames
 
 
 def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inputs, tmp_path, blob_density):
     frames = two_moving_frames(tmp_path, blob_density)
     out = tmp_path / "out"
-    code = main(["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--coat", "dielectric:1.4"])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(frames),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            "--res",
+            "16",
+            "--spp",
+            "2",
+            "--coat",
+            "dielectric:1.4",
+        ]
+    )
     assert code == 0
     report = json.loads((out / "report.json").read_text())
     assert report["inputs"]["frames"] == 2 and report["temporal_flicker"] >= 0
@@ -138,8 +204,26 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
 def test_refined_sequence_frames_start_from_the_warped_previous_frame(mi, checkpoint, inputs, tmp_path, blob_density):
     frames = two_moving_frames(tmp_path, blob_density)
     out = tmp_path / "out"
-    code = main(["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--refine", "2", "--refine-path", "0"])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(frames),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            "--res",
+            "16",
+            "--spp",
+            "2",
+            "--refine",
+            "2",
+            "--refine-path",
+            "0",
+        ]
+    )
     assert code == 0
     report = json.loads((out / "report.json").read_text())
     assert report["inputs"]["refine_steps"] == 2 and report["temporal_flicker_refined"] >= 0
@@ -151,8 +235,28 @@ def test_mesh_is_voxelized_and_coated(mi, checkpoint, inputs, tmp_path):
 
     mesh = write_ply(tmp_path / "ball.ply", *icosphere(2))
     out = tmp_path / "out"
-    code = main(["--checkpoint", str(checkpoint), "--mesh", str(mesh), "--mesh-res", "12", "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--coat", "dielectric:1.5", "--refine", "0"])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--mesh",
+            str(mesh),
+            "--mesh-res",
+            "12",
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            "--res",
+            "16",
+            "--spp",
+            "2",
+            "--coat",
+            "dielectric:1.5",
+            "--refine",
+            "0",
+        ]
+    )
     assert code == 0
     assert (out / "coat_mesh.ply").is_file() and np.load(out / "albedo.npy").shape == (12, 12, 12, 3)
     assert json.loads((out / "report.json").read_text())["inputs"]["coat_ior"] == 1.5
@@ -160,8 +264,26 @@ def test_mesh_is_voxelized_and_coated(mi, checkpoint, inputs, tmp_path):
 
 def test_refine_through_the_layer_then_the_path_tracer(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "out"
-    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "2", "--refine", "2", "--refine-path", "1"])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(inputs / "blob.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            "--res",
+            "16",
+            "--spp",
+            "2",
+            "--refine",
+            "2",
+            "--refine-path",
+            "1",
+        ]
+    )
     assert code == 0
     report = json.loads((out / "report.json").read_text())
     assert report["refine_seconds"] > 0 and report["inputs"]["refine_path_steps"] == 1
@@ -169,44 +291,75 @@ def test_refine_through_the_layer_then_the_path_tracer(mi, checkpoint, inputs, t
     assert refined.shape == (16, 18, 20, 3) and not np.allclose(refined, np.load(out / "albedo.npy"))
 
 
-@pytest.mark.parametrize("style, note", [("rgba.png", "alpha composited"), ("grey.png", "greyscale"), ("deep.png", "16-bit")])
+@pytest.mark.parametrize(
+    "style, note", [("rgba.png", "alpha composited"), ("grey.png", "greyscale"), ("deep.png", "16-bit")]
+)
 def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, tmp_path, capsys, style, note):
-    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / style),
-                 "--out", str(tmp_path / "out"), "--res", "16", "--spp", "1", "--refine", "0"])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(inputs / "blob.vol"),
+            "--style",
+            str(inputs / style),
+            "--out",
+            str(tmp_path / "out"),
+            "--res",
+            "16",
+            "--spp",
+            "1",
+            "--refine",
+            "0",
+        ]
+    )
     assert code == 0 and note in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("change, message", [
-    ({"--style": "dot.png"}, "needs at least"),
-    ({"--style": "notes.txt"}, "not a readable image"),
-    ({"--style": "missing.png"}, "does not exist"),
-    ({"--density": "nan.npy"}, "NaN"),
-    ({"--density": "negative.npy"}, "negative"),
-    ({"--density": "zeros.npy"}, "all zero"),
-    ({"--density": "empty.npy"}, "empty"),
-    ({"--checkpoint": "garbage.pt"}, "not a readable mistyle checkpoint"),
-    ({"--light": "laser"}, "not a known light"),
-    ({"--light": "envmap:missing.exr"}, "does not exist"),
-    ({"--density-scale": "-1"}, "--density-scale must lie in"),
-    ({"--style": "no_images"}, "holds no images"),
-    ({"--density": "huge.npy"}, "mistyle takes densities up to"),
-    ({"--light": "constant:-5"}, "must be a finite number > 0"),
-    ({"--light": "point:nan,0,0"}, "must be finite"),
-    ({"--camera-distance": "0.1"}, "--camera-distance must lie in"),
-    ({"--camera-distance": "0"}, "--camera-distance must lie in"),
-    ({"--max-depth": "0"}, "--max-depth must be -1"),
-    ({"--max-depth": "-5"}, "--max-depth must be -1"),
-    ({"--view": "1.5"}, "--view is an orbit position"),
-    ({"--coat": "dielectric:9"}, "index of refraction in (1, 4)"),
-    ({"--bricks": "-1"}, "--bricks must lie in"),
-    ({"--bricks": "4", "--coat": "dielectric:1.5"}, "--bricks needs one medium under --coat"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"--style": "dot.png"}, "needs at least"),
+        ({"--style": "notes.txt"}, "not a readable image"),
+        ({"--style": "missing.png"}, "does not exist"),
+        ({"--density": "nan.npy"}, "NaN"),
+        ({"--density": "negative.npy"}, "negative"),
+        ({"--density": "zeros.npy"}, "all zero"),
+        ({"--density": "empty.npy"}, "empty"),
+        ({"--checkpoint": "garbage.pt"}, "not a readable mistyle checkpoint"),
+        ({"--light": "laser"}, "not a known light"),
+        ({"--light": "envmap:missing.exr"}, "does not exist"),
+        ({"--density-scale": "-1"}, "--density-scale must lie in"),
+        ({"--style": "no_images"}, "holds no images"),
+        ({"--density": "huge.npy"}, "mistyle takes densities up to"),
+        ({"--light": "constant:-5"}, "must be a finite number > 0"),
+        ({"--light": "point:nan,0,0"}, "must be finite"),
+        ({"--camera-distance": "0.1"}, "--camera-distance must lie in"),
+        ({"--camera-distance": "0"}, "--camera-distance must lie in"),
+        ({"--max-depth": "0"}, "--max-depth must be -1"),
+        ({"--max-depth": "-5"}, "--max-depth must be -1"),
+        ({"--view": "1.5"}, "--view is an orbit position"),
+        ({"--coat": "dielectric:9"}, "index of refraction in (1, 4)"),
+        ({"--bricks": "-1"}, "--bricks must lie in"),
+        ({"--bricks": "4", "--coat": "dielectric:1.5"}, "--bricks needs one medium under --coat"),
+    ],
+)
 def test_bad_input_is_a_clear_error_and_leaves_nothing(mi, checkpoint, inputs, tmp_path, capsys, change, message):
-    arguments = {"--checkpoint": str(checkpoint), "--density": str(inputs / "blob.vol"), "--style": str(inputs / "style.png")}
-    arguments.update({key: str(inputs / value) if key in ("--style", "--density", "--checkpoint") else value
-                      for key, value in change.items()})
+    arguments = {
+        "--checkpoint": str(checkpoint),
+        "--density": str(inputs / "blob.vol"),
+        "--style": str(inputs / "style.png"),
+    }
+    arguments.update(
+        {
+            key: str(inputs / value) if key in ("--style", "--density", "--checkpoint") else value
+            for key, value in change.items()
+        }
+    )
     out = tmp_path / "out"
-    code = main([item for pair in arguments.items() for item in pair] + ["--out", str(out), "--res", "16", "--spp", "1"])
+    code = main(
+        [item for pair in arguments.items() for item in pair] + ["--out", str(out), "--res", "16", "--spp", "1"]
+    )
     error = capsys.readouterr().err
     assert code == 2 and message in error and "Traceback" not in error, error
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == []
@@ -214,18 +367,43 @@ def test_bad_input_is_a_clear_error_and_leaves_nothing(mi, checkpoint, inputs, t
 
 def test_random_bad_option_values_give_one_clear_line_and_write_nothing(mi, checkpoint, inputs, tmp_path, capsys):
     rng = np.random.default_rng(7)
-    bad = {"--spp": ["0", "-3", "100000000"], "--res": ["0", "4", "99999"], "--turntable": ["-1", "99999"],
-           "--fps": ["0", "-2"], "--refine": ["-1", "1000000"], "--max-depth": ["0", "-2", "-100"],
-           "--view": ["-0.1", "1", "nan", "inf"], "--camera-distance": ["0", "-2", "nan", "0.5", "1e9"],
-           "--density-scale": ["0", "-1", "nan", "inf", "1e30"], "--scale-structures": ["0", "100", "nan"],
-           "--mesh-res": ["1", "99999"], "--light": ["constant:-1", "constant:nan", "point:1,2", "area:-4", "sun"],
-           "--coat": ["dielectric:1", "dielectric:nan", "glass"]}
+    bad = {
+        "--spp": ["0", "-3", "100000000"],
+        "--res": ["0", "4", "99999"],
+        "--turntable": ["-1", "99999"],
+        "--fps": ["0", "-2"],
+        "--refine": ["-1", "1000000"],
+        "--max-depth": ["0", "-2", "-100"],
+        "--view": ["-0.1", "1", "nan", "inf"],
+        "--camera-distance": ["0", "-2", "nan", "0.5", "1e9"],
+        "--density-scale": ["0", "-1", "nan", "inf", "1e30"],
+        "--scale-structures": ["0", "100", "nan"],
+        "--mesh-res": ["1", "99999"],
+        "--light": ["constant:-1", "constant:nan", "point:1,2", "area:-4", "sun"],
+        "--coat": ["dielectric:1", "dielectric:nan", "glass"],
+    }
     for option in rng.permutation(list(bad)):
         value = str(rng.choice(bad[option]))
         out = tmp_path / "out"
         try:
-            code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style",
-                         str(inputs / "style.png"), "--out", str(out), "--res", "16", "--spp", "1", option, value])
+            code = main(
+                [
+                    "--checkpoint",
+                    str(checkpoint),
+                    "--density",
+                    str(inputs / "blob.vol"),
+                    "--style",
+                    str(inputs / "style.png"),
+                    "--out",
+                    str(out),
+                    "--res",
+                    "16",
+                    "--spp",
+                    "1",
+                    option,
+                    value,
+                ]
+            )
         except SystemExit as exit:  # argparse refuses values of the wrong type with its usage line
             code = exit.code
         error = capsys.readouterr().err
@@ -237,8 +415,22 @@ def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint,
     from mistyle import render_final
 
     out = tmp_path / "out"
-    arguments = ["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "1", "--refine", "0"]
+    arguments = [
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        "--style",
+        str(inputs / "style.png"),
+        "--out",
+        str(out),
+        "--res",
+        "16",
+        "--spp",
+        "1",
+        "--refine",
+        "0",
+    ]
     assert main(arguments) == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
 
@@ -257,8 +449,24 @@ def test_a_second_run_into_an_output_in_use_is_refused(mi, checkpoint, inputs, t
 
     out = tmp_path / "out"
     with staged_directory(out):
-        code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style",
-                     str(inputs / "style.png"), "--out", str(out), "--res", "16", "--spp", "1", "--refine", "0"])
+        code = main(
+            [
+                "--checkpoint",
+                str(checkpoint),
+                "--density",
+                str(inputs / "blob.vol"),
+                "--style",
+                str(inputs / "style.png"),
+                "--out",
+                str(out),
+                "--res",
+                "16",
+                "--spp",
+                "1",
+                "--refine",
+                "0",
+            ]
+        )
         assert code == 2 and "Another mistyle run is writing to" in capsys.readouterr().err
     assert out.is_dir() and not any(out.iterdir())
 
@@ -268,16 +476,36 @@ def test_checkpoint_from_another_config_is_refused(mi, checkpoint, inputs, tmp_p
     payload["config"]["model"]["widths"] = [4, 8, 8]
     other = tmp_path / "other.pt"
     torch.save(payload, other)
-    code = main(["--checkpoint", str(other), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(tmp_path / "out")])
+    code = main(
+        [
+            "--checkpoint",
+            str(other),
+            "--density",
+            str(inputs / "blob.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     assert code == 2 and "does not match" in capsys.readouterr().err
 
 
 def test_unwritable_output_directory(mi, checkpoint, inputs, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(blocker / "out")])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(inputs / "blob.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(blocker / "out"),
+        ]
+    )
     assert code == 2 and "Cannot write to the output directory" in capsys.readouterr().err
 
 
@@ -293,8 +521,18 @@ def test_a_batch_writes_one_named_output_per_pair_and_an_index(mi, checkpoint, i
     (styles / "readme.txt").write_text("not a style")
     np.save(tmp_path / "ball.npy", blob_density[:, ::-1])
     out = tmp_path / "batch"
-    arguments = ["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), str(tmp_path / "ball.npy"),
-                 "--style", str(styles), "--out", str(out), *FAST]
+    arguments = [
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        str(tmp_path / "ball.npy"),
+        "--style",
+        str(styles),
+        "--out",
+        str(out),
+        *FAST,
+    ]
     assert main(arguments) == 0
     folders = sorted(p.name for p in out.iterdir() if p.is_dir())
     assert folders == ["ball__night", "ball__wave", "blob__night", "blob__wave"]
@@ -313,8 +551,17 @@ def test_a_batch_writes_one_named_output_per_pair_and_an_index(mi, checkpoint, i
 
 def test_an_existing_output_is_refused_without_overwrite(mi, checkpoint, inputs, tmp_path, capsys):
     out = tmp_path / "out"
-    arguments = ["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), *FAST]
+    arguments = [
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        "--style",
+        str(inputs / "style.png"),
+        "--out",
+        str(out),
+        *FAST,
+    ]
     assert main(arguments) == 0
     capsys.readouterr()
     assert main(arguments) == 2
@@ -324,23 +571,60 @@ def test_an_existing_output_is_refused_without_overwrite(mi, checkpoint, inputs,
 
 def test_mix_and_strength_from_the_command_line(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "mix"
-    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--mix", f"{inputs / 'style.png'}:3",
-                 f"{inputs / 'rgba.png'}:1", "--strength", "0.5", "--out", str(out), "--res", "16", "--spp", "1"]) == 0
+    assert (
+        main(
+            [
+                "--checkpoint",
+                str(checkpoint),
+                "--density",
+                str(inputs / "blob.vol"),
+                "--mix",
+                f"{inputs / 'style.png'}:3",
+                f"{inputs / 'rgba.png'}:1",
+                "--strength",
+                "0.5",
+                "--out",
+                str(out),
+                "--res",
+                "16",
+                "--spp",
+                "1",
+            ]
+        )
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
-    assert report["inputs"]["strength"] == 0.5 and "0.75 x" in report["inputs"]["style"] and "0.25 x" in report["inputs"]["style"]
+    assert (
+        report["inputs"]["strength"] == 0.5
+        and "0.75 x" in report["inputs"]["style"]
+        and "0.25 x" in report["inputs"]["style"]
+    )
     assert report["inputs"]["refine_steps"] == 0 and any("strength 0.5" in note for note in report["notes"])
 
 
-@pytest.mark.parametrize("arguments, message", [
-    (["--mix", "style.png:1"], "--mix needs two or more"),
-    (["--mix", "style.png:1", "rgba.png:x"], "--mix takes IMAGE:WEIGHT"),
-    (["--mix", "style.png:0", "rgba.png:0"], "must not all be zero"),
-    (["--style", "style.png", "--strength", "2"], "--strength must lie in [0, 1]"),
-])
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--mix", "style.png:1"], "--mix needs two or more"),
+        (["--mix", "style.png:1", "rgba.png:x"], "--mix takes IMAGE:WEIGHT"),
+        (["--mix", "style.png:0", "rgba.png:0"], "must not all be zero"),
+        (["--style", "style.png", "--strength", "2"], "--strength must lie in [0, 1]"),
+    ],
+)
 def test_bad_mix_or_strength_is_a_clear_error(mi, checkpoint, inputs, tmp_path, capsys, arguments, message):
     arguments = [str(inputs / a) if a.endswith(("png", "png:1", "png:0", "png:x")) else a for a in arguments]
-    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), *arguments,
-                 "--out", str(tmp_path / "out"), *FAST])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(inputs / "blob.vol"),
+            *arguments,
+            "--out",
+            str(tmp_path / "out"),
+            *FAST,
+        ]
+    )
     error = capsys.readouterr().err
     assert code == 2 and message in error and "Traceback" not in error, error
     assert not (tmp_path / "out").exists()
@@ -348,9 +632,33 @@ def test_bad_mix_or_strength_is_a_clear_error(mi, checkpoint, inputs, tmp_path, 
 
 def test_the_written_scene_reproduces_the_final_render(mi, checkpoint, inputs, tmp_path):
     out = tmp_path / "out"
-    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--res", "16", "--spp", "4", "--refine", "1", "--refine-path", "0",
-                 "--light", "constant:5", "--bricks", "0"]) == 0  # scene.xml holds one medium (see scenes.export)
+    assert (
+        main(
+            [
+                "--checkpoint",
+                str(checkpoint),
+                "--density",
+                str(inputs / "blob.vol"),
+                "--style",
+                str(inputs / "style.png"),
+                "--out",
+                str(out),
+                "--res",
+                "16",
+                "--spp",
+                "4",
+                "--refine",
+                "1",
+                "--refine-path",
+                "0",
+                "--light",
+                "constant:5",
+                "--bricks",
+                "0",
+            ]
+        )
+        == 0
+    )  # scene.xml holds one medium (see scenes.export)
     from mistyle.io import read_exr
 
     scene = mi.load_file(str(out / "scene.xml"))
@@ -363,15 +671,48 @@ def test_a_mesh_run_writes_the_voxelized_density_for_mitsuba(mi, checkpoint, inp
 
     mesh = write_ply(tmp_path / "ball.ply", *icosphere(2))
     out = tmp_path / "out"
-    assert main(["--checkpoint", str(checkpoint), "--mesh", str(mesh), "--mesh-res", "12", "--style", str(inputs / "style.png"),
-                 "--out", str(out), "--coat", "dielectric:1.5", *FAST]) == 0
+    assert (
+        main(
+            [
+                "--checkpoint",
+                str(checkpoint),
+                "--mesh",
+                str(mesh),
+                "--mesh-res",
+                "12",
+                "--style",
+                str(inputs / "style.png"),
+                "--out",
+                str(out),
+                "--coat",
+                "dielectric:1.5",
+                *FAST,
+            ]
+        )
+        == 0
+    )
     assert read_vol(out / "density.vol").shape == (12, 12, 12) and read_vol(out / "density.vol").max() > 0.5
     assert mi.load_file(str(out / "scene.xml")) is not None  # the coat mesh is found beside the scene
 
 
 def test_quiet_keeps_only_the_results_on_stdout(mi, checkpoint, inputs, tmp_path, capsys):
-    assert main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 "--out", str(tmp_path / "out"), "--quiet", *FAST]) == 0
+    assert (
+        main(
+            [
+                "--checkpoint",
+                str(checkpoint),
+                "--density",
+                str(inputs / "blob.vol"),
+                "--style",
+                str(inputs / "style.png"),
+                "--out",
+                str(tmp_path / "out"),
+                "--quiet",
+                *FAST,
+            ]
+        )
+        == 0
+    )
     captured = capsys.readouterr()
     summary, final = captured.out.splitlines()
     assert captured.err == "" and "rgb_swd" in json.loads(summary) and final.startswith("wrote ")
@@ -386,10 +727,28 @@ def test_vdb_in_and_out_keeps_the_transform_and_the_grids(mi, checkpoint, inputs
     matrix = np.diag([0.05, 0.05, 0.05, 1.0])
     matrix[:3, 3] = [1.0, -2.0, 0.5]
     transform = vdb.VdbTransform(matrix, (3, -4, 7))
-    source = vdb.write_vdb(tmp_path / "houdini.vdb", transform, {"smoke": blob_density, "temperature": blob_density * 2})
+    source = vdb.write_vdb(
+        tmp_path / "houdini.vdb", transform, {"smoke": blob_density, "temperature": blob_density * 2}
+    )
     out = tmp_path / "out"
-    assert main(["--checkpoint", str(checkpoint), "--density", str(source), "--grid", "smoke", "--style",
-                 str(inputs / "style.png"), "--out", str(out), *FAST]) == 0
+    assert (
+        main(
+            [
+                "--checkpoint",
+                str(checkpoint),
+                "--density",
+                str(source),
+                "--grid",
+                "smoke",
+                "--style",
+                str(inputs / "style.png"),
+                "--out",
+                str(out),
+                *FAST,
+            ]
+        )
+        == 0
+    )
     density, written, _ = vdb.read_vdb(out / "volume.vdb")
     np.testing.assert_array_equal(density, blob_density)
     np.testing.assert_array_equal(written.matrix, transform.matrix)
@@ -405,10 +764,24 @@ def test_vdb_with_two_float_grids_needs_grid(mi, checkpoint, inputs, tmp_path, b
         vdb.vdb_interpreter()
     except vdb.VdbUnavailable as error:
         pytest.skip(str(error))
-    source = vdb.write_vdb(tmp_path / "two.vdb", vdb.VdbTransform.for_medium_box(blob_density.shape),
-                           {"smoke": blob_density, "heat": blob_density})
-    code = main(["--checkpoint", str(checkpoint), "--density", str(source), "--style", str(inputs / "style.png"),
-                 "--out", str(tmp_path / "out"), *FAST])
+    source = vdb.write_vdb(
+        tmp_path / "two.vdb",
+        vdb.VdbTransform.for_medium_box(blob_density.shape),
+        {"smoke": blob_density, "heat": blob_density},
+    )
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(source),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(tmp_path / "out"),
+            *FAST,
+        ]
+    )
     error = capsys.readouterr().err
     assert code == 2 and "--grid" in error and "smoke" in error and "Traceback" not in error, error
     assert not (tmp_path / "out").exists()
@@ -416,7 +789,19 @@ def test_vdb_with_two_float_grids_needs_grid(mi, checkpoint, inputs, tmp_path, b
 
 def test_a_bad_style_late_in_a_batch_stops_it_before_any_output(mi, checkpoint, inputs, tmp_path, capsys):
     out = tmp_path / "batch"
-    code = main(["--checkpoint", str(checkpoint), "--density", str(inputs / "blob.vol"), "--style", str(inputs / "style.png"),
-                 str(inputs / "notes.txt"), "--out", str(out), *FAST])
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(inputs / "blob.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            str(inputs / "notes.txt"),
+            "--out",
+            str(out),
+            *FAST,
+        ]
+    )
     error = capsys.readouterr().err
     assert code == 2 and "notes.txt is not a readable image" in error and not out.exists()

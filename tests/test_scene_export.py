@@ -41,11 +41,16 @@ def test_the_xml_scene_renders_as_the_dictionary_does(mi, blob_density, tmp_path
     np.testing.assert_allclose(_vol_bbox(paths["albedo"]), [box.bbox_min, box.bbox_max], rtol=1e-6)
     np.testing.assert_allclose(_vol_bbox(paths["density"]), [box.bbox_min, box.bbox_max], rtol=1e-6)
     if spec.kind == "envmap":
-        assert (folder / "sky.exr").is_file() and "sky.exr\"" in paths["scene"].read_text()
+        assert (folder / "sky.exr").is_file() and 'sky.exr"' in paths["scene"].read_text()
 
 
 def test_grids_left_in_memory_are_refused(mi, blob_density):
-    scene = pathtraced_scene(blob_density, np.full(blob_density.shape + (3,), 0.5, np.float32),
-                             [CameraPath().view(0.0)], res=8, density_scale=10.0)
+    scene = pathtraced_scene(
+        blob_density,
+        np.full(blob_density.shape + (3,), 0.5, np.float32),
+        [CameraPath().view(0.0)],
+        res=8,
+        density_scale=10.0,
+    )
     with pytest.raises(ValueError, match="Cannot write the scene entry 'grid'"):
         scene_xml(scene)

@@ -6,7 +6,6 @@ import pytest
 import torch
 
 from mistyle.io import load_density
-
 from mistyle.model.skpn import SKPN, SKPNConfig, parameter_count
 
 GEN = torch.Generator().manual_seed(0)
@@ -25,7 +24,9 @@ def test_any_grid_size_is_accepted(shape):
     assert float(albedo.min()) >= 0 and float(albedo.max()) <= 1
 
 
-@pytest.mark.parametrize("variant", [dict(kernels=1), dict(kernels=2), dict(kernel_size=3), dict(norm="in"), dict(stylize="adain")])
+@pytest.mark.parametrize(
+    "variant", [dict(kernels=1), dict(kernels=2), dict(kernel_size=3), dict(norm="in"), dict(stylize="adain")]
+)
 def test_ablation_variants_run_and_backpropagate(variant):
     model = SKPN(SKPNConfig(**TINY, **variant))
     density = torch.rand(1, 1, 8, 8, 8, generator=GEN)
@@ -80,8 +81,17 @@ def test_averaged_checkpoints_hold_the_mean_weights_and_refuse_other_architectur
 
     def checkpoint(path, widths, step):
         model = SKPN(SKPNConfig(**{**TINY, "widths": widths}))
-        save_checkpoint(path, {"format": CHECKPOINT_FORMAT, "step": step, "config": {}, "extractor": "filterbank",
-                               "model": model.state_dict(), "optimizer": {}})
+        save_checkpoint(
+            path,
+            {
+                "format": CHECKPOINT_FORMAT,
+                "step": step,
+                "config": {},
+                "extractor": "filterbank",
+                "model": model.state_dict(),
+                "optimizer": {},
+            },
+        )
         return model.state_dict()
 
     a = checkpoint(tmp_path / "a.pt", (4, 8, 8), 10)
@@ -107,8 +117,18 @@ def _training_checkpoint(path, model_table: dict | None = None):
     table = config_to_dict(config)
     if model_table is not None:
         table["model"] = model_table
-    save_checkpoint(path, {"format": CHECKPOINT_FORMAT, "mistyle_version": "test", "step": 7, "config": table,
-                           "extractor": "filterbank", "model": model.state_dict(), "optimizer": {}})
+    save_checkpoint(
+        path,
+        {
+            "format": CHECKPOINT_FORMAT,
+            "mistyle_version": "test",
+            "step": 7,
+            "config": table,
+            "extractor": "filterbank",
+            "model": model.state_dict(),
+            "optimizer": {},
+        },
+    )
     return model, table
 
 
@@ -200,4 +220,3 @@ def test_the_shipped_networks_fast_path_changes_its_albedo_by_less_than_8_bit_st
         plain = model(density, kernels)
     change = (model.infer(density, kernels) - plain)[0].permute(1, 2, 3, 0)[density[0, 0] > 0].abs()
     assert float(change.mean()) < 1.0 / 255 and float(change.quantile(0.99)) < 2.0 / 255
-

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import torch
 
-from mistyle.pipeline import LUMA_WEIGHTS, Stylizer, style_parts, validate_strength
 from mistyle.data.heldout import held_out_styles
 from mistyle.io import load_style
 from mistyle.model.skpn import SKPN, SKPNConfig, StylizingKernels
+from mistyle.pipeline import LUMA_WEIGHTS, Stylizer, style_parts, validate_strength
 
 
 class NetworkOnly:
@@ -42,7 +42,9 @@ def plume():
     rng = np.random.default_rng(3)
     axis = np.linspace(-1.0, 1.0, 20)
     z, y, x = np.meshgrid(axis, axis, axis, indexing="ij")
-    return (np.clip(1.0 - (x**2 + y**2 + z**2) / 0.8, 0.0, 1.0) * (0.6 + 0.4 * rng.random((20, 20, 20)))).astype(np.float32)
+    return (np.clip(1.0 - (x**2 + y**2 + z**2) / 0.8, 0.0, 1.0) * (0.6 + 0.4 * rng.random((20, 20, 20)))).astype(
+        np.float32
+    )
 
 
 def inside(density):
@@ -72,7 +74,9 @@ def test_strength_zero_is_uniform_grey_of_the_styled_brightness(stylizer, two_st
 def test_strength_moves_the_albedo_monotonically(stylizer, two_styles, plume):
     full = stylizer(plume, two_styles[0])
     mask = inside(plume)
-    distances = [float(np.abs(stylizer(plume, two_styles[0], strength=s) - full)[mask].mean()) for s in (0.0, 0.5, 0.8, 1.0)]
+    distances = [
+        float(np.abs(stylizer(plume, two_styles[0], strength=s) - full)[mask].mean()) for s in (0.0, 0.5, 0.8, 1.0)
+    ]
     assert distances[0] > distances[1] > distances[2] > distances[3] == 0.0
 
 
@@ -98,7 +102,9 @@ def test_blend_is_the_weighted_sum_of_every_kernel_tensor():
     mixed = StylizingKernels.blend([(one, 3.0), (two, 1.0)])
     for site in kernels.sites:
         for key in kernels.sites[site]:
-            torch.testing.assert_close(mixed.sites[site][key], 0.75 * one.sites[site][key] + 0.25 * two.sites[site][key])
+            torch.testing.assert_close(
+                mixed.sites[site][key], 0.75 * one.sites[site][key] + 0.25 * two.sites[site][key]
+            )
 
 
 def test_neutral_kernels_need_a_kernel_before_the_last_convolution():

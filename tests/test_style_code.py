@@ -5,6 +5,7 @@ import pytest
 import torch
 
 from mistyle.model.dain import EPSILON, dain, density_mask, masked_statistics
+from mistyle.model.skpn import SKPN, SKPNConfig, StyleInputs
 from mistyle.model.style_code import (
     CODE_SIZE,
     COLOUR_BASIS,
@@ -15,7 +16,6 @@ from mistyle.model.style_code import (
     QUANTILES,
     style_code,
 )
-from mistyle.model.skpn import SKPN, SKPNConfig, StyleInputs
 from mistyle.train.dataset import augment_styles, hue_rotation
 
 GEN = torch.Generator().manual_seed(0)
@@ -52,7 +52,7 @@ def test_held_out_styles_get_clearly_different_codes():
     within = []
     for image in images:
         half = image.shape[0] // 2
-        crops = torch.stack([square_style(image[:half + half // 2], 64), square_style(image[half // 2:], 64)])
+        crops = torch.stack([square_style(image[: half + half // 2], 64), square_style(image[half // 2 :], 64)])
         pair = style_code(crops)
         within.append(float((pair[0] - pair[1]).norm()))
     assert float(between.min()) > 0.4 * float(between.median())
@@ -62,13 +62,17 @@ def test_held_out_styles_get_clearly_different_codes():
 def test_quantile_code_reaches_every_predictor():
     config = SKPNConfig(widths=(4, 8, 8), style_channels=(3, 4, 5, 6), style_hidden=16, style_code="quantiles")
     model = SKPN(config)
-    extractor = lambda images: [images.mean(1, keepdim=True).expand(-1, c, -1, -1)[..., :: 2**i, :: 2**i]  # noqa: E731
-                                for i, c in enumerate(config.style_channels)]
+    extractor = lambda images: [
+        images.mean(1, keepdim=True).expand(-1, c, -1, -1)[..., :: 2**i, :: 2**i]  # noqa: E731
+        for i, c in enumerate(config.style_channels)
+    ]
     styles = torch.rand(2, 3, 32, 32, generator=GEN)
     inputs = model.encode_style(styles, extractor)
     assert inputs.code.shape == (2, CODE_SIZE)
-    assert all(p.mlp[0].in_features == 2 * config.style_channels[model.style_for_site[int(s)]] + CODE_SIZE
-               for s, p in model.predictors.items())
+    assert all(
+        p.mlp[0].in_features == 2 * config.style_channels[model.style_for_site[int(s)]] + CODE_SIZE
+        for s, p in model.predictors.items()
+    )
     density = torch.rand(1, 1, 8, 8, 8, generator=GEN)
     one = StyleInputs([level[:1] for level in inputs.levels], inputs.code[:1])
     other = StyleInputs(one.levels, inputs.code[1:])  # same feature moments, another code
@@ -96,8 +100,10 @@ def test_fast_statistics_match_the_definition_even_for_a_large_mean():
     torch.testing.assert_close(mean.double(), ref_mean, rtol=1e-6, atol=1e-4)
     torch.testing.assert_close(variance.double(), ref_variance, rtol=2e-3, atol=1e-6)
     gamma, beta = torch.rand(2, 3, generator=GEN), torch.rand(2, 3, generator=GEN)
-    expected = gamma[..., None, None, None] * (features - ref_mean.float()) / torch.sqrt(ref_variance.float() + EPSILON) \
+    expected = (
+        gamma[..., None, None, None] * (features - ref_mean.float()) / torch.sqrt(ref_variance.float() + EPSILON)
         + beta[..., None, None, None]
+    )
     torch.testing.assert_close(dain(features, mask, gamma, beta), expected, rtol=1e-3, atol=2e-3)
 
 
@@ -144,9 +150,21 @@ def test_the_shipped_network_gives_held_out_styles_different_kernels_and_albedos
     for name in names:
         inputs = stylizer.style_inputs(load_style(records[name]["path"]))
         with torch.no_grad():
-            kernels.append(torch.cat([torch.cat([value.flatten() for value in predictor(inputs.levels[model.style_for_site[int(site)]],
-                                                                                           inputs.code).values()])
-                                      for site, predictor in model.predictors.items()]))
+            kernels.append(
+                torch.cat(
+                    [
+                        torch.cat(
+                            [
+                                value.flatten()
+                                for value in predictor(
+                                    inputs.levels[model.style_for_site[int(site)]], inputs.code
+                                ).values()
+                            ]
+                        )
+                        for site, predictor in model.predictors.items()
+                    ]
+                )
+            )
         albedos.append(stylizer(blob_density, load_style(records[name]["path"]), match_colours=False))
     inside = blob_density > 0.05
     for i in range(len(names)):

@@ -75,14 +75,23 @@ def test_random_crop_scales_small_images_up():
 
 
 def test_offline_style_set_is_deterministic_and_diverse():
-    styles = offline_style_set(size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=1)
-    again = offline_style_set(size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=1)
+    styles = offline_style_set(
+        size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=1
+    )
+    again = offline_style_set(
+        size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=1
+    )
     assert [n for n, _ in styles] == [n for n, _ in again]
     for (_, a), (_, b) in zip(styles, again):
         np.testing.assert_array_equal(a, b)
     assert all(image.shape == (32, 32, 3) and 0 <= image.min() and image.max() <= 1 for _, image in styles)
     summary = style_set_diversity(styles)
-    assert summary["by_source"] == {"photo": 7, "texture": 3, "material": 7, "painting": len(list(PAINTINGS_DIR.glob("*.jpg")))}
+    assert summary["by_source"] == {
+        "photo": 7,
+        "texture": 3,
+        "material": 7,
+        "painting": len(list(PAINTINGS_DIR.glob("*.jpg"))),
+    }
     assert summary["hue_coverage"] >= 0.5
 
 

@@ -56,7 +56,11 @@ def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
     evals = [r for r in rows if "val_swd" in r]
     assert [r["step"] for r in evals] == [0, 30, 60]
     assert evals[-1]["val_swd"] < evals[0]["val_swd"]
-    assert sorted(p.name for p in (out / "previews").iterdir()) == ["step_000000.png", "step_000030.png", "step_000060.png"]
+    assert sorted(p.name for p in (out / "previews").iterdir()) == [
+        "step_000000.png",
+        "step_000030.png",
+        "step_000060.png",
+    ]
     assert list((out / "tb").glob("events.out.tfevents.*"))
     checkpoint = torch.load(out / "final.pt", weights_only=True)
     assert checkpoint["step"] == 60 and checkpoint["mistyle_version"]
@@ -65,8 +69,17 @@ def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
     assert not [p for p in out.rglob("*.tmp*")]
 
     # The direct-optimisation baseline against this network, and the inference export.
-    baseline = run(tmp_path / "baseline", tiny_smoke, "--optimize", "--checkpoint", str(out / "final.pt"),
-                   "--optimize-steps", "3", "--optimize-styles", "1")
+    baseline = run(
+        tmp_path / "baseline",
+        tiny_smoke,
+        "--optimize",
+        "--checkpoint",
+        str(out / "final.pt"),
+        "--optimize-steps",
+        "3",
+        "--optimize-styles",
+        "1",
+    )
     row = json.loads(baseline.stdout.splitlines()[0])
     assert {"swd_network", "network_seconds", "swd_optimized", "optimize_seconds", "swd_grey"} <= row.keys()
     assert (tmp_path / "baseline" / "baseline.json").is_file()
@@ -81,9 +94,28 @@ def test_tiny_config_trains_and_its_loss_drops(tmp_path, tiny_smoke):
 def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
     """configs/cpu_sliced.toml's choices: sliced objective on the body, quantile code, bf16, frame t only."""
     out = tmp_path / "run"
-    run(out, tiny_smoke, "--set", "optim.steps=30", "--set", "run.eval_every=30", "--set", 'loss.objective="sliced"',
-        "--set", 'loss.mask="body"', "--set", 'model.style_code="quantiles"', "--set", 'run.precision="bf16"',
-        "--set", 'loss.temporal_gradient="current"', "--set", "data.hue_augment=0.5", "--set", "run.keep_checkpoints=true")
+    run(
+        out,
+        tiny_smoke,
+        "--set",
+        "optim.steps=30",
+        "--set",
+        "run.eval_every=30",
+        "--set",
+        'loss.objective="sliced"',
+        "--set",
+        'loss.mask="body"',
+        "--set",
+        'model.style_code="quantiles"',
+        "--set",
+        'run.precision="bf16"',
+        "--set",
+        'loss.temporal_gradient="current"',
+        "--set",
+        "data.hue_augment=0.5",
+        "--set",
+        "run.keep_checkpoints=true",
+    )
     rows = records(out)
     steps = [r for r in rows if "loss_hist" in r]
     assert len(steps) == 30 and all(np.isfinite(r["loss_hist"]) for r in steps)
@@ -93,13 +125,31 @@ def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
     assert {"val_rgb_swd", "val_patch_swd", "val_hue_coverage"} <= rows[-1].keys()
     assert all(np.isfinite(r["grad_norm"]) for r in steps)
     assert (out / "best.pt").is_file()  # the better of the two evaluations
-    assert sorted(p.name for p in (out / "steps").glob("*.pt")) == ["step_000010.pt", "step_000020.pt", "step_000030.pt"]
+    assert sorted(p.name for p in (out / "steps").glob("*.pt")) == [
+        "step_000010.pt",
+        "step_000020.pt",
+        "step_000030.pt",
+    ]
     assert "optimizer" not in torch.load(out / "steps" / "step_000030.pt", weights_only=True)
     # --init: a new run from those weights starts where the first one's best evaluation was.
     best = min(r["val_rgb_swd"] for r in rows if "val_rgb_swd" in r)
     again = tmp_path / "again"
-    run(again, tiny_smoke, "--init", str(out / "best.pt"), "--set", "optim.steps=1", "--set", 'loss.objective="sliced"',
-        "--set", 'loss.mask="body"', "--set", 'model.style_code="quantiles"', "--set", "optim.clip_grad=1.0")
+    run(
+        again,
+        tiny_smoke,
+        "--init",
+        str(out / "best.pt"),
+        "--set",
+        "optim.steps=1",
+        "--set",
+        'loss.objective="sliced"',
+        "--set",
+        'loss.mask="body"',
+        "--set",
+        'model.style_code="quantiles"',
+        "--set",
+        "optim.clip_grad=1.0",
+    )
     assert records(again)[0]["step"] == 0 and abs(records(again)[0]["val_rgb_swd"] - best) < 1e-4
     clash = run(tmp_path / "clash", tiny_smoke, "--init", str(out / "best.pt"), "--resume", check=False)
     assert clash.returncode == 2 and "give one of them" in clash.stderr
@@ -113,7 +163,9 @@ def test_the_style_fidelity_configuration_trains(tmp_path, tiny_smoke):
 
 def _kill_after(out, smoke, step, sig, *extra):
     """Start a run, wait for its progress line of ``step``, send ``sig``; returns the process result."""
-    process = subprocess.Popen(command(out, smoke, *extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
+    process = subprocess.Popen(
+        command(out, smoke, *extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO
+    )
     for line in process.stderr:
         if line.startswith(f"step {step}/"):
             process.send_signal(sig)
@@ -151,15 +203,18 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_cleanly(tmp_path, tiny_smoke):
     assert records(out)[-1]["step"] == saved
 
 
-@pytest.mark.parametrize("extra, message", [
-    (("--set", "optim.nonsense=1"), "unknown key 'nonsense'"),
-    (("--set", "optim.batch=\"two\""), "batch must be int"),
-    (("--set", 'data.styles="/nonexistent/styles"'), "does not exist"),
-    (("--set", 'loss.objective="pixels"'), "loss.objective must be one of features, sliced"),
-    (("--set", 'run.precision="fp16"'), "run.precision must be one of fp32, bf16"),
-    (("--set", 'model.style_code="vgg"'), "style_code must be moments or quantiles"),
-    (("--set", "optim.clip_grad=-1.0"), "optim.clip_grad must be >= 0"),
-])
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (("--set", "optim.nonsense=1"), "unknown key 'nonsense'"),
+        (("--set", 'optim.batch="two"'), "batch must be int"),
+        (("--set", 'data.styles="/nonexistent/styles"'), "does not exist"),
+        (("--set", 'loss.objective="pixels"'), "loss.objective must be one of features, sliced"),
+        (("--set", 'run.precision="fp16"'), "run.precision must be one of fp32, bf16"),
+        (("--set", 'model.style_code="vgg"'), "style_code must be moments or quantiles"),
+        (("--set", "optim.clip_grad=-1.0"), "optim.clip_grad must be >= 0"),
+    ],
+)
 def test_bad_configs_fail_before_any_work(tmp_path, tiny_smoke, extra, message):
     result = run(tmp_path / "run", tiny_smoke, *extra, check=False)
     assert result.returncode == 2 and message in result.stderr and "Traceback" not in result.stderr
@@ -167,9 +222,17 @@ def test_bad_configs_fail_before_any_work(tmp_path, tiny_smoke, extra, message):
 
 
 def test_missing_or_empty_dataset_is_a_clear_error(tmp_path, tiny_smoke):
-    missing = subprocess.run(command(tmp_path / "run", tmp_path / "nowhere", "--set", 'data.make=""'),
-                             capture_output=True, text=True, cwd=REPO)
-    assert missing.returncode == 2 and "No smoke dataset" in missing.stderr and "python -m mistyle.data smoke" in missing.stderr
+    missing = subprocess.run(
+        command(tmp_path / "run", tmp_path / "nowhere", "--set", 'data.make=""'),
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
+    assert (
+        missing.returncode == 2
+        and "No smoke dataset" in missing.stderr
+        and "python -m mistyle.data smoke" in missing.stderr
+    )
     empty = tmp_path / "empty"
     shutil.copytree(tiny_smoke, empty)
     manifest = json.loads((empty / "manifest.json").read_text())
@@ -189,9 +252,24 @@ def test_two_process_ddp_on_cpu(tmp_path, tiny_smoke):
     with socket.socket() as probe:  # a free port, so parallel CI jobs do not collide
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    launcher = (sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", str(port), "-m")
-    result = subprocess.run(command(out, tiny_smoke, "--set", "optim.steps=6", "--set", "run.eval_every=100", launcher=launcher),
-                            capture_output=True, text=True, cwd=REPO, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    launcher = (
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--nproc_per_node",
+        "2",
+        "--master_port",
+        str(port),
+        "-m",
+    )
+    result = subprocess.run(
+        command(out, tiny_smoke, "--set", "optim.steps=6", "--set", "run.eval_every=100", launcher=launcher),
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=600,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert result.returncode == 0, result.stdout[-1000:] + result.stderr[-3000:]
     checkpoint = torch.load(out / "final.pt", weights_only=True)
     assert checkpoint["world_size"] == 2 and len(checkpoint["rng"]) == 2 and checkpoint["step"] == 6
@@ -221,7 +299,87 @@ def test_a_checkpoint_of_every_extractor_kind_stylizes_through_the_public_api(tm
     torch.save({f"features.{k}": v for k, v in random_vgg16(7).features.state_dict().items()}, weights)
     out = tmp_path / kind
     extra = ["--vgg-weights", str(weights)] if kind == "vgg16" else []
-    run(out, tiny_smoke, "--set", "optim.steps=2", "--set", f'run.extractor="{kind}"', "--set", "run.eval_every=100", *extra)
+    run(
+        out,
+        tiny_smoke,
+        "--set",
+        "optim.steps=2",
+        "--set",
+        f'run.extractor="{kind}"',
+        "--set",
+        "run.eval_every=100",
+        *extra,
+    )
     style = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
     albedo = mistyle.stylize(blob_density, style, checkpoint=out / "final.pt", vgg_weights=weights if extra else None)
     assert albedo.shape == blob_density.shape + (3,) and np.isfinite(albedo).all()
+
+
+# ---------------------------------------------------------------------------- recipes
+def test_a_recipe_runs_its_stages_chains_their_weights_and_stores_itself(tmp_path, tiny_smoke):
+    from mistyle.model.checkpoint import load_checkpoint
+    from mistyle.train.recipes import RECIPES
+
+    out = tmp_path / "recipe"
+    smoke = f'data.smoke="{tiny_smoke}"'
+    argv = [sys.executable, "-m", "mistyle.train", "--recipe", "tiny", "--out", str(out), "--set", smoke, "--quiet"]
+    result = subprocess.run(argv, capture_output=True, text=True, cwd=REPO, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    record = json.loads((out / "recipe.json").read_text())
+    assert [stage["stage"] for stage in record["stages"]] == ["first", "second"]
+    assert record["stages"][1]["reason"] == "step 3"  # select="step:3"
+    first, second = load_checkpoint(out / "1_first" / "chosen.pt"), load_checkpoint(out / "2_second" / "chosen.pt")
+    assert first["recipe"]["name"] == "tiny" and second["recipe"]["stage"] == "second"
+    assert second["recipe"]["recipe"] == RECIPES["tiny"].as_dict()
+    assert second["step"] == 3  # the second stage started from the first's weights, as a new run
+    started = torch.load(out / "2_second" / "steps" / "step_000003.pt", weights_only=True)
+    assert all(torch.equal(started["model"][k], second["model"][k]) for k in second["model"])
+    # Run again: finished stages are kept, nothing is trained.
+    again = subprocess.run(argv, capture_output=True, text=True, cwd=REPO, timeout=600)
+    assert again.returncode == 0 and "stage 1/2" not in again.stderr
+    assert json.loads((out / "recipe.json").read_text())["stages"][0]["reason"] == "kept from an earlier run"
+
+
+def test_recipes_name_package_configs_and_refuse_unknown_names():
+    import mistyle
+    from mistyle.train.recipes import CONFIG_DIR, RECIPES, Stage, recipe
+
+    assert Path(mistyle.__file__).resolve().parent in CONFIG_DIR.resolve().parents
+    for chosen in RECIPES.values():
+        assert all((CONFIG_DIR / stage.config).is_file() for stage in chosen.stages), chosen.name
+    assert RECIPES["skpn_cpu"].product == "mistyle/checkpoints/skpn_cpu.pt"
+    with pytest.raises(ValueError, match="Unknown recipe"):
+        recipe("nope")
+    with pytest.raises(ValueError, match="select must be one of"):
+        Stage("x", "tiny.toml", select="best")
+
+
+def test_validation_selection_scores_kept_checkpoints_and_picks_the_lowest(mi, tmp_path, tiny_smoke, blob_density):
+    from mistyle.train import recipes
+
+    run(
+        tmp_path / "run",
+        tiny_smoke,
+        "--set",
+        "optim.steps=4",
+        "--set",
+        "run.checkpoint_every=2",
+        "--set",
+        "run.keep_checkpoints=true",
+        "--set",
+        "run.eval_every=100",
+    )
+    kept = recipes.kept_checkpoints(tmp_path / "run")
+    assert [p.name for p in kept] == ["step_000002.pt", "step_000004.pt"]
+    chosen = recipes.select(
+        recipes.Stage("s", "tiny.toml", select="validation"),
+        tmp_path / "run",
+        paintings=1,
+        res=16,
+        spp=1,
+        densities=[blob_density],
+    )
+    assert set(chosen.scores) == {str(p) for p in kept} and all(np.isfinite(list(chosen.scores.values())))
+    assert chosen.chosen == min(chosen.scores, key=chosen.scores.get)
+    with pytest.raises(ValueError, match="no kept checkpoint of step 5"):
+        recipes.select(recipes.Stage("s", "tiny.toml", select="step:5"), tmp_path / "run")

@@ -25,28 +25,38 @@ def test_shipped_configs_load_and_round_trip(path, tmp_path):
 def test_paper_config_has_the_papers_settings():
     config = load_config("configs/paper.toml")
     assert (config.render.image_size, config.render.views, config.render.steps, config.optim.batch) == (160, 4, 64, 8)
-    assert (config.optim.lr, config.optim.betas, config.optim.lr_decay, config.optim.decay_every_epochs) == (2e-4, (0.9, 0.999), 0.8, 50)
+    assert (config.optim.lr, config.optim.betas, config.optim.lr_decay, config.optim.decay_every_epochs) == (
+        2e-4,
+        (0.9, 0.999),
+        0.8,
+        50,
+    )
     assert (config.loss.style_weight, config.loss.tv_weight, config.loss.temporal_weight) == (1, 10, 300)
 
 
 def test_overrides_are_typed():
-    config = load_config("configs/tiny.toml", ["optim.lr=1e-3", "optim.steps=5", "model.widths=[4, 8, 8]", "run.device=cpu",
-                                               "optim.decay_every_epochs=3"])
+    config = load_config(
+        "configs/tiny.toml",
+        ["optim.lr=1e-3", "optim.steps=5", "model.widths=[4, 8, 8]", "run.device=cpu", "optim.decay_every_epochs=3"],
+    )
     assert config.optim.lr == 1e-3 and config.optim.steps == 5 and config.model.widths == (4, 8, 8)
     assert config.optim.decay_every_epochs == 3.0 and isinstance(config.optim.decay_every_epochs, float)
 
 
-@pytest.mark.parametrize("override, message", [
-    ("optim.learning_rate=1", "unknown key 'learning_rate'"),
-    ("nothing.lr=1", "unknown key 'nothing'"),
-    ("optim.steps=1.5", "steps must be int"),
-    ("optim.steps=\"ten\"", "steps must be int"),
-    ("model.widths=[1, 2]", "must have 3 entries"),
-    ("optim.lr=-1", "optim.lr must be > 0"),
-    ("run.device=tpu", "run.device must be one of cpu, cuda"),
-    ("model.kernels=3", "kernels must be 1, 2 or 4"),
-    ("optim.lr", "--set takes section.key=value"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("optim.learning_rate=1", "unknown key 'learning_rate'"),
+        ("nothing.lr=1", "unknown key 'nothing'"),
+        ("optim.steps=1.5", "steps must be int"),
+        ('optim.steps="ten"', "steps must be int"),
+        ("model.widths=[1, 2]", "must have 3 entries"),
+        ("optim.lr=-1", "optim.lr must be > 0"),
+        ("run.device=tpu", "run.device must be one of cpu, cuda"),
+        ("model.kernels=3", "kernels must be 1, 2 or 4"),
+        ("optim.lr", "--set takes section.key=value"),
+    ],
+)
 def test_bad_overrides_name_the_key(override, message):
     with pytest.raises(ConfigError, match=message):
         load_config("configs/tiny.toml", [override])
@@ -58,7 +68,8 @@ def test_the_removed_palette_heads_keys_load_at_their_old_defaults_and_refuse_th
     config = load_config(old, ["model.head=direct"])
     assert config.model.kernels == 2 and "head" not in config_to_dict(config)["model"]
     assert config_to_dict(config_from_dict({"model": {"head": "direct", "palette_spread": 1}})) == config_to_dict(
-        config_from_dict({}))
+        config_from_dict({})
+    )
     for override in ('model.head="palette"', "model.palette_spread=1.5", 'model.head="rgb"'):
         with pytest.raises(ConfigError, match="the palette output head was removed .*20ba671"):
             load_config(old, [override])

@@ -72,12 +72,19 @@ def subprocess_route(monkeypatch):
 
 # ----------------------------------------------------------------------------- round trips
 @needs_vdb
-@pytest.mark.parametrize("transform", [VdbTransform.for_medium_box((16, 18, 20)), _rotated_transform()],
-                         ids=["medium-box", "rotated-scaled-translated"])
+@pytest.mark.parametrize(
+    "transform",
+    [VdbTransform.for_medium_box((16, 18, 20)), _rotated_transform()],
+    ids=["medium-box", "rotated-scaled-translated"],
+)
 def test_density_and_albedo_round_trip_bit_exactly(tmp_path, fields, transform, subprocess_route):
     density, albedo = fields
-    path = write_vdb(tmp_path / "out" / "smoke.vdb", transform, {DENSITY_GRID: density, ALBEDO_GRID: albedo},
-                     metadata={"source": "test", "frames": 1})
+    path = write_vdb(
+        tmp_path / "out" / "smoke.vdb",
+        transform,
+        {DENSITY_GRID: density, ALBEDO_GRID: albedo},
+        metadata={"source": "test", "frames": 1},
+    )
     array, read_transform, name = read_vdb(path)
     assert name == DENSITY_GRID and array.dtype == np.float32
     np.testing.assert_array_equal(array, density)  # same shape despite the empty margins, same bits
@@ -120,8 +127,9 @@ def test_in_process_route_writes_what_the_helper_reads(tmp_path, subprocess_rout
     )
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONHOME", vdb.INTERPRETER_ENV)}
     env["PYTHONPATH"] = str(REPO)
-    result = subprocess.run([VDB_PYTHON, "-c", script, str(tmp_path / "a.vdb")], check=False, env=env,
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [VDB_PYTHON, "-c", script, str(tmp_path / "a.vdb")], check=False, env=env, capture_output=True, text=True
+    )
     if result.returncode != 0 and "No module named 'mistyle" in result.stderr:
         pytest.skip("mistyle does not import under the OpenVDB interpreter")
     assert result.returncode == 0, result.stderr
@@ -144,7 +152,8 @@ def test_a_grid_written_by_the_binding_reads_at_the_right_zyx(tmp_path, subproce
         "access.setValueOn((12, 21, 30), 2.5)\n"
         "access.setValueOn((10, 20, 34), 4.0)\n"
         "vdb.write(sys.argv[1], grids=[grid])\n",
-        str(path))
+        str(path),
+    )
     array, transform, name = read_vdb(path)  # the only float grid, although not named 'density'
     assert name == "smoke"
     assert transform.index_min == (10, 20, 30)
@@ -199,7 +208,8 @@ def two_float_grids(tmp_path):
         "velocity.name = 'vel'\n"
         "velocity.getAccessor().setValueOn((0, 0, 0), (1.0, 0.0, 0.0))\n"
         "vdb.write(sys.argv[1], grids=grids + [velocity])\n",
-        str(path))
+        str(path),
+    )
     return path
 
 
@@ -260,7 +270,8 @@ def test_frustum_transforms_are_refused(tmp_path, subprocess_route):
         "grid.getAccessor().setValueOn((1, 1, 1), 1.0)\n"
         "grid.transform = vdb.createFrustumTransform((0, 0, 0), (10, 10, 10), 0.5, 2.0, 0.1)\n"
         "vdb.write(sys.argv[1], grids=[grid])\n",
-        str(path))
+        str(path),
+    )
     with pytest.raises(ValueError, match="non-linear"):
         read_vdb(path)
 
@@ -294,12 +305,15 @@ def test_converter_errors_are_one_line_without_traceback(tmp_path):
     if VDB_PYTHON is None:
         pytest.skip(f"no interpreter has OpenVDB's module: {WHY_NO_VDB}")
     (tmp_path / "bad.vdb").write_text("nope")
-    result = subprocess.run([VDB_PYTHON, str(vdb.CONVERTER), "read", str(tmp_path / "bad.vdb"), str(tmp_path)],
-                            check=False, capture_output=True, text=True)
+    result = subprocess.run(
+        [VDB_PYTHON, str(vdb.CONVERTER), "read", str(tmp_path / "bad.vdb"), str(tmp_path)],
+        check=False,
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and result.stderr.startswith("error: ")
-    result = subprocess.run([VDB_PYTHON, str(vdb.CONVERTER), "frobnicate"], check=False, capture_output=True,
-                            text=True)
+    result = subprocess.run([VDB_PYTHON, str(vdb.CONVERTER), "frobnicate"], check=False, capture_output=True, text=True)
     assert result.returncode == 2 and result.stderr.startswith("error: ") and result.stderr.count("\n") == 1
 
 
@@ -310,8 +324,10 @@ def test_an_interpreter_without_openvdb_names_the_fix(tmp_path, monkeypatch):
     fake.write_text(f"#!/bin/sh\nPYTHONPATH= exec {sys.executable} -c 'import no_such_openvdb_module'\n")
     fake.chmod(0o755)
     monkeypatch.setenv(vdb.INTERPRETER_ENV, str(fake))
-    for action in (vdb.vdb_interpreter, lambda: write_vdb(tmp_path / "a.vdb", VdbTransform(np.eye(4)),
-                                                          {DENSITY_GRID: np.ones((2, 2, 2))})):
+    for action in (
+        vdb.vdb_interpreter,
+        lambda: write_vdb(tmp_path / "a.vdb", VdbTransform(np.eye(4)), {DENSITY_GRID: np.ones((2, 2, 2))}),
+    ):
         with pytest.raises(VdbUnavailable, match="apt-get install python3-openvdb") as caught:
             action()
         assert vdb.INTERPRETER_ENV in str(caught.value) and "make setup" in str(caught.value)

@@ -1,10 +1,10 @@
 """``mistyle-bench`` (``python -m mistyle.benchmark``): the style-fidelity benchmark (see ``mistyle.benchmark``).
 
-    mistyle-bench --quick                                   # a minute: 1 small density, 2 styles, 4+1 steps
-    mistyle-bench                                           # the held-out split, every method (hours on 2 cores)
-    mistyle-bench --methods network,density_ramp,smooth_noise,uniform --resume
-    mistyle-bench --split heldout128 --methods network,uniform
-    mistyle-bench --report-only                             # table.md, sheet.jpg, index.html from rows.jsonl
+mistyle-bench --quick                                   # a minute: 1 small density, 2 styles, 4+1 steps
+mistyle-bench                                           # the held-out split, every method (hours on 2 cores)
+mistyle-bench --methods network,density_ramp,smooth_noise,uniform --resume
+mistyle-bench --split heldout128 --methods network,uniform
+mistyle-bench --report-only                             # table.md, sheet.jpg, index.html from rows.jsonl
 """
 
 from __future__ import annotations
@@ -20,19 +20,28 @@ def parser() -> argparse.ArgumentParser:
     from .methods import METHODS
     from .splits import SPLITS
 
-    p = argparse.ArgumentParser(prog="mistyle-bench", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="mistyle-bench", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--split", default="heldout", choices=list(SPLITS), help="which pairs (default: heldout)")
     p.add_argument("--densities", default=None, help="comma-separated density names of the split (default: all)")
     p.add_argument("--styles", default=None, help="comma-separated held-out style names (default: all of the split)")
     p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated, of {', '.join(METHODS)}")
     p.add_argument("--res", type=int, default=128, help="metric renders' side")
     p.add_argument("--spp", type=int, default=16, help="metric renders' paths per pixel")
-    p.add_argument("--optimise-factor", type=float, default=2.0,
-                   help="direct optimisation's steps as a multiple of the default refinement's")
+    p.add_argument(
+        "--optimise-factor",
+        type=float,
+        default=2.0,
+        help="direct optimisation's steps as a multiple of the default refinement's",
+    )
     p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
-    p.add_argument("--out", type=Path, default=None, help=f"results folder (default: {DEFAULT_OUT}; "
-                                                          f"{DEFAULT_OUT}-quick with --quick)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help=f"results folder (default: {DEFAULT_OUT}; {DEFAULT_OUT}-quick with --quick)",
+    )
     p.add_argument("--cache", type=Path, default=Path("data") / "heldout", help="where held-out densities are cached")
     p.add_argument("--resume", action="store_true", help="skip rows already in rows.jsonl (same settings)")
     p.add_argument("--report-only", action="store_true", help="rewrite the report from rows.jsonl")
@@ -57,10 +66,24 @@ def main(argv=None) -> int:
         for name, value in (("--res", res), ("--spp", spp)):
             if not 8 <= value <= 4096 if name == "--res" else not 1 <= value <= 4096:
                 raise ValueError(f"{name} is out of range, got {value}.")
-        pairs = split_pairs(split, args.densities.split(",") if args.densities else None,
-                            args.styles.split(",") if args.styles else None)
-        run(out, pairs, args.methods.split(","), res=res, spp=spp, quick=args.quick, resume=args.resume,
-            checkpoint=args.checkpoint, optimise_factor=args.optimise_factor, cache=args.cache, split=split)
+        pairs = split_pairs(
+            split,
+            args.densities.split(",") if args.densities else None,
+            args.styles.split(",") if args.styles else None,
+        )
+        run(
+            out,
+            pairs,
+            args.methods.split(","),
+            res=res,
+            spp=spp,
+            quick=args.quick,
+            resume=args.resume,
+            checkpoint=args.checkpoint,
+            optimise_factor=args.optimise_factor,
+            cache=args.cache,
+            split=split,
+        )
         print((out / "table.md").read_text(), end="")
         print(f"wrote {out}/: rows.jsonl, table.md, sheet.jpg, index.html")
         return 0

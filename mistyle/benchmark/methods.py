@@ -52,8 +52,9 @@ class Context:
 
         key = tuple(sorted(settings.items()))
         if key not in self._pipelines:
-            self._pipelines[key] = Pipeline(PipelineSettings(checkpoint=self.stylizer.path, **settings),
-                                            stylizer=self.stylizer)
+            self._pipelines[key] = Pipeline(
+                PipelineSettings(checkpoint=self.stylizer.path, **settings), stylizer=self.stylizer
+            )
         return self._pipelines[key]
 
 
@@ -71,8 +72,9 @@ def uniform_albedo(context: Context, density: np.ndarray, style: np.ndarray) -> 
     first two metric views)."""
     from .study import uniform_baseline
 
-    return uniform_baseline(density, style, context.views, density_scale=context.density_scale,
-                            radiance=context.radiance)
+    return uniform_baseline(
+        density, style, context.views, density_scale=context.density_scale, radiance=context.radiance
+    )
 
 
 def density_ramp(density: np.ndarray) -> np.ndarray:
@@ -142,27 +144,54 @@ def _optimised(context, density, style):
         schedule = replace(schedule, layer_steps=QUICK_STEPS[0], path_steps=QUICK_STEPS[1])
     else:
         schedule = schedule.scaled(context.optimise_factor)
-    albedo, _ = refine_albedo(density, context.density_scale, uniform_albedo(context, density, style), style, schedule,
-                              radiance=context.radiance)
+    albedo, _ = refine_albedo(
+        density,
+        context.density_scale,
+        uniform_albedo(context, density, style),
+        style,
+        schedule,
+        radiance=context.radiance,
+    )
     return albedo
 
 
 METHODS = {
     method.name: method
     for method in (
-        Method("default", "product", "mistyle-render's default output: network, colour match, refinement",
-               _default, uses_network=True),
-        Method("network", "product", "feed-forward (--refine 0): the network, then the colour match",
-               _network, uses_network=True),
-        Method("network_unmatched", "ablation", "the network's albedo as predicted (--no-colour-match)",
-               _network_unmatched, uses_network=True),
-        Method("density_ramp", "baseline", "training-free: the density's rank as grey, then the colour match",
-               _density_ramp),
+        Method(
+            "default",
+            "product",
+            "mistyle-render's default output: network, colour match, refinement",
+            _default,
+            uses_network=True,
+        ),
+        Method(
+            "network",
+            "product",
+            "feed-forward (--refine 0): the network, then the colour match",
+            _network,
+            uses_network=True,
+        ),
+        Method(
+            "network_unmatched",
+            "ablation",
+            "the network's albedo as predicted (--no-colour-match)",
+            _network_unmatched,
+            uses_network=True,
+        ),
+        Method(
+            "density_ramp",
+            "baseline",
+            "training-free: the density's rank as grey, then the colour match",
+            _density_ramp,
+        ),
         Method("smooth_noise", "baseline", "training-free: smooth RGB noise, then the colour match", _smooth_noise),
-        Method("uniform", "baseline", "one colour matched to the style's mean (the must-beat baseline)",
-               uniform_albedo),
-        Method("optimised", "reference", "direct optimisation of the albedo grid from the uniform baseline",
-               _optimised),
+        Method(
+            "uniform", "baseline", "one colour matched to the style's mean (the must-beat baseline)", uniform_albedo
+        ),
+        Method(
+            "optimised", "reference", "direct optimisation of the albedo grid from the uniform baseline", _optimised
+        ),
     )
 }
 

@@ -55,8 +55,9 @@ def score(density, albedo, style, views, *, res: int, spp: int, density_scale: f
     from ..objective.metrics import style_fidelity
     from ..pathtrace import path_trace
 
-    images, _ = path_trace(density, albedo, views, res=res, spp=spp, density_scale=density_scale,
-                           light=f"constant:{radiance}")
+    images, _ = path_trace(
+        density, albedo, views, res=res, spp=spp, density_scale=density_scale, light=f"constant:{radiance}"
+    )
     return style_fidelity(images, style), images
 
 
@@ -69,10 +70,20 @@ def code_commit() -> str:
     """The git commit of the package's checkout, or "unknown" outside one."""
     root = Path(__file__).resolve().parents[2]
     try:
-        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"], capture_output=True,
-                                text=True, check=True, timeout=10).stdout.strip()
-        changed = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-                                 capture_output=True, text=True, check=True, timeout=10).stdout.strip()
+        commit = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout.strip()
+        changed = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return commit + ("+changes" if changed else "")
@@ -90,9 +101,21 @@ def write_rows(path: Path, rows: list[Row]) -> None:
     atomic_write_bytes(path, "".join(json.dumps(asdict(row)) + "\n" for row in rows).encode())
 
 
-def run(out, pairs: list, method_names: list[str], *, res: int = 128, spp: int = 16, quick: bool = False,
-        resume: bool = False, checkpoint=None, optimise_factor: float = 2.0, cache=None, split: str = "",
-        log=print) -> list[Row]:
+def run(
+    out,
+    pairs: list,
+    method_names: list[str],
+    *,
+    res: int = 128,
+    spp: int = 16,
+    quick: bool = False,
+    resume: bool = False,
+    checkpoint=None,
+    optimise_factor: float = 2.0,
+    cache=None,
+    split: str = "",
+    log=print,
+) -> list[Row]:
     """Score ``method_names`` on ``pairs`` (``splits.split_pairs``), writing rows as they come, then the
     report. Returns every row in ``<out>/rows.jsonl``."""
     from ..data.heldout import held_out_density, held_out_styles
@@ -108,8 +131,9 @@ def run(out, pairs: list, method_names: list[str], *, res: int = 128, spp: int =
     rows_path, tiles = out / ROWS_FILE, out / "tiles"
     rows = read_rows(rows_path)
     stylizer = Stylizer(checkpoint)
-    context = Context(stylizer, metric_views(stylizer.config.render.camera_distance), quick=quick,
-                      optimise_factor=optimise_factor)
+    context = Context(
+        stylizer, metric_views(stylizer.config.render.camera_distance), quick=quick, optimise_factor=optimise_factor
+    )
     settings = {"res": res, "spp": spp, "views": METRIC_VIEWS, "quick": quick, "optimise_factor": optimise_factor}
     common = {"settings": settings, "checkpoint": checkpoint_id(stylizer.path), "commit": code_commit(), "split": split}
     styles = held_out_styles()
@@ -122,15 +146,33 @@ def run(out, pairs: list, method_names: list[str], *, res: int = 128, spp: int =
                 if resume and any(row.key() == probe.key() for row in rows):
                     continue
                 albedo, seconds = timed(METHODS[name], context, density, style)
-                metrics, images = score(density, albedo, style, context.views, res=res, spp=spp,
-                                        density_scale=context.density_scale, radiance=context.radiance)
-                row = Row(name, spec.name, style_name, metrics["rgb_swd"], metrics["patch_swd"],
-                          metrics["hue_coverage"], seconds, **common)
+                metrics, images = score(
+                    density,
+                    albedo,
+                    style,
+                    context.views,
+                    res=res,
+                    spp=spp,
+                    density_scale=context.density_scale,
+                    radiance=context.radiance,
+                )
+                row = Row(
+                    name,
+                    spec.name,
+                    style_name,
+                    metrics["rgb_swd"],
+                    metrics["patch_swd"],
+                    metrics["hue_coverage"],
+                    seconds,
+                    **common,
+                )
                 rows = [old for old in rows if old.key() != row.key()] + [row]
                 write_rows(rows_path, rows)
                 save_tile(tiles, row, images[0])
-                log(f"{name:18s} {spec.name:14s} {style_name:34s} RGB {row.rgb_swd:.4f} patch {row.patch_swd:.4f} "
-                    f"hue {row.hue_coverage:.2f} {seconds:6.1f} s")
+                log(
+                    f"{name:18s} {spec.name:14s} {style_name:34s} RGB {row.rgb_swd:.4f} patch {row.patch_swd:.4f} "
+                    f"hue {row.hue_coverage:.2f} {seconds:6.1f} s"
+                )
     report(out)
     return rows
 
@@ -141,22 +183,31 @@ def summary(rows: list[Row]) -> dict:
     the uniform baseline on the same pair and settings, and the number of pairs."""
     from .methods import METHODS
 
-    uniform = {(row.density, row.style, json.dumps(row.settings, sort_keys=True)): row
-               for row in rows if row.method == "uniform"}
+    uniform = {
+        (row.density, row.style, json.dumps(row.settings, sort_keys=True)): row
+        for row in rows
+        if row.method == "uniform"
+    }
     order = list(METHODS) + sorted({row.method for row in rows} - set(METHODS))
     result = {}
     for method in order:
         mine = [row for row in rows if row.method == method]
         if not mine:
             continue
-        entry = {key: float(np.median([getattr(row, key) for row in mine]))
-                 for key in ("rgb_swd", "patch_swd", "hue_coverage", "seconds")}
-        matched = [(row, uniform.get((row.density, row.style, json.dumps(row.settings, sort_keys=True))))
-                   for row in mine]
+        entry = {
+            key: float(np.median([getattr(row, key) for row in mine]))
+            for key in ("rgb_swd", "patch_swd", "hue_coverage", "seconds")
+        }
+        matched = [
+            (row, uniform.get((row.density, row.style, json.dumps(row.settings, sort_keys=True)))) for row in mine
+        ]
         matched = [(row, base) for row, base in matched if base is not None]
         for key in ("rgb_swd", "patch_swd"):
-            entry[f"{key}_x_uniform"] = (float(np.median([getattr(row, key) / getattr(base, key) for row, base in matched]))
-                                         if matched else float("nan"))
+            entry[f"{key}_x_uniform"] = (
+                float(np.median([getattr(row, key) / getattr(base, key) for row, base in matched]))
+                if matched
+                else float("nan")
+            )
         entry["pairs"] = len(mine)
         result[method] = entry
     return result
@@ -164,11 +215,15 @@ def summary(rows: list[Row]) -> dict:
 
 def table(rows: list[Row]) -> str:
     """The medians of ``summary`` as a Markdown table."""
-    lines = ["| method | RGB SWD | x uniform | patch SWD | x uniform | hue coverage | seconds | pairs |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| method | RGB SWD | x uniform | patch SWD | x uniform | hue coverage | seconds | pairs |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for method, m in summary(rows).items():
-        lines.append(f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_x_uniform']:.2f} | {m['patch_swd']:.4f} | "
-                     f"{m['patch_swd_x_uniform']:.2f} | {m['hue_coverage']:.2f} | {m['seconds']:.1f} | {m['pairs']} |")
+        lines.append(
+            f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_x_uniform']:.2f} | {m['patch_swd']:.4f} | "
+            f"{m['patch_swd_x_uniform']:.2f} | {m['hue_coverage']:.2f} | {m['seconds']:.1f} | {m['pairs']} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -221,7 +276,7 @@ def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
         for method in methods:
             tile = tiles / f"{density}__{style}__{method}.png"
             cells.append(load_style(tile) if tile.exists() else np.full((TILE, TILE, 3), 0.5, np.float32))
-        canvas[16 + index * TILE:16 + (index + 1) * TILE] = np.concatenate(cells, axis=1)
+        canvas[16 + index * TILE : 16 + (index + 1) * TILE] = np.concatenate(cells, axis=1)
     image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
     draw = ImageDraw.Draw(image)
     for column, name in enumerate(["style"] + methods):

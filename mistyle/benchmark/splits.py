@@ -26,12 +26,24 @@ class Split:
 SPLITS = {
     split.name: split
     for split in (
-        Split("heldout", tuple(d for d in HELD_OUT_DENSITIES if d.name in ("smoke64", "pyroclastic64")), None,
-              "the held-out 64^3 densities (smoke, pyroclastic cloud) with every held-out style"),
-        Split("heldout128", tuple(d for d in HELD_OUT_DENSITIES if d.name == "smoke128"), None,
-              "the held-out 128^3 smoke with every held-out style"),
-        Split("quick", (QUICK_DENSITY,), ("hokusai_great_wave", "signac_la_calanque"),
-              "one 32^3 held-out cloud and two held-out styles: a minute's check that everything runs"),
+        Split(
+            "heldout",
+            tuple(d for d in HELD_OUT_DENSITIES if d.name in ("smoke64", "pyroclastic64")),
+            None,
+            "the held-out 64^3 densities (smoke, pyroclastic cloud) with every held-out style",
+        ),
+        Split(
+            "heldout128",
+            tuple(d for d in HELD_OUT_DENSITIES if d.name == "smoke128"),
+            None,
+            "the held-out 128^3 smoke with every held-out style",
+        ),
+        Split(
+            "quick",
+            (QUICK_DENSITY,),
+            ("hokusai_great_wave", "signac_la_calanque"),
+            "one 32^3 held-out cloud and two held-out styles: a minute's check that everything runs",
+        ),
     )
 }
 

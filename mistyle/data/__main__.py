@@ -15,7 +15,7 @@ import errno
 import sys
 from pathlib import Path
 
-from ..conventions import DEVICES
+from ..conventions import DEFAULT_DENSITY_SCALE, DEVICES, LS_DIRECTIONS
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -49,8 +49,9 @@ def main(argv=None) -> int:
     smoke.add_argument("--crop", type=int, default=0, help="store random crops of this size (for high-resolution plumes)")
     smoke.add_argument("--crops-per-frame", type=int, default=5)
     smoke.add_argument("--seed", type=int, default=0)
-    smoke.add_argument("--density-scale", type=float, default=20.0, help="extinction scale the cached Ls is made for")
-    smoke.add_argument("--directions", type=int, default=128, help="K for the cached Ls")
+    smoke.add_argument("--density-scale", type=float, default=DEFAULT_DENSITY_SCALE,
+                       help="extinction scale the cached Ls is made for")
+    smoke.add_argument("--directions", type=int, default=LS_DIRECTIONS, help="K for the cached Ls")
     smoke.add_argument("--shard", type=_shard, default=(0, 1), help="i/n: this process's share of the plumes")
     smoke.add_argument("--device", choices=DEVICES, default=None,
                        help="Mitsuba variant of the Ls precompute: cpu (llvm_ad_rgb) or cuda (cuda_ad_rgb); "

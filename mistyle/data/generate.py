@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..conventions import DEFAULT_DENSITY_SCALE, LS_DIRECTIONS
 from ..io import atomic_write_bytes, write_npz
 from ..progress import bar, status
 
@@ -39,8 +40,8 @@ class SmokeDatasetSpec:
     crop: int = 0  # > 0: store random crops of this size instead of whole frames
     crops_per_frame: int = 5
     seed: int = 0
-    density_scale: float = 20.0
-    directions: int = 128
+    density_scale: float = DEFAULT_DENSITY_SCALE
+    directions: int = LS_DIRECTIONS
 
     def validate(self) -> None:
         if self.resolution < 8:

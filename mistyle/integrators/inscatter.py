@@ -48,6 +48,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..conventions import LS_DIRECTIONS
 from ..scenes.box import MediumBox
 
 METHODS = ("sheared", "bruteforce")
@@ -83,7 +84,7 @@ def hammersley_sphere(count: int) -> np.ndarray:
 
 def inscattered_radiance(
     sigma_t: np.ndarray,
-    directions: int = 128,
+    directions: int = LS_DIRECTIONS,
     method: str = "sheared",
     steps: int = 64,
     only_where_used: bool = True,
@@ -150,7 +151,9 @@ def resample_trilinear(grid: np.ndarray, factor: int) -> np.ndarray:
     return np.asarray(texture.eval(p)[0], dtype=np.float32).reshape(shape)
 
 
-def trilinear_nodes(samples: np.ndarray, valid: np.ndarray | None = None, oversample: int = FIT_OVERSAMPLE) -> np.ndarray:
+def trilinear_nodes(
+    samples: np.ndarray, valid: np.ndarray | None = None, oversample: int = FIT_OVERSAMPLE
+) -> np.ndarray:
     """Nodal values whose trilinear interpolant best fits the smooth field sampled at the voxel centres.
 
     Interpolating point samples of Ls trilinearly overestimates it wherever it is convex (just inside
@@ -213,8 +216,12 @@ def _trilinear_fit_matrix(n: int, oversample: int) -> np.ndarray:
     np.add.at(linear, (rows, cell + 1), t)
     t = x_field - cell
     cubic = np.zeros((x.size, n))
-    weights = (0.5 * (-t**3 + 2 * t**2 - t), 0.5 * (3 * t**3 - 5 * t**2 + 2),
-               0.5 * (-3 * t**3 + 4 * t**2 + t), 0.5 * (t**3 - t**2))
+    weights = (
+        0.5 * (-(t**3) + 2 * t**2 - t),
+        0.5 * (3 * t**3 - 5 * t**2 + 2),
+        0.5 * (-3 * t**3 + 4 * t**2 + t),
+        0.5 * (t**3 - t**2),
+    )
     for offset, weight in zip((-1, 0, 1, 2), weights):
         index = cell + offset  # a tap past either end is the linear extrapolation of the last two samples
         inside = np.clip(index, 0, n - 1)
@@ -224,7 +231,9 @@ def _trilinear_fit_matrix(n: int, oversample: int) -> np.ndarray:
     return np.linalg.solve(linear.T @ linear, linear.T @ cubic)
 
 
-def inscattered_radiance_at(sigma_t: np.ndarray, points: np.ndarray, directions: int = 128, steps: int = 64) -> np.ndarray:
+def inscattered_radiance_at(
+    sigma_t: np.ndarray, points: np.ndarray, directions: int = LS_DIRECTIONS, steps: int = 64
+) -> np.ndarray:
     """Ls for unit radiance at arbitrary ``points (P, 3)``, given in voxel units ``(x, y, z)``.
 
     Brute-force marching (the reference); used to study Ls on grids finer than the density's.
@@ -325,9 +334,17 @@ def _line_plan(omega: np.ndarray, res: np.ndarray, voxel_size: float) -> dict:
     lines_c = int(res[c]) + math.ceil(abs(span_c)) + 3
     eye = np.eye(3)
     return {
-        "origin": origin, "e_a": eye[a], "e_b": eye[b], "e_c": eye[c], "step": step,
-        "lines_c": lines_c, "lines": lines_b * lines_c, "slices": slices, "samples": slices + 2,
-        "first": float(slices - 1) if omega[a] > 0 else 0.0, "stride": -1.0 if omega[a] > 0 else 1.0,
+        "origin": origin,
+        "e_a": eye[a],
+        "e_b": eye[b],
+        "e_c": eye[c],
+        "step": step,
+        "lines_c": lines_c,
+        "lines": lines_b * lines_c,
+        "slices": slices,
+        "samples": slices + 2,
+        "first": float(slices - 1) if omega[a] > 0 else 0.0,
+        "stride": -1.0 if omega[a] > 0 else 1.0,
         "segment": voxel_size / abs(omega[a]),  # world length between consecutive slices
     }
 
@@ -355,8 +372,14 @@ def _sheared_batch(texture, res_np, q, visibility, plans: list[dict]):
 
     tau_lines = dr.empty(mi.Float, int(sizes.sum()))
     _march_lines(
-        texture, res, tables, mi.UInt32(direction_of_line), mi.UInt32(local_line),
-        mi.Float(local_line // lines_c), mi.Float(local_line % lines_c), tau_lines,
+        texture,
+        res,
+        tables,
+        mi.UInt32(direction_of_line),
+        mi.UInt32(local_line),
+        mi.Float(local_line // lines_c),
+        mi.Float(local_line % lines_c),
+        tau_lines,
     )
     visibility = _gather_visibility(visibility, tau_lines, q, res, tables, dr.opaque(mi.UInt32, len(plans)))
     dr.eval(visibility)
@@ -462,18 +485,25 @@ def _gather_visibility(visibility, tau_lines, q, res, tables, count):
             inner = dr.clip(mu, 0.0, d["slices"] - 1.0)
             sample = dr.select(mu < 0.0, 0.0, dr.select(mu > d["slices"] - 1.0, d["slices"], dr.floor(inner) + 1.0))
             fraction = dr.select(
-                mu < 0.0, 2.0 * (mu + 0.5), dr.select(mu > d["slices"] - 1.0, 2.0 * (mu - d["slices"] + 1.0), inner - dr.floor(inner))
+                mu < 0.0,
+                2.0 * (mu + 0.5),
+                dr.select(mu > d["slices"] - 1.0, 2.0 * (mu - d["slices"] + 1.0), inner - dr.floor(inner)),
             )
             below = tap00 + mi.UInt32(sample) * d["lines"]
             values = []
             for offset in (below, below + d["lines"]):
-                corner = [dr.gather(mi.Float, tau_lines, offset + db * d["lines_c"] + dc) for db in (1, 2) for dc in (1, 2)]
+                corner = [
+                    dr.gather(mi.Float, tau_lines, offset + db * d["lines_c"] + dc) for db in (1, 2) for dc in (1, 2)
+                ]
                 values.append(dr.lerp(dr.lerp(corner[0], corner[1], fc), dr.lerp(corner[2], corner[3], fc), fb))
             return dr.lerp(values[0], values[1], fraction)
 
-        to_near = dr.minimum(m + 0.5, dr.minimum(_slices_to_side(q_b, step_b, size_b), _slices_to_side(q_c, step_c, size_c)))
+        to_near = dr.minimum(
+            m + 0.5, dr.minimum(_slices_to_side(q_b, step_b, size_b), _slices_to_side(q_c, step_c, size_c))
+        )
         to_far = dr.minimum(
-            d["slices"] - 0.5 - m, dr.minimum(_slices_to_side(q_b, -step_b, size_b), _slices_to_side(q_c, -step_c, size_c))
+            d["slices"] - 0.5 - m,
+            dr.minimum(_slices_to_side(q_b, -step_b, size_b), _slices_to_side(q_c, -step_c, size_c)),
         )
         # Large optical depths come from the cubic reads; the bilinear ones only cover the stretch
         # between the exit and a face, outside the box sideways, where smoke is thin.

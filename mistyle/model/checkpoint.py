@@ -24,7 +24,18 @@ from .features import extractor_from_name
 from .skpn import SKPN
 
 CHECKPOINT_FORMAT = 1
-INFERENCE_KEYS = ("format", "mistyle_version", "step", "seconds", "config", "extractor", "density_scale", "model", "averaged_from")
+INFERENCE_KEYS = (
+    "format",
+    "mistyle_version",
+    "step",
+    "seconds",
+    "config",
+    "extractor",
+    "density_scale",
+    "model",
+    "averaged_from",
+    "recipe",
+)
 
 
 def load_checkpoint(path) -> dict:
@@ -38,8 +49,10 @@ def load_checkpoint(path) -> dict:
             checkpoint = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # torch raises many kinds for a damaged or unsafe file
         # torch's own message advises weights_only=False; never pass that advice on for a foreign file.
-        raise ValueError(f"{path} is not a readable mistyle checkpoint ({type(error).__name__}); "
-                         "only checkpoints written by mistyle can be loaded.") from None
+        raise ValueError(
+            f"{path} is not a readable mistyle checkpoint ({type(error).__name__}); "
+            "only checkpoints written by mistyle can be loaded."
+        ) from None
     if not isinstance(checkpoint, dict) or checkpoint.get("format") != CHECKPOINT_FORMAT or "model" not in checkpoint:
         raise ValueError(f"{path} is not a mistyle SKPN checkpoint (format {CHECKPOINT_FORMAT}).")
     return checkpoint
@@ -65,9 +78,11 @@ def model_from_checkpoint(checkpoint: dict, path) -> tuple[SKPN, TrainConfig]:
         model = SKPN(config.model)
         model.load_state_dict(checkpoint["model"])
     except (KeyError, RuntimeError, ValueError) as error:
-        raise ValueError(f"{path} does not match this version's SKPN ({type(error).__name__}: {error}); "
-                         "retrain, or use the mistyle version that wrote it "
-                         f"({checkpoint.get('mistyle_version', 'unknown')}).") from None
+        raise ValueError(
+            f"{path} does not match this version's SKPN ({type(error).__name__}: {error}); "
+            "retrain, or use the mistyle version that wrote it "
+            f"({checkpoint.get('mistyle_version', 'unknown')})."
+        ) from None
     return model.eval(), config
 
 
@@ -93,9 +108,13 @@ def load_model(path, vgg_weights=None) -> TrainedModel:
     except ValueError as error:
         raise ValueError(f"{path} was trained with the feature extractor {name!r}: {error}") from None
     if tuple(extractor.channels) != tuple(config.model.style_channels):
-        raise ValueError(f"{path} expects style features of widths {config.model.style_channels}, "
-                         f"the {extractor.name} extractor gives {extractor.channels}.")
-    density_scale = validate_density_scale(checkpoint.get("density_scale", DEFAULT_DENSITY_SCALE), f"{path}: density_scale")
+        raise ValueError(
+            f"{path} expects style features of widths {config.model.style_channels}, "
+            f"the {extractor.name} extractor gives {extractor.channels}."
+        )
+    density_scale = validate_density_scale(
+        checkpoint.get("density_scale", DEFAULT_DENSITY_SCALE), f"{path}: density_scale"
+    )
     return TrainedModel(path, model, config, extractor, density_scale)
 
 
@@ -115,10 +134,14 @@ def export_checkpoint(source, destination, overrides: list[str] = (), half: bool
         try:
             SKPN(config.model).load_state_dict(payload["model"])
         except RuntimeError:
-            raise ValueError(f"--set {' '.join(overrides)} changes the network {source} holds (its weights no longer fit); "
-                             "an export may change only settings that leave the weights as they are.") from None
+            raise ValueError(
+                f"--set {' '.join(overrides)} changes the network {source} holds (its weights no longer fit); "
+                "an export may change only settings that leave the weights as they are."
+            ) from None
     if half:
-        payload["model"] = {key: value.half() if value.is_floating_point() else value for key, value in payload["model"].items()}
+        payload["model"] = {
+            key: value.half() if value.is_floating_point() else value for key, value in payload["model"].items()
+        }
     return save_checkpoint(destination, payload)
 
 
@@ -129,13 +152,22 @@ def average_checkpoints(sources, destination) -> Path:
     checkpoints = [load_checkpoint(source) for source in sources]
     last = checkpoints[-1]
     for source, checkpoint in zip(sources, checkpoints):
-        if checkpoint.get("extractor") != last.get("extractor") or checkpoint["model"].keys() != last["model"].keys() or any(
-                value.shape != last["model"][key].shape for key, value in checkpoint["model"].items()):
-            raise ValueError(f"{source} does not share the architecture and extractor of {sources[-1]}; "
-                             "average checkpoints of one run only.")
+        if (
+            checkpoint.get("extractor") != last.get("extractor")
+            or checkpoint["model"].keys() != last["model"].keys()
+            or any(value.shape != last["model"][key].shape for key, value in checkpoint["model"].items())
+        ):
+            raise ValueError(
+                f"{source} does not share the architecture and extractor of {sources[-1]}; "
+                "average checkpoints of one run only."
+            )
     payload = {key: last[key] for key in INFERENCE_KEYS if key in last}
-    payload["model"] = {key: sum(checkpoint["model"][key].float() for checkpoint in checkpoints) / len(checkpoints)
-                        for key in last["model"]}
-    payload["averaged_from"] = [f"{Path(source).name} (step {checkpoint.get('step')})" for source, checkpoint in zip(sources, checkpoints)]
+    payload["model"] = {
+        key: sum(checkpoint["model"][key].float() for checkpoint in checkpoints) / len(checkpoints)
+        for key in last["model"]
+    }
+    payload["averaged_from"] = [
+        f"{Path(source).name} (step {checkpoint.get('step')})" for source, checkpoint in zip(sources, checkpoints)
+    ]
     payload.setdefault("density_scale", DEFAULT_DENSITY_SCALE)
     return save_checkpoint(destination, payload)

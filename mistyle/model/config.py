@@ -45,9 +45,11 @@ class ConfigError(ValueError):
     """A config file or ``--set`` override that cannot be used as given."""
 
 
-PALETTE_HEAD_REMOVED = ("the palette output head was removed from the package "
-                        "(docs/decisions/2026-12-01-palette-head-removed.md); its code is available in git history "
-                        "before the commit that removed it, e.g. 20ba671")
+PALETTE_HEAD_REMOVED = (
+    "the palette output head was removed from the package "
+    "(docs/decisions/2026-12-01-palette-head-removed.md); its code is available in git history "
+    "before the commit that removed it, e.g. 20ba671"
+)
 RETIRED_MODEL_KEYS = {"head": "direct", "palette_spread": 1.0}
 """[model] keys of the removed palette head, with the value each held for the network that remains: configs and
 checkpoints written while the head existed store them, and load as before with that value."""
@@ -92,7 +94,9 @@ class LossConfig:
     rgb_weight: float = 1.0  # the histogram loss in RGB, beside the feature levels
     tv_weight: float = 10.0
     temporal_weight: float = 300.0
-    temporal_gradient: str = "both"  # "both" frames of the temporal term | "current": frame t only (t+1 is a fixed target)
+    temporal_gradient: str = (
+        "both"  # "both" frames of the temporal term | "current": frame t only (t+1 is a fixed target)
+    )
 
 
 @dataclass
@@ -120,7 +124,9 @@ class RunConfig:
     eval_densities: int = 2
     eval_views: int = 2
     threads: int = 0  # torch CPU threads; 0 keeps torch's default
-    precision: str = "fp32"  # the network's training forward pass: "fp32" | "bf16" (autocast; DAIN statistics stay fp32)
+    precision: str = (
+        "fp32"  # the network's training forward pass: "fp32" | "bf16" (autocast; DAIN statistics stay fp32)
+    )
 
 
 @dataclass
@@ -141,12 +147,17 @@ class TrainConfig:
             (self.render.image_size >= 16, "render.image_size must be >= 16 (the extractor pools three times)"),
             (self.render.views >= 1 and self.render.steps >= 1, "render.views and render.steps must be >= 1"),
             (self.render.scheme in LAYER_SCHEMES, f"render.scheme must be one of {', '.join(LAYER_SCHEMES)}"),
-            (math.isfinite(self.render.radiance) and self.render.radiance > 0, "render.radiance must be a finite number > 0"),
+            (
+                math.isfinite(self.render.radiance) and self.render.radiance > 0,
+                "render.radiance must be a finite number > 0",
+            ),
             (self.loss.style in STYLE_LOSSES, f"loss.style must be one of {', '.join(STYLE_LOSSES)}"),
             (self.loss.objective in OBJECTIVES, f"loss.objective must be one of {', '.join(OBJECTIVES)}"),
             (self.loss.mask in LOSS_MASKS, f"loss.mask must be one of {', '.join(LOSS_MASKS)}"),
-            (self.loss.temporal_gradient in TEMPORAL_GRADIENTS,
-             f"loss.temporal_gradient must be one of {', '.join(TEMPORAL_GRADIENTS)}"),
+            (
+                self.loss.temporal_gradient in TEMPORAL_GRADIENTS,
+                f"loss.temporal_gradient must be one of {', '.join(TEMPORAL_GRADIENTS)}",
+            ),
             (self.loss.patch_weight >= 0, "loss.patch_weight must be >= 0"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.clip_grad >= 0, "optim.clip_grad must be >= 0 (0 turns clipping off)"),
@@ -154,8 +165,10 @@ class TrainConfig:
             (self.run.device in DEVICES, f"run.device must be one of {', '.join(DEVICES)}"),
             (self.run.precision in PRECISIONS, f"run.precision must be one of {', '.join(PRECISIONS)}"),
             (self.run.extractor in EXTRACTOR_KINDS, f"run.extractor must be one of {', '.join(EXTRACTOR_KINDS)}"),
-            (min(self.run.log_every, self.run.eval_every, self.run.checkpoint_every) >= 1,
-             "run.log_every, run.eval_every and run.checkpoint_every must be >= 1"),
+            (
+                min(self.run.log_every, self.run.eval_every, self.run.checkpoint_every) >= 1,
+                "run.log_every, run.eval_every and run.checkpoint_every must be >= 1",
+            ),
         ]
         for ok, message in checks:
             if not ok:
@@ -178,7 +191,9 @@ def load_config(path: str | Path | None = None, overrides: list[str] = ()) -> Tr
         try:
             table = tomllib.loads(path.read_text())
         except FileNotFoundError:
-            raise ConfigError(f"Config file {path} does not exist; see configs/ for tiny.toml, cpu.toml, paper.toml.") from None
+            raise ConfigError(
+                f"Config file {path} does not exist; see configs/ for tiny.toml, cpu.toml, paper.toml."
+            ) from None
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
             raise ConfigError(f"Config file {path} is not valid TOML: {error}") from None
         _update(config, table, where=str(path))
@@ -216,6 +231,7 @@ def config_from_dict(table: dict, where: str = "checkpoint") -> TrainConfig:
 
 def to_toml(table: dict) -> str:
     """The resolved config as TOML (two levels of tables, scalars and lists)."""
+
     def literal(value):
         if isinstance(value, bool):
             return "true" if value else "false"
@@ -240,7 +256,9 @@ def _update(target, table: dict, where: str) -> None:
     hints = typing.get_type_hints(type(target))
     for key, value in table.items():
         if key not in fields:
-            raise ConfigError(f"{where}: unknown key {key!r} in [{type(target).__name__}]; known keys: {', '.join(fields)}.")
+            raise ConfigError(
+                f"{where}: unknown key {key!r} in [{type(target).__name__}]; known keys: {', '.join(fields)}."
+            )
         current = getattr(target, key)
         if dataclasses.is_dataclass(current):
             if not isinstance(value, dict):

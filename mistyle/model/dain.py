@@ -19,7 +19,9 @@ DAIN_LAMBDA = 100.0
 EPSILON = 1e-5
 
 
-def density_mask(density: torch.Tensor, size: tuple[int, int, int] | None = None, lam: float = DAIN_LAMBDA) -> torch.Tensor:
+def density_mask(
+    density: torch.Tensor, size: tuple[int, int, int] | None = None, lam: float = DAIN_LAMBDA
+) -> torch.Tensor:
     """``1 - exp(-lambda density^2)`` for ``density (B, 1, D, H, W)``, max-pooled to ``size`` if given."""
     mask = 1.0 - torch.exp(-lam * density**2)
     if size is not None and tuple(mask.shape[2:]) != tuple(size):

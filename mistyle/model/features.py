@@ -33,8 +33,21 @@ IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 VGG16_FILE = "vgg16-397923af.pth"
 # (in, out) of each conv up to relu4_3; "M" is a 2x2 max pool.
-_VGG16_PLAN = [(3, 64), (64, 64), "M", (64, 128), (128, 128), "M", (128, 256), (256, 256), (256, 256), "M",
-               (256, 512), (512, 512), (512, 512)]
+_VGG16_PLAN = [
+    (3, 64),
+    (64, 64),
+    "M",
+    (64, 128),
+    (128, 128),
+    "M",
+    (128, 256),
+    (256, 256),
+    (256, 256),
+    "M",
+    (256, 512),
+    (512, 512),
+    (512, 512),
+]
 _VGG16_TAPS = (3, 8, 15, 22)  # indices of relu1_2, relu2_2, relu3_3, relu4_3 in torchvision's features
 
 
@@ -70,15 +83,21 @@ class VGG16Features(nn.Module):
 
     def load_torchvision_state_dict(self, state_dict: dict, source: str = "state dict") -> None:
         """Load torchvision VGG16 weights (``features.*`` keys; ``classifier.*`` and deeper layers ignored)."""
-        wanted = {key: value for key, value in state_dict.items() if key.startswith("features.")
-                  and int(key.split(".")[1]) < len(self.features)}
+        wanted = {
+            key: value
+            for key, value in state_dict.items()
+            if key.startswith("features.") and int(key.split(".")[1]) < len(self.features)
+        }
         expected = {key for key in self.state_dict() if key.startswith("features.")}
         missing = sorted(expected - wanted.keys())
         if missing:
             raise ValueError(f"{source} is not a torchvision VGG16 state dict: missing {missing[:4]}...")
         for key, value in wanted.items():
             if tuple(value.shape) != tuple(self.state_dict()[key].shape):
-                raise ValueError(f"{source}: {key} has shape {tuple(value.shape)}, VGG16 needs {tuple(self.state_dict()[key].shape)}.")
+                raise ValueError(
+                    f"{source}: {key} has shape {tuple(value.shape)}, "
+                    f"VGG16 needs {tuple(self.state_dict()[key].shape)}."
+                )
         self.load_state_dict(wanted, strict=False)
 
 
@@ -126,7 +145,9 @@ class FilterBankFeatures(nn.Module):
         outputs, x = [], images
         for level in range(4):
             if level:
-                x = F.conv2d(F.pad(x, (2, 2, 2, 2), mode="replicate"), self.blur.expand(3, 1, 5, 5), groups=3)[..., ::2, ::2]
+                x = F.conv2d(F.pad(x, (2, 2, 2, 2), mode="replicate"), self.blur.expand(3, 1, 5, 5), groups=3)[
+                    ..., ::2, ::2
+                ]
             responses = F.conv2d(F.pad(x, (3, 3, 3, 3), mode="replicate"), self.bank.repeat(3, 1, 1, 1), groups=3)
             outputs.append(torch.cat([x, F.relu(responses), F.relu(-responses)], dim=1))
         return outputs
@@ -182,7 +203,9 @@ def extractor_from_name(name: str, weights: str | os.PathLike | None = None) -> 
     seeded = re.fullmatch(r"vgg16-random-seed(\d+)", name)
     if seeded:
         return random_vgg16(int(seeded.group(1))).eval()
-    raise ValueError(f"Unknown feature extractor {name!r}; this mistyle knows vgg16-imagenet, vgg16-random-seed<N> and filterbank.")
+    raise ValueError(
+        f"Unknown feature extractor {name!r}; this mistyle knows vgg16-imagenet, vgg16-random-seed<N> and filterbank."
+    )
 
 
 def _imagenet_vgg16(path: Path) -> VGG16Features:

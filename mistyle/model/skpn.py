@@ -75,10 +75,12 @@ class StyleInputs(NamedTuple):
     levels: list
     code: torch.Tensor | None = None
 
-    def repeat(self, times: int) -> "StyleInputs":
+    def repeat(self, times: int) -> StyleInputs:
         """Each style ``times`` times in a row, batch-wise (``[s0, s1, s0, s1]`` for two styles twice)."""
-        return StyleInputs([torch.cat([level] * times) for level in self.levels],
-                           None if self.code is None else torch.cat([self.code] * times))
+        return StyleInputs(
+            [torch.cat([level] * times) for level in self.levels],
+            None if self.code is None else torch.cat([self.code] * times),
+        )
 
 
 class StylizingKernels(NamedTuple):
@@ -88,29 +90,37 @@ class StylizingKernels(NamedTuple):
     sites: dict
 
     @staticmethod
-    def blend(parts: list[tuple["StylizingKernels", float]]) -> "StylizingKernels":
+    def blend(parts: list[tuple[StylizingKernels, float]]) -> StylizingKernels:
         """``sum_i w_i K_i`` over ``parts = [(K_i, w_i)]``, the weights normalised to sum 1 (each >= 0)."""
         weights = torch.tensor([float(w) for _, w in parts], dtype=torch.float64)
         if not parts or not torch.isfinite(weights).all() or (weights < 0).any() or weights.sum() <= 0:
             raise ValueError(f"Kernel blending needs finite weights >= 0 with a positive sum, got {weights.tolist()}.")
         weights = weights / weights.sum()
         first = parts[0][0].sites
-        sites = {site: {key: sum(float(w) * kernels.sites[site][key] for (kernels, _), w in zip(parts, weights))
-                        for key in first[site]} for site in first}
+        sites = {
+            site: {
+                key: sum(float(w) * kernels.sites[site][key] for (kernels, _), w in zip(parts, weights))
+                for key in first[site]
+            }
+            for site in first
+        }
         return StylizingKernels(sites)
 
 
 class StylizingKernelPredictor(nn.Module):
     """Three FC layers from one level's (mean, std), and the style code if any, to one stylizing kernel."""
 
-    def __init__(self, style_channels: int, channels: int, hidden: int, kernel_size: int, with_kernel: bool,
-                 code_size: int = 0):
+    def __init__(
+        self, style_channels: int, channels: int, hidden: int, kernel_size: int, with_kernel: bool, code_size: int = 0
+    ):
         super().__init__()
         self.channels, self.kernel_size, self.with_kernel = channels, kernel_size, with_kernel
         outputs = (channels * channels * kernel_size**3 + channels if with_kernel else 0) + 2 * channels
         self.mlp = nn.Sequential(
-            nn.Linear(2 * style_channels + code_size, hidden), nn.LeakyReLU(0.2),
-            nn.Linear(hidden, hidden), nn.LeakyReLU(0.2),
+            nn.Linear(2 * style_channels + code_size, hidden),
+            nn.LeakyReLU(0.2),
+            nn.Linear(hidden, hidden),
+            nn.LeakyReLU(0.2),
             nn.Linear(hidden, outputs),
         )
 
@@ -143,8 +153,12 @@ def _apply_kernel(x: torch.Tensor, kernel: dict) -> torch.Tensor:
     if k == 1:
         y = torch.einsum("boi,bidhw->bodhw", weight[..., 0, 0, 0], x)
     else:
-        y = F.conv3d(x.reshape(1, batch * channels, *x.shape[2:]), weight.reshape(batch * channels, channels, k, k, k),
-                     padding=k // 2, groups=batch).reshape(x.shape)
+        y = F.conv3d(
+            x.reshape(1, batch * channels, *x.shape[2:]),
+            weight.reshape(batch * channels, channels, k, k, k),
+            padding=k // 2,
+            groups=batch,
+        ).reshape(x.shape)
     return y
 
 
@@ -160,18 +174,22 @@ class _ResidualBlock(nn.Module):
 
 
 class SKPN(nn.Module):
-    def __init__(self, config: SKPNConfig = SKPNConfig()):
+    def __init__(self, config: SKPNConfig | None = None):
         super().__init__()
-        self.config = config
+        self.config = config = SKPNConfig() if config is None else config
         w0, w1, w2 = config.widths
 
         def block(cin, cout, stride):
-            return nn.Sequential(nn.Conv3d(cin, cout, 3, stride=stride, padding=1), nn.LeakyReLU(0.2, inplace=True),
-                                 *[_ResidualBlock(cout) for _ in range(config.residual_blocks)])
+            return nn.Sequential(
+                nn.Conv3d(cin, cout, 3, stride=stride, padding=1),
+                nn.LeakyReLU(0.2, inplace=True),
+                *[_ResidualBlock(cout) for _ in range(config.residual_blocks)],
+            )
 
         self.encoder = nn.ModuleList([block(1, w0, 1), block(w0, w1, 2), block(w1, w2, 2)])
-        self.decoder = nn.ModuleList([nn.Conv3d(w2 + w1, w1, 3, padding=1), nn.Conv3d(w1 + w0, w0, 3, padding=1),
-                                      nn.Conv3d(w0, 3, 3, padding=1)])
+        self.decoder = nn.ModuleList(
+            [nn.Conv3d(w2 + w1, w1, 3, padding=1), nn.Conv3d(w1 + w0, w0, 3, padding=1), nn.Conv3d(w0, 3, 3, padding=1)]
+        )
         # Kernel sites: bottleneck (w2), before decoder convs 1, 2, 3 (inputs w2 + w1 after the skip
         # are stylized on the upsampled part only, w2; then w1; then w0).
         site_channels = [w2, w2, w1, w0]
@@ -179,11 +197,19 @@ class SKPN(nn.Module):
         style_for_site = [3, 2, 1, 0]  # deepest style level at the bottleneck, then shallower
         with_kernel = config.stylize == "kernel"
         self.sites = active_sites
-        self.predictors = nn.ModuleDict({
-            str(site): StylizingKernelPredictor(config.style_channels[style_for_site[site]], site_channels[site],
-                                                config.style_hidden, config.kernel_size, with_kernel, config.code_size)
-            for site in active_sites
-        })
+        self.predictors = nn.ModuleDict(
+            {
+                str(site): StylizingKernelPredictor(
+                    config.style_channels[style_for_site[site]],
+                    site_channels[site],
+                    config.style_hidden,
+                    config.kernel_size,
+                    with_kernel,
+                    config.code_size,
+                )
+                for site in active_sites
+            }
+        )
         self.style_for_site = style_for_site
 
     @torch.no_grad()
@@ -198,10 +224,15 @@ class SKPN(nn.Module):
         if not isinstance(style, StyleInputs):
             style = StyleInputs(list(style))
         if (style.code is None) != (self.config.style_code == "moments"):
-            raise ValueError(f"this SKPN has style_code={self.config.style_code!r}; "
-                             "build its style input with encode_style.")
-        return StylizingKernels({site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code)
-                                 for site in self.sites})
+            raise ValueError(
+                f"this SKPN has style_code={self.config.style_code!r}; build its style input with encode_style."
+            )
+        return StylizingKernels(
+            {
+                site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code)
+                for site in self.sites
+            }
+        )
 
     @torch.no_grad()
     def neutral_kernels(self, kernels: StylizingKernels, grey: float) -> StylizingKernels:
@@ -215,8 +246,10 @@ class SKPN(nn.Module):
         values linearly from the style's to the grey's: the style strength."""
         last = max(self.sites)
         if last != 3:
-            raise ValueError("Style strength needs an SKPN with a kernel before its last convolution (model.kernels = 2 "
-                             "or 4); this checkpoint has none. Use strength 1 or another checkpoint.")
+            raise ValueError(
+                "Style strength needs an SKPN with a kernel before its last convolution (model.kernels = 2 "
+                "or 4); this checkpoint has none. Use strength 1 or another checkpoint."
+            )
         conv = self.decoder[2]
         taps = conv.weight.sum(dim=(2, 3, 4)).double()  # (3, C): the convolution of a constant field
         level = min(max(float(grey), 1e-3), 1.0 - 1e-3)
@@ -227,7 +260,9 @@ class SKPN(nn.Module):
         site["beta"] = beta.to(site["beta"]).expand_as(site["beta"]).clone()
         return StylizingKernels({**kernels.sites, last: site})
 
-    def forward(self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor]) -> torch.Tensor:
+    def forward(
+        self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor]
+    ) -> torch.Tensor:
         """Albedo ``(B, 3, D, H, W)`` of ``density (B, 1, D, H, W)``; ``style``: ``encode_style``'s output
         (or, for ``style_code="moments"``, the bare list of levels), or kernels from ``predict_kernels``."""
         if density.dim() != 5 or density.shape[1] != 1:
@@ -261,13 +296,19 @@ class SKPN(nn.Module):
         return albedo[..., : size[0], : size[1], : size[2]]
 
     @torch.no_grad()
-    def infer(self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor],
-              precision: str | None = None, crop_margin: int | None = DEFAULT_CROP_MARGIN) -> torch.Tensor:
+    def infer(
+        self,
+        density: torch.Tensor,
+        style: StyleInputs | StylizingKernels | list[torch.Tensor],
+        precision: str | None = None,
+        crop_margin: int | None = DEFAULT_CROP_MARGIN,
+    ) -> torch.Tensor:
         """``forward`` for inference, faster: in ``precision`` (``"bf16"``: bfloat16 autocast, as the
-        network was trained; ``"fp32"``: plain; None: ``inference_precision`` of the device), and with ``crop_margin`` set, only over the bounding box
-        of the density's non-zero voxels grown by that many voxels (its low corner on a multiple of 4,
-        so the strided levels keep their alignment). Outside the box the albedo repeats its faces'
-        values: there is no medium there to show it. Returns float32 ``(B, 3, D, H, W)``.
+        network was trained; ``"fp32"``: plain; None: ``inference_precision`` of the device), and with
+        ``crop_margin`` set, only over the bounding box of the density's non-zero voxels grown by that many
+        voxels (its low corner on a multiple of 4, so the strided levels keep their alignment). Outside the
+        box the albedo repeats its faces' values: there is no medium there to show it. Returns float32
+        ``(B, 3, D, H, W)``.
 
         Both change the albedo slightly against ``forward`` in float32 over the whole box (bfloat16
         rounding; the convolutions near the crop see zero padding instead of empty-space features);

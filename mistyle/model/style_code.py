@@ -66,7 +66,9 @@ def style_code(images: torch.Tensor) -> torch.Tensor:
     if images.dim() != 4 or images.shape[1] != 3:
         raise ValueError(f"style images must be (B, 3, S, S), got {tuple(images.shape)}.")
     if min(images.shape[-2:]) < PATCH_SIZE * max(PATCH_SCALES):
-        raise ValueError(f"style images must be at least {PATCH_SIZE * max(PATCH_SCALES)} pixels on a side for the style code.")
+        raise ValueError(
+            f"style images must be at least {PATCH_SIZE * max(PATCH_SCALES)} pixels on a side for the style code."
+        )
     images = images.float()
     batch = images.shape[0]
     pixels = images.flatten(2).transpose(1, 2)  # (B, N, 3)

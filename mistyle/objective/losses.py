@@ -52,6 +52,7 @@ def histogram_loss(features: torch.Tensor, style: torch.Tensor, mask: torch.Tens
 
 def gram_loss(features: torch.Tensor, style: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
     """Squared Frobenius distance between masked Gram matrices (normalised by the value count)."""
+
     def gram(values: torch.Tensor) -> torch.Tensor:  # (C, N)
         return values @ values.transpose(0, 1) / max(values.shape[1], 1)
 
@@ -64,7 +65,8 @@ def mean_std_loss(features: torch.Tensor, style: torch.Tensor, mask: torch.Tenso
     style_flat = style.reshape(style.shape[0], -1)
     mean, std = style_flat.mean(1), style_flat.std(1, unbiased=False)
     return _per_item(
-        features, mask,
+        features,
+        mask,
         lambda values: ((values.mean(1) - mean) ** 2).sum() + ((values.std(1, unbiased=False) - std) ** 2).sum(),
     )
 
@@ -80,8 +82,9 @@ def _per_item(features, mask, loss_of_values):
     return total / batch
 
 
-def sliced_wasserstein_loss(points: torch.Tensor, target: torch.Tensor, projections: int = 64,
-                            generator: torch.Generator | None = None) -> torch.Tensor:
+def sliced_wasserstein_loss(
+    points: torch.Tensor, target: torch.Tensor, projections: int = 64, generator: torch.Generator | None = None
+) -> torch.Tensor:
     """Squared sliced 2-Wasserstein distance between point sets ``(N, D)`` and ``(M, D)`` (Heitz et al. 2021).
 
     Both sets are projected on ``projections`` random unit directions; each sorted projection of

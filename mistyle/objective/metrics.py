@@ -11,8 +11,8 @@ import torch
 
 from ..conventions import FOREGROUND_THRESHOLD
 from ..display import display
-from .losses import scaled_patches
 from ..warp import semi_lagrangian_warp
+from .losses import scaled_patches
 
 
 def foreground_pixels(render: np.ndarray, threshold: float = FOREGROUND_THRESHOLD) -> np.ndarray:
@@ -136,21 +136,27 @@ def image_patches(image: np.ndarray, mask: np.ndarray | None, scale: int, size: 
     return scaled_patches(tensor, inside, scale, size).numpy()
 
 
-def patch_swd(images: list[np.ndarray], masks: list[np.ndarray] | None, style: np.ndarray,
-              scales=PATCH_SCALES, seed: int = 0) -> float:
+def patch_swd(
+    images: list[np.ndarray], masks: list[np.ndarray] | None, style: np.ndarray, scales=PATCH_SCALES, seed: int = 0
+) -> float:
     """Sliced Wasserstein-1 between the 5x5 patches of display ``images`` (inside ``masks``) and the
     style's, averaged over ``scales``. ``nan`` when no scale has a patch wholly inside the foreground."""
     rng = np.random.default_rng(seed)
     distances = []
     for scale in scales:
-        ours = [image_patches(image, None if masks is None else mask, scale)
-                for image, mask in zip(images, masks if masks is not None else [None] * len(images))]
+        ours = [
+            image_patches(image, None if masks is None else mask, scale)
+            for image, mask in zip(images, masks if masks is not None else [None] * len(images))
+        ]
         ours = np.concatenate(ours)
         theirs = image_patches(style, None, scale)
         if len(ours) == 0 or len(theirs) == 0:
             continue
-        distances.append(sliced_wasserstein(bounded_points(ours, rng, MAX_PATCHES), bounded_points(theirs, rng, MAX_PATCHES),
-                                            seed=seed, order=1))
+        distances.append(
+            sliced_wasserstein(
+                bounded_points(ours, rng, MAX_PATCHES), bounded_points(theirs, rng, MAX_PATCHES), seed=seed, order=1
+            )
+        )
     return float(np.mean(distances)) if distances else float("nan")
 
 
@@ -158,8 +164,9 @@ def srgb_to_lab(rgb: np.ndarray) -> np.ndarray:
     """CIELab (D65) of sRGB-encoded colours ``(..., 3)`` in [0, 1]."""
     rgb = np.clip(np.asarray(rgb, dtype=np.float64), 0, 1)
     linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-    to_xyz = np.array([[0.4124564, 0.3575761, 0.1804375], [0.2126729, 0.7151522, 0.0721750],
-                       [0.0193339, 0.1191920, 0.9503041]])
+    to_xyz = np.array(
+        [[0.4124564, 0.3575761, 0.1804375], [0.2126729, 0.7151522, 0.0721750], [0.0193339, 0.1191920, 0.9503041]]
+    )
     xyz = linear @ to_xyz.T / np.array([0.95047, 1.0, 1.08883])
     delta = 6 / 29
     f = np.where(xyz > delta**3, np.cbrt(xyz), xyz / (3 * delta**2) + 4 / 29)
@@ -174,7 +181,9 @@ def kmeans(points: np.ndarray, clusters: int, seed: int = 0, iterations: int = 5
     for _ in range(1, clusters):
         nearest = np.min(((points[:, None] - np.array(centres)[None]) ** 2).sum(-1), axis=1)
         total = nearest.sum()
-        centres.append(points[rng.choice(len(points), p=nearest / total)] if total > 0 else points[rng.integers(len(points))])
+        centres.append(
+            points[rng.choice(len(points), p=nearest / total)] if total > 0 else points[rng.integers(len(points))]
+        )
     centres = np.array(centres)
     for _ in range(iterations):
         labels = np.argmin(((points[:, None] - centres[None]) ** 2).sum(-1), axis=1)
@@ -217,9 +226,11 @@ def style_fidelity(renders: list[np.ndarray], style: np.ndarray) -> dict:
     shown = [display(render) for render in renders]
     pixels = np.concatenate([image[mask] for image, mask in zip(shown, masks)])
     style = np.asarray(style, dtype=np.float32)
-    return {"rgb_swd": sliced_wasserstein(pixels, style.reshape(-1, 3), order=1),
-            "patch_swd": patch_swd(shown, masks, style),
-            "hue_coverage": hue_coverage(pixels, style)}
+    return {
+        "rgb_swd": sliced_wasserstein(pixels, style.reshape(-1, 3), order=1),
+        "patch_swd": patch_swd(shown, masks, style),
+        "hue_coverage": hue_coverage(pixels, style),
+    }
 
 
 def correlation_length(field: np.ndarray, mask: np.ndarray) -> float:
@@ -232,8 +243,10 @@ def correlation_length(field: np.ndarray, mask: np.ndarray) -> float:
     """
     mask = np.asarray(mask, dtype=np.float64)
     if mask.shape != np.shape(field) or not mask.any():
-        raise ValueError(f"correlation_length: need a non-empty mask of the field's shape {np.shape(field)}, "
-                         f"got {mask.shape} with {int(np.count_nonzero(mask))} voxels inside.")
+        raise ValueError(
+            f"correlation_length: need a non-empty mask of the field's shape {np.shape(field)}, "
+            f"got {mask.shape} with {int(np.count_nonzero(mask))} voxels inside."
+        )
     values = np.where(mask > 0, np.asarray(field, np.float64), 0.0)
     values = (values - values.sum() / mask.sum()) * mask
     padded = [2 * n for n in values.shape]
@@ -243,8 +256,12 @@ def correlation_length(field: np.ndarray, mask: np.ndarray) -> float:
         return np.fft.irfftn(spectrum * np.conj(spectrum), padded)
 
     products, pairs = autocorrelation(values), autocorrelation(mask)
-    lags = np.sqrt(sum(np.minimum(i, n - i) ** 2 for i, n in
-                       zip(np.meshgrid(*[np.arange(n) for n in padded], indexing="ij"), padded)))
+    lags = np.sqrt(
+        sum(
+            np.minimum(i, n - i) ** 2
+            for i, n in zip(np.meshgrid(*[np.arange(n) for n in padded], indexing="ij"), padded)
+        )
+    )
     shells = np.rint(lags).astype(int)
     limit = min(values.shape) // 2
     keep = (shells <= limit) & (pairs > 0.5)  # lags with at least one pair of voxels inside the mask

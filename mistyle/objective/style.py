@@ -53,7 +53,9 @@ class StyleObjective:
         levels = self.extractor(styles) if levels is None else levels
         return [[styles[item]] + [level[item] for level in levels] for item in range(styles.shape[0])]
 
-    def loss(self, images: torch.Tensor, targets: list[list[torch.Tensor]], masks: torch.Tensor | None = None) -> torch.Tensor:
+    def loss(
+        self, images: torch.Tensor, targets: list[list[torch.Tensor]], masks: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """Style loss averaged over the batch; ``images (B, V, 3, H, W)`` linear radiance, views of item b
         compared with ``targets[b]``; ``masks (B*V, 1, H, W)``: the pixels to match (default ``render_mask``)."""
         batch, views, display, mask = _shown(images, targets, masks)
@@ -88,11 +90,23 @@ class SlicedObjective:
     ``(B*V, 1, H, W)`` of the pixels to match (default ``masks.render_mask``).
     """
 
-    def __init__(self, rgb_weight: float = 1.0, patch_weight: float = 1.0, patch_size: int = 5,
-                 patch_scales=(1, 2, 4), projections: int = 64, max_target_points: int = 8192,
-                 max_render_patches: int = 4096, seed: int = 0):
+    def __init__(
+        self,
+        rgb_weight: float = 1.0,
+        patch_weight: float = 1.0,
+        patch_size: int = 5,
+        patch_scales=(1, 2, 4),
+        projections: int = 64,
+        max_target_points: int = 8192,
+        max_render_patches: int = 4096,
+        seed: int = 0,
+    ):
         self.rgb_weight, self.patch_weight, self.patch_size = rgb_weight, patch_weight, patch_size
-        self.patch_scales, self.projections, self.max_target_points = tuple(patch_scales), projections, max_target_points
+        self.patch_scales, self.projections, self.max_target_points = (
+            tuple(patch_scales),
+            projections,
+            max_target_points,
+        )
         self.max_render_patches = max_render_patches
         self.generator = torch.Generator().manual_seed(seed)
 
@@ -114,20 +128,25 @@ class SlicedObjective:
             result.append(entry)
         return result
 
-    def loss(self, images: torch.Tensor, targets: list[list[torch.Tensor]], masks: torch.Tensor | None = None) -> torch.Tensor:
+    def loss(
+        self, images: torch.Tensor, targets: list[list[torch.Tensor]], masks: torch.Tensor | None = None
+    ) -> torch.Tensor:
         batch, views, shown, masks = _shown(images, targets, masks)
         total = images.new_zeros(())
         for item in range(batch):
             rows = slice(item * views, (item + 1) * views)
             image, mask = shown[rows], masks[rows]
             pixels = image.permute(0, 2, 3, 1)[mask[:, 0] > 0.5]
-            total = total + self.rgb_weight * sliced_wasserstein_loss(pixels, targets[item][0], self.projections,
-                                                                     self.generator)
+            total = total + self.rgb_weight * sliced_wasserstein_loss(
+                pixels, targets[item][0], self.projections, self.generator
+            )
             if self.patch_weight:
                 patch_terms = []
                 for scale, target in zip(self.patch_scales, targets[item][1:]):
                     # A fresh random subset each step: over the steps every patch is matched, at a fraction of the cost.
-                    patches = self._subsample(scaled_patches(image, mask, scale, self.patch_size), self.max_render_patches)
+                    patches = self._subsample(
+                        scaled_patches(image, mask, scale, self.patch_size), self.max_render_patches
+                    )
                     if len(patches):
                         patch_terms.append(sliced_wasserstein_loss(patches, target, self.projections, self.generator))
                 if patch_terms:

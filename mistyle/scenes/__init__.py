@@ -14,6 +14,17 @@ from .medium import (
 from .pathtraced import pathtraced_scene
 
 __all__ = [
-    "CameraPath", "LightSpec", "MediumBox", "View", "albedo_parameter", "batch_sensor_dict", "constant_environment",
-    "heterogeneous_medium", "medium_cube", "pathtraced_scene", "sensor_dict", "split_views", "validate_density_scale",
+    "CameraPath",
+    "LightSpec",
+    "MediumBox",
+    "View",
+    "albedo_parameter",
+    "batch_sensor_dict",
+    "constant_environment",
+    "heterogeneous_medium",
+    "medium_cube",
+    "pathtraced_scene",
+    "sensor_dict",
+    "split_views",
+    "validate_density_scale",
 ]

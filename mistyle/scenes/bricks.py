@@ -31,10 +31,10 @@ from .medium import heterogeneous_medium
 
 DEFAULT_BRICK = 8
 DEFAULT_LEVELS = 4
-"""Chosen with ``experiments/bench_pathtrace.py --sweep`` (bundled smoke at 64^3 and 128^3, 256^2, 64 spp):
-equal-noise speed-ups 2.2x / 2.5x for 8 voxels and 4 levels; 4 voxels 2.2x / 2.1x; 16 voxels 1.9x / 2.4x;
-one level (vacuum skipping only) 1.8x / 2.1x; 6 or 8 levels no better than 4 (a medium per level costs
-a dispatch in every tracking step, and most smoke bricks fall in the last level anyway)."""
+"""Chosen with ``experiments/bench_pathtrace.py --sweep`` (bundled smoke at 64^3 and 128^3, 256^2, 64 spp;
+the figures: docs/performance.md, section 3): the fastest to equal noise of 4, 8 and 16 voxels and 1 to 8
+levels. More than 4 levels do not pay: a medium per level costs a dispatch in every tracking step, and
+most smoke bricks fall in the last level anyway."""
 
 
 def brick_levels(density: np.ndarray, brick: int, levels: int) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -68,7 +68,10 @@ def brick_levels(density: np.ndarray, brick: int, levels: int) -> tuple[np.ndarr
 
 
 def bricked_media(
-    density: np.ndarray, density_scale: float, albedo: np.ndarray, brick: int = DEFAULT_BRICK,
+    density: np.ndarray,
+    density_scale: float,
+    albedo: np.ndarray,
+    brick: int = DEFAULT_BRICK,
     levels: int = DEFAULT_LEVELS,
 ) -> dict:
     """Scene entries (``null`` face meshes carrying the media) that replace ``medium.medium_cube``.
@@ -85,8 +88,10 @@ def bricked_media(
     mi = require_variant()
     box = MediumBox(density.shape)
     level, edges = brick_levels(density, brick, levels)
-    media = {int(k): mi.load_dict(_level_medium(density, density_scale, albedo, level, edges, k))
-             for k in np.unique(level[level >= 0])}
+    media = {
+        int(k): mi.load_dict(_level_medium(density, density_scale, albedo, level, edges, k))
+        for k in np.unique(level[level >= 0])
+    }
 
     # Faces perpendicular to each axis where the media on the two sides differ, one mesh per pair
     # (below, above). Each triangle's geometric normal points to +axis, so the region above is the
@@ -125,7 +130,8 @@ def _level_medium(density, density_scale, albedo, level, edges, k) -> dict:
 def _window(edges, position, shape) -> tuple[slice, slice, slice]:
     """Voxel ranges of the brick at ``position`` (z, y, x) with a one-voxel halo, clipped to the grid."""
     return tuple(
-        slice(max(int(edges[a][position[a]]) - 1, 0), min(int(edges[a][position[a] + 1]) + 1, shape[a])) for a in range(3)
+        slice(max(int(edges[a][position[a]]) - 1, 0), min(int(edges[a][position[a] + 1]) + 1, shape[a]))
+        for a in range(3)
     )
 
 
@@ -137,7 +143,9 @@ def _quad(box: MediumBox, edges, axis: int, position) -> np.ndarray:
     """Corners ``(4, 3)`` (world x, y, z) of the face on plane ``edges[axis][position[axis]]`` over the
     cross-section of brick ``position``, counter-clockwise seen from +axis."""
     lo = np.array([edges[a][position[a]] for a in range(3)], dtype=np.float64)
-    hi = np.array([edges[a][position[a] + 1] if a != axis else edges[a][position[a]] for a in range(3)], dtype=np.float64)
+    hi = np.array(
+        [edges[a][position[a] + 1] if a != axis else edges[a][position[a]] for a in range(3)], dtype=np.float64
+    )
     normal = 2 - axis  # xyz index of the face normal
     u, v = (normal + 1) % 3, (normal + 2) % 3  # (u, v, normal) is a right-handed frame
     lo_xyz, hi_xyz = box.bbox_min + lo[::-1] * box.voxel_size, box.bbox_min + hi[::-1] * box.voxel_size

@@ -21,8 +21,10 @@ MAX_CAMERA_DISTANCE = 100.0
 def validate_camera_distance(distance, name: str = "camera distance") -> float:
     """An orbit radius outside the medium box, ``(MIN_CAMERA_DISTANCE, MAX_CAMERA_DISTANCE]``."""
     if not (np.isfinite(distance) and MIN_CAMERA_DISTANCE < distance <= MAX_CAMERA_DISTANCE):
-        raise ValueError(f"{name} must lie in ({MIN_CAMERA_DISTANCE}, {MAX_CAMERA_DISTANCE:g}] "
-                         f"(the medium box's longest side is 1), got {distance}.")
+        raise ValueError(
+            f"{name} must lie in ({MIN_CAMERA_DISTANCE}, {MAX_CAMERA_DISTANCE:g}] "
+            f"(the medium box's longest side is 1), got {distance}."
+        )
     return float(distance)
 
 

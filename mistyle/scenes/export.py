@@ -31,13 +31,24 @@ DENSITY_STEM, ALBEDO_STEM, SCENE_STEM = "density", "albedo", "scene"
 
 # The XML element of each plugin type the scene builder uses (Mitsuba's plugin categories).
 PLUGIN_TAGS = {
-    "volpath": "integrator", "prbvolpath": "integrator",
-    "constant": "emitter", "envmap": "emitter", "point": "emitter", "area": "emitter",
-    "perspective": "sensor", "batch": "sensor",
-    "cube": "shape", "ply": "shape", "rectangle": "shape",
-    "heterogeneous": "medium", "isotropic": "phase",
-    "null": "bsdf", "dielectric": "bsdf",
-    "hdrfilm": "film", "box": "rfilter", "independent": "sampler",
+    "volpath": "integrator",
+    "prbvolpath": "integrator",
+    "constant": "emitter",
+    "envmap": "emitter",
+    "point": "emitter",
+    "area": "emitter",
+    "perspective": "sensor",
+    "batch": "sensor",
+    "cube": "shape",
+    "ply": "shape",
+    "rectangle": "shape",
+    "heterogeneous": "medium",
+    "isotropic": "phase",
+    "null": "bsdf",
+    "dielectric": "bsdf",
+    "hdrfilm": "film",
+    "box": "rfilter",
+    "independent": "sampler",
     "gridvolume": "volume",
 }
 
@@ -72,7 +83,9 @@ def _element(name: str, value, top_level: bool = False) -> ET.Element:
         return ET.Element("point", name=name, value=", ".join(map(_number, value)))
     if hasattr(value, "matrix"):  # mi.ScalarTransform4f
         element = ET.Element("transform", name=name)
-        ET.SubElement(element, "matrix", value=" ".join(map(_number, np.asarray(value.matrix, dtype=np.float64).ravel())))
+        ET.SubElement(
+            element, "matrix", value=" ".join(map(_number, np.asarray(value.matrix, dtype=np.float64).ravel()))
+        )
         return element
     raise ValueError(f"Cannot write the scene entry {name!r} of type {type(value).__name__} as XML.")
 
@@ -97,10 +110,22 @@ def write_medium_grid(path, grid: np.ndarray) -> Path:
     return write_vol(path, grid, box.bbox_min, box.bbox_max)
 
 
-def write_scene_files(folder, density: np.ndarray, albedo: np.ndarray, views, *, res: int, spp: int,
-                      max_depth: int, density_scale: float, light, coat_ior: float | None = None,
-                      coat_mesh: str | Path | None = None, suffix: str = "",
-                      albedo_name: str = ALBEDO_STEM) -> dict[str, Path]:
+def write_scene_files(
+    folder,
+    density: np.ndarray,
+    albedo: np.ndarray,
+    views,
+    *,
+    res: int,
+    spp: int,
+    max_depth: int,
+    density_scale: float,
+    light,
+    coat_ior: float | None = None,
+    coat_mesh: str | Path | None = None,
+    suffix: str = "",
+    albedo_name: str = ALBEDO_STEM,
+) -> dict[str, Path]:
     """Write ``density{suffix}.vol``, ``{albedo_name}{suffix}.vol`` and ``scene{suffix}.xml`` into
     ``folder``; returns their paths (keys ``density``, ``albedo``, ``scene``).
 
@@ -116,8 +141,18 @@ def write_scene_files(folder, density: np.ndarray, albedo: np.ndarray, views, *,
     folder = Path(folder)
     names = {"density": f"{DENSITY_STEM}{suffix}.vol", "albedo": f"{albedo_name}{suffix}.vol"}
     paths = {key: write_medium_grid(folder / name, grid) for (key, name), grid in zip(names.items(), (density, albedo))}
-    scene = pathtraced_scene(density, albedo, views, res=res, spp=spp, max_depth=max_depth, density_scale=density_scale,
-                             light=light, coat_ior=coat_ior, coat_mesh=coat_mesh)
+    scene = pathtraced_scene(
+        density,
+        albedo,
+        views,
+        res=res,
+        spp=spp,
+        max_depth=max_depth,
+        density_scale=density_scale,
+        light=light,
+        coat_ior=coat_ior,
+        coat_mesh=coat_mesh,
+    )
     medium = scene["medium_box"]["interior"]
     for key, name in (("sigma_t", names["density"]), ("albedo", names["albedo"])):
         del medium[key]["grid"]

@@ -70,10 +70,20 @@ class LightSpec:
         if self.kind == "envmap":
             return {"environment": {"type": "envmap", "filename": self.filename, "scale": self.value}}
         if self.kind == "point":
-            return {"light": {"type": "point", "position": list(self.position),
-                              "intensity": {"type": "rgb", "value": self.value}}}
+            return {
+                "light": {
+                    "type": "point",
+                    "position": list(self.position),
+                    "intensity": {"type": "rgb", "value": self.value},
+                }
+            }
         # A 1.5 x 1.5 square 1.5 above the centre, emitting downwards (rectangle normals are +z).
         mi = require_variant()
         to_world = mi.ScalarTransform4f().translate([0.0, 1.5, 0.0]).rotate([1, 0, 0], 90).scale(0.75)
-        return {"light": {"type": "rectangle", "to_world": to_world,
-                          "emitter": {"type": "area", "radiance": {"type": "rgb", "value": self.value}}}}
+        return {
+            "light": {
+                "type": "rectangle",
+                "to_world": to_world,
+                "emitter": {"type": "area", "radiance": {"type": "rgb", "value": self.value}},
+            }
+        }

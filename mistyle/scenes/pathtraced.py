@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .bricks import bricked_media
 from .cameras import View, batch_sensor_dict, sensor_dict
 from .lights import LightSpec
-from .bricks import bricked_media
 from .medium import heterogeneous_medium, medium_cube
 
 PATH_TRACERS = ("volpath", "prbvolpath")
@@ -51,7 +51,7 @@ def pathtraced_scene(
     density_scale: float,
     spp: int = 64,
     max_depth: int = -1,
-    light: LightSpec = LightSpec(),
+    light: LightSpec | None = None,
     coat_ior: float | None = None,
     coat_mesh: str | Path | None = None,
     seed: int = 0,
@@ -85,20 +85,28 @@ def pathtraced_scene(
         raise ValueError(f"Unknown path tracer {integrator!r}; use one of {PATH_TRACERS}.")
     bsdf = {"type": "null"} if coat_ior is None else {"type": "dielectric", "int_ior": float(coat_ior), "ext_ior": 1.0}
     if bricks and (coat_ior is not None or integrator != "volpath"):
-        raise ValueError("bricks work with volpath and no coat only: a coat is an optical boundary on the box, and "
-                         "prbvolpath differentiates one albedo grid; use bricks=0.")
+        raise ValueError(
+            "bricks work with volpath and no coat only: a coat is an optical boundary on the box, and "
+            "prbvolpath differentiates one albedo grid; use bricks=0."
+        )
     if bricks:
         boundary = bricked_media(density, density_scale, albedo, bricks)
     elif coat_mesh is not None and coat_ior is not None:
-        boundary = {"medium_box": {"type": "ply", "filename": str(coat_mesh), "bsdf": bsdf,
-                                   "interior": heterogeneous_medium(density, density_scale, albedo)}}
+        boundary = {
+            "medium_box": {
+                "type": "ply",
+                "filename": str(coat_mesh),
+                "bsdf": bsdf,
+                "interior": heterogeneous_medium(density, density_scale, albedo),
+            }
+        }
     else:
         boundary = {"medium_box": medium_cube(density, density_scale, albedo, bsdf)}
     scene = {
         "type": "scene",
         "integrator": {"type": integrator, "max_depth": int(max_depth), "hide_emitters": True},
         **boundary,
-        **light.emitters(),
+        **(LightSpec() if light is None else light).emitters(),
     }
     if batch:
         sensor = batch_sensor_dict(views, width, height)

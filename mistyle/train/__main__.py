@@ -1,4 +1,4 @@
-"""``mistyle-train`` (``python -m mistyle.train``): train SKPN through the fast Mitsuba layer, or run the direct baseline.
+"""``mistyle-train`` (``python -m mistyle.train``): train SKPN through the fast Mitsuba layer, or run the baseline.
 
     python -m mistyle.train --config configs/cpu.toml --out runs/cpu
     python -m mistyle.train --config configs/cpu.toml --out runs/cpu --resume         # continue from last.pt
@@ -6,6 +6,7 @@
     python -m mistyle.train --config configs/tiny.toml --set optim.steps=50 --out runs/t
     torchrun --nproc_per_node 2 -m mistyle.train --config configs/tiny.toml --out runs/ddp
     python -m mistyle.train --config configs/cpu.toml --optimize --checkpoint runs/cpu/final.pt --out runs/baseline
+    python -m mistyle.train --recipe skpn_cpu --out runs/skpn_cpu      # a named recipe: every stage (train.recipes)
 
 ``--optimize`` fits albedo grids directly (no network) to held-out styles on held-out densities
 with the run's objective and light, and compares them with the network's feed-forward albedo
@@ -22,22 +23,39 @@ from pathlib import Path
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="mistyle-train", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--config", type=Path, required=True, help="a TOML file, e.g. configs/cpu.toml")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                        help="override one config value (repeatable), e.g. --set optim.lr=1e-4")
+    parser = argparse.ArgumentParser(
+        prog="mistyle-train", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--config", type=Path, help="a TOML file, e.g. configs/cpu.toml")
+    source.add_argument("--recipe", help="a named recipe of mistyle.train.recipes (e.g. skpn_cpu): all its stages")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override one config value (repeatable), e.g. --set optim.lr=1e-4",
+    )
     parser.add_argument("--out", type=Path, required=True, help="run directory (checkpoints, metrics, previews)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last.pt")
-    parser.add_argument("--init", type=Path, default=None,
-                        help="start a new run from this checkpoint's weights (training or exported; fresh optimizer)")
+    parser.add_argument(
+        "--init",
+        type=Path,
+        default=None,
+        help="start a new run from this checkpoint's weights (training or exported; fresh optimizer)",
+    )
     parser.add_argument("--device", choices=("cpu", "cuda"), default=None, help="shorthand for --set run.device=...")
-    parser.add_argument("--vgg-weights", default=None, help="torchvision VGG16 state dict (shorthand for run.vgg_weights)")
+    parser.add_argument(
+        "--vgg-weights", default=None, help="torchvision VGG16 state dict (shorthand for run.vgg_weights)"
+    )
     parser.add_argument("--optimize", action="store_true", help="run the direct per-volume optimisation baseline")
     parser.add_argument("--checkpoint", type=Path, default=None, help="with --optimize: the network to compare against")
     parser.add_argument("--optimize-steps", type=int, default=300)
     parser.add_argument("--optimize-styles", type=int, default=3)
-    parser.add_argument("--quiet", action="store_true", help="no progress bar or status lines (errors are still printed)")
+    parser.add_argument(
+        "--quiet", action="store_true", help="no progress bar or status lines (errors are still printed)"
+    )
     args = parser.parse_args(argv)
 
     from ..progress import set_quiet
@@ -54,6 +72,22 @@ def main(argv=None) -> int:
         overrides.append(f"run.vgg_weights={json.dumps(args.vgg_weights)}")
     distributed = int(os.environ.get("WORLD_SIZE", "1")) > 1
     try:
+        if args.recipe:
+            from .recipes import recipe, run_recipe
+
+            if args.init or args.resume or args.optimize:
+                raise ValueError(
+                    "--recipe runs its own stages (and resumes them by itself); drop --init/--resume/--optimize."
+                )
+            from .trainer import Interrupted
+
+            try:
+                chosen = run_recipe(recipe(args.recipe), args.out, overrides)
+            except Interrupted:
+                print(f"stopped; run the same command again to resume the recipe in {args.out}", file=sys.stderr)
+                return 130
+            print(f"done: {chosen}  (stages and choices: {args.out / 'recipe.json'})")
+            return 0
         config = load_config(args.config, overrides)
         if args.optimize:
             from .baseline import compare_with_direct_fit
@@ -64,12 +98,17 @@ def main(argv=None) -> int:
         from .trainer import Interrupted, Trainer
 
         if args.init and args.resume:
-            raise ValueError("--init starts a new run from a checkpoint's weights; --resume continues one: give one of them.")
+            raise ValueError(
+                "--init starts a new run from a checkpoint's weights; --resume continues one: give one of them."
+            )
         trainer = Trainer(config, args.out, resume=args.resume, init=args.init)
         try:
             final = trainer.run()
         except Interrupted:
-            print(f"stopped at step {trainer.step}; checkpoint {args.out / 'last.pt'}; continue with --resume", file=sys.stderr)
+            print(
+                f"stopped at step {trainer.step}; checkpoint {args.out / 'last.pt'}; continue with --resume",
+                file=sys.stderr,
+            )
             return 130
         if trainer.rank == 0:
             print(f"done: {final}  (metrics {args.out / 'metrics.jsonl'}, previews {args.out / 'previews'})")

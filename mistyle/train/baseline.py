@@ -32,7 +32,9 @@ from .trainer import device_for
 GREY = 0.5
 
 
-def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | None, steps: int, style_count: int) -> int:
+def compare_with_direct_fit(
+    config: TrainConfig, out: Path, checkpoint: Path | None, steps: int, style_count: int
+) -> int:
     device = device_for(config)  # the layer runs in the variant of the albedo's device: keep tensors there
     network = None
     if checkpoint is not None:  # the network from the checkpoint; data, light and views from --config/--set
@@ -44,8 +46,10 @@ def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | N
     extractor = make_extractor(config.run.extractor, config.run.vgg_weights or None).to(device)
     print(f"feature extractor: {extractor.name}", file=sys.stderr)
     if network is not None and tuple(extractor.channels) != tuple(config.model.style_channels):
-        raise ValueError(f"{checkpoint} was trained with another feature extractor than {extractor.name}; "
-                         "set run.extractor (and --vgg-weights) as in its training config.")
+        raise ValueError(
+            f"{checkpoint} was trained with another feature extractor than {extractor.name}; "
+            "set run.extractor (and --vgg-weights) as in its training config."
+        )
     objective = StyleObjective(extractor, config.loss.style, config.loss.rgb_weight)
     render = config.render
     orbit = CameraPath(distance=render.camera_distance)
@@ -60,10 +64,16 @@ def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | N
     def quality(albedo, style_np):
         with torch.no_grad():
             images = layer(albedo, held_out_views)
-        return float(np.mean([style_distance(image.permute(1, 2, 0).cpu().numpy(), style_np)["swd"] for image in images]))
+        return float(
+            np.mean([style_distance(image.permute(1, 2, 0).cpu().numpy(), style_np)["swd"] for image in images])
+        )
 
-    settings = FitSettings(steps=steps, views_per_step=render.views, tv_weight=config.loss.tv_weight,
-                           camera_distance=render.camera_distance)
+    settings = FitSettings(
+        steps=steps,
+        views_per_step=render.views,
+        tv_weight=config.loss.tv_weight,
+        camera_distance=render.camera_distance,
+    )
     rows = []
     for index in styles.comparison_styles(min(style_count, len(styles.val))):
         style = styles.val[index].to(device)
@@ -81,5 +91,7 @@ def compare_with_direct_fit(config: TrainConfig, out: Path, checkpoint: Path | N
         print(json.dumps(row), flush=True)
     summary = {key: float(np.mean([r[key] for r in rows])) for key in rows[0] if key != "style"}
     print(json.dumps({"mean": summary}))
-    atomic_write_bytes(Path(out) / "baseline.json", (json.dumps({"rows": rows, "mean": summary}, indent=1) + "\n").encode())
+    atomic_write_bytes(
+        Path(out) / "baseline.json", (json.dumps({"rows": rows, "mean": summary}, indent=1) + "\n").encode()
+    )
     return 0

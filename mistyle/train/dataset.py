@@ -60,7 +60,7 @@ class SmokePairs:
             raise ValueError(
                 f"No smoke dataset at {self.root} (missing manifest.json). Generate one with "
                 f"`python -m mistyle.data smoke --res 32 --plumes 24 --frames 60 --keep 41-60 --out {self.root}`, "
-                "or set data.make = \"cpu\" to have training generate it."
+                'or set data.make = "cpu" to have training generate it.'
             )
         try:
             manifest = json.loads(manifest_path.read_text())
@@ -71,13 +71,23 @@ class SmokePairs:
             raise ValueError(f"{manifest_path} is not a mistyle smoke manifest ({error}).") from None
         all_pairs = [FramePair(self.root / a, self.root / b, plume_of[a]) for a, b in pairs]
         if not all_pairs:
-            raise ValueError(f"The smoke dataset at {self.root} has no frame pairs; generate at least two kept frames per plume.")
-        missing = [p.first for p in all_pairs if not p.first.is_file()] + [p.second for p in all_pairs if not p.second.is_file()]
+            raise ValueError(
+                f"The smoke dataset at {self.root} has no frame pairs; generate at least two kept frames per plume."
+            )
+        missing = [p.first for p in all_pairs if not p.first.is_file()] + [
+            p.second for p in all_pairs if not p.second.is_file()
+        ]
         if missing:
-            raise ValueError(f"{len(missing)} frame files listed in {manifest_path} are missing, e.g. {missing[0]}; re-run generation.")
+            raise ValueError(
+                f"{len(missing)} frame files listed in {manifest_path} are missing, e.g. {missing[0]}; "
+                "re-run generation."
+            )
         plumes = sorted({p.plume for p in all_pairs})
         if len(plumes) <= val_plumes:
-            raise ValueError(f"The dataset at {self.root} has {len(plumes)} plumes; data.val_plumes={val_plumes} leaves none to train on.")
+            raise ValueError(
+                f"The dataset at {self.root} has {len(plumes)} plumes; "
+                f"data.val_plumes={val_plumes} leaves none to train on."
+            )
         held_out = set(plumes[-val_plumes:])
         self.train = [p for p in all_pairs if p.plume not in held_out]
         self.val = [p for p in all_pairs if p.plume in held_out]
@@ -87,8 +97,12 @@ class SmokePairs:
     def load(self, pair: FramePair) -> dict:
         """``density0/1 (Z,Y,X)``, frame t's ``ls0 (Z,Y,X)`` and ``velocity0 (3,Z,Y,X)`` (x,y,z) as float32."""
         a, b = load_frame(pair.first), load_frame(pair.second)
-        return {"density0": a["density"], "density1": b["density"], "ls0": a["ls"],
-                "velocity0": np.ascontiguousarray(np.moveaxis(a["velocity"], -1, 0))}
+        return {
+            "density0": a["density"],
+            "density1": b["density"],
+            "ls0": a["ls"],
+            "velocity0": np.ascontiguousarray(np.moveaxis(a["velocity"], -1, 0)),
+        }
 
 
 class StyleSet:
@@ -113,8 +127,10 @@ class StyleSet:
             folder = ImageFolder(Path(source))
             train_paths, val_paths = folder.split()
             if not train_paths or not val_paths:
-                raise ValueError(f"The style folder {source} needs at least two images (one is held out for validation); "
-                                 f"it has {len(folder.paths)}.")
+                raise ValueError(
+                    f"The style folder {source} needs at least two images (one is held out for validation); "
+                    f"it has {len(folder.paths)}."
+                )
             train = [(str(p.relative_to(folder.root)), im) for p, im in zip(train_paths, folder.load_all(train_paths))]
             val = [(str(p.relative_to(folder.root)), im) for p, im in zip(val_paths, folder.load_all(val_paths))]
         self.train_names, self.train = [n for n, _ in train], _as_batch([im for _, im in train], size)
@@ -161,7 +177,9 @@ def augment_styles(styles: torch.Tensor, rng: np.random.Generator, hue_probabili
     out = []
     for style in styles:
         if rng.random() < hue_probability:
-            style = (hue_rotation(float(rng.uniform(0, 2 * np.pi))).to(style) @ style.flatten(1)).view_as(style).clamp(0, 1)
+            style = (
+                (hue_rotation(float(rng.uniform(0, 2 * np.pi))).to(style) @ style.flatten(1)).view_as(style).clamp(0, 1)
+            )
         if rng.random() < 0.5:
             style = style.flip(-1)
         out.append(style)

@@ -12,9 +12,11 @@ import sys
 
 from ..model.checkpoint import average_checkpoints, export_checkpoint
 
-USAGE = ("usage: python -m mistyle.train.export runs/cpu/final.pt mistyle/checkpoints/skpn_cpu.pt\n"
-         "       python -m mistyle.train.export runs/cpu/steps/step_001500.pt runs/cpu/steps/step_002000.pt averaged.pt\n"
-         "       python -m mistyle.train.export --set section.key=value --half SOURCE DEST")
+USAGE = (
+    "usage: python -m mistyle.train.export runs/cpu/final.pt mistyle/checkpoints/skpn_cpu.pt\n"
+    "       python -m mistyle.train.export runs/cpu/steps/step_001500.pt runs/cpu/steps/step_002000.pt averaged.pt\n"
+    "       python -m mistyle.train.export --set section.key=value --half SOURCE DEST"
+)
 
 
 def main(argv: list[str]) -> str:
@@ -33,8 +35,11 @@ def main(argv: list[str]) -> str:
     if len(sources) > 1 and (overrides or half):
         raise SystemExit("error: --set and --half take one source; average first, then export the average.\n" + USAGE)
     try:
-        return str(export_checkpoint(sources[0], destination, overrides, half) if len(sources) == 1
-                   else average_checkpoints(sources, destination))
+        return str(
+            export_checkpoint(sources[0], destination, overrides, half)
+            if len(sources) == 1
+            else average_checkpoints(sources, destination)
+        )
     except (ValueError, OSError) as error:
         raise SystemExit(f"error: {error}") from None
 

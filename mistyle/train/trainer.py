@@ -65,7 +65,7 @@ def device_for(config: TrainConfig) -> torch.device:
     from ..backend import use_variant
 
     if config.run.device == "cuda" and not torch.cuda.is_available():
-        raise ValueError("run.device = \"cuda\" but torch sees no CUDA device; use --device cpu.")
+        raise ValueError('run.device = "cuda" but torch sees no CUDA device; use --device cpu.')
     device = torch.device(config.run.device)
     if device.type == "cuda" and dist.is_initialized():
         device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", 0)))
@@ -75,8 +75,17 @@ def device_for(config: TrainConfig) -> torch.device:
 
 
 class Trainer:
-    def __init__(self, config: TrainConfig, out: Path, resume: bool = False, log=status, init: Path | None = None):
+    def __init__(
+        self,
+        config: TrainConfig,
+        out: Path,
+        resume: bool = False,
+        log=status,
+        init: Path | None = None,
+        recipe: dict | None = None,
+    ):
         self.config, self.out = config, Path(out)
+        self.recipe = recipe  # train.recipes: which recipe and stage this run is, stored in its checkpoints
         self.rank, self.world = (dist.get_rank(), dist.get_world_size()) if dist.is_initialized() else (0, 1)
         self.log = log if self.rank == 0 else (lambda *a, **k: None)
         self._bar = None  # the progress bar of ``run`` (rank 0)
@@ -86,11 +95,15 @@ class Trainer:
             check_writable_dir(self.out)
         checkpoint = None
         if not resume and (self.out / "last.pt").exists():
-            raise ValueError(f"{self.out} already holds a run (last.pt); pass --resume to continue it, or choose another --out.")
+            raise ValueError(
+                f"{self.out} already holds a run (last.pt); pass --resume to continue it, or choose another --out."
+            )
         if resume:
             if not (self.out / "last.pt").is_file():
-                raise ValueError(f"No checkpoint at {self.out / 'last.pt'}; start without --resume, "
-                                 "or give the --out of the run to resume.")
+                raise ValueError(
+                    f"No checkpoint at {self.out / 'last.pt'}; start without --resume, "
+                    "or give the --out of the run to resume."
+                )
             checkpoint = load_checkpoint(self.out / "last.pt")
             saved = config_from_dict(checkpoint["config"])
             if saved.optim.steps != config.optim.steps:
@@ -106,8 +119,14 @@ class Trainer:
         self.data = SmokePairs(config.data.smoke, config.data.val_plumes, config.data.make, log=self.log)
         self.styles = StyleSet(config.data.styles, config.data.style_size)
         self.extractor = make_extractor(config.run.extractor, config.run.vgg_weights or None).to(self.device)
-        self.log(f"feature extractor: {self.extractor.name}"
-                 + ("" if self.extractor.name.startswith("vgg16-imagenet") else " (offline: no VGG16 ImageNet weights given)"))
+        self.log(
+            f"feature extractor: {self.extractor.name}"
+            + (
+                ""
+                if self.extractor.name.startswith("vgg16-imagenet")
+                else " (offline: no VGG16 ImageNet weights given)"
+            )
+        )
         torch.manual_seed(config.run.seed)
         self.model = build_model(config, self.extractor).to(self.device)
         self.network = self.model
@@ -116,7 +135,10 @@ class Trainer:
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.optim.lr, betas=config.optim.betas)
         steps_per_epoch = max(1, len(self.data.train) // config.optim.batch)
         self.scheduler = torch.optim.lr_scheduler.StepLR(
-            self.optimizer, step_size=max(1, round(config.optim.decay_every_epochs * steps_per_epoch)), gamma=config.optim.lr_decay)
+            self.optimizer,
+            step_size=max(1, round(config.optim.decay_every_epochs * steps_per_epoch)),
+            gamma=config.optim.lr_decay,
+        )
         self.objective = make_objective(config.loss, self.extractor)
         self.path = CameraPath(distance=config.render.camera_distance)
         self.rng = np.random.default_rng([config.run.seed, self.rank])
@@ -128,9 +150,11 @@ class Trainer:
         self.best = math.inf
         self.interrupted = False
         self._tensorboard = None
-        self.log(f"SKPN: {parameter_count(self.model) / 1e6:.2f} M parameters; {len(self.data.train)} training pairs "
-                 f"({self.data.shape} voxels), {len(self.styles.train)} training styles; "
-                 f"{len(self.data.val)} validation pairs, {len(self.styles.val)} validation styles")
+        self.log(
+            f"SKPN: {parameter_count(self.model) / 1e6:.2f} M parameters; {len(self.data.train)} training pairs "
+            f"({self.data.shape} voxels), {len(self.styles.train)} training styles; "
+            f"{len(self.data.val)} validation pairs, {len(self.styles.val)} validation styles"
+        )
 
     # ------------------------------------------------------------------ one update
     def sample_batch(self) -> dict:
@@ -159,14 +183,21 @@ class Trainer:
             else:
                 density = torch.cat([stack("density0"), stack("density1")])[:, None]
                 albedo = self.network(density, style.repeat(2)).float()
-                current, following = albedo[: len(frames)], albedo[len(frames):]
+                current, following = albedo[: len(frames)], albedo[len(frames) :]
         prepared = [prepare_density(f["density0"], self.data.density_scale, ls=f["ls0"]) for f in frames]
         images = self._render(current, prepared, batch["views"])
-        loss_hist = self.objective.loss(images, self.objective.targets(batch["styles"], style.levels),
-                                        self._body_masks(prepared, batch["views"]) if config.loss.mask == "body" else None)
+        loss_hist = self.objective.loss(
+            images,
+            self.objective.targets(batch["styles"], style.levels),
+            self._body_masks(prepared, batch["views"]) if config.loss.mask == "body" else None,
+        )
         loss_tv = tv_loss(current)
         loss_temp = temporal_loss(following, current, stack("velocity0"))
-        loss = config.loss.style_weight * loss_hist + config.loss.tv_weight * loss_tv + config.loss.temporal_weight * loss_temp
+        loss = (
+            config.loss.style_weight * loss_hist
+            + config.loss.tv_weight * loss_tv
+            + config.loss.temporal_weight * loss_temp
+        )
         terms = {"loss": loss, "loss_hist": loss_hist, "loss_tv": loss_tv, "loss_temp": loss_temp}
         return terms, images
 
@@ -188,8 +219,15 @@ class Trainer:
         from ..bridge_torch import render_views
 
         size = self.config.render.image_size
-        return render_views(albedo, prepared, views, size, steps=self.config.render.steps,
-                            scheme=self.config.render.scheme, radiance=self.config.render.radiance)
+        return render_views(
+            albedo,
+            prepared,
+            views,
+            size,
+            steps=self.config.render.steps,
+            scheme=self.config.render.scheme,
+            radiance=self.config.render.radiance,
+        )
 
     def train_step(self) -> tuple[dict, dict]:
         started = time.perf_counter()
@@ -198,7 +236,9 @@ class Trainer:
         self.optimizer.zero_grad(set_to_none=True)
         terms["loss"].backward()
         # The gradient's norm before clipping (logged; clipped to optim.clip_grad when that is > 0).
-        terms["grad_norm"] = torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.optim.clip_grad or math.inf)
+        terms["grad_norm"] = torch.nn.utils.clip_grad_norm_(
+            self.model.parameters(), self.config.optim.clip_grad or math.inf
+        )
         self.optimizer.step()
         self.scheduler.step()
         self.step += 1
@@ -218,7 +258,10 @@ class Trainer:
             atomic_write_bytes(self.out / "config.toml", to_toml(config_to_dict(config)).encode())
             self._trim_metrics()
             if (self.out / "metrics.jsonl").is_file():  # a resumed run's best so far, so best.pt only improves
-                seen = [json.loads(line).get("val_rgb_swd") for line in (self.out / "metrics.jsonl").read_text().splitlines()]
+                seen = [
+                    json.loads(line).get("val_rgb_swd")
+                    for line in (self.out / "metrics.jsonl").read_text().splitlines()
+                ]
                 self.best = min([value for value in seen if value is not None], default=math.inf)
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         self._bar = bar(config.optim.steps, "training", initial=self.step) if self.rank == 0 else None
@@ -241,9 +284,14 @@ class Trainer:
                 if self.step % config.run.log_every == 0 or evaluate or self.interrupted:
                     rate = window_steps / max(time.perf_counter() - window_start, 1e-9)
                     window_start, window_steps = time.perf_counter(), 0
-                    record = {"step": self.step, **values, "lr": self.scheduler.get_last_lr()[0],
-                              "seconds": self.seconds, "steps_per_second": rate,
-                              "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+                    record = {
+                        "step": self.step,
+                        **values,
+                        "lr": self.scheduler.get_last_lr()[0],
+                        "seconds": self.seconds,
+                        "steps_per_second": rate,
+                        "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                    }
                     if evaluate:
                         record.update(self.evaluate())
                         self._tensorboard_images(visuals)
@@ -252,7 +300,9 @@ class Trainer:
                     self._progress(record)
                 if self.step % config.run.checkpoint_every == 0 or self.interrupted:
                     self.save(self.out / "last.pt")
-                    if config.run.keep_checkpoints and self.rank == 0:  # weights only, for experiments/validation_curve.py
+                    if (
+                        config.run.keep_checkpoints and self.rank == 0
+                    ):  # weights only, for experiments/validation_curve.py
                         export_checkpoint(self.out / "last.pt", self.out / "steps" / f"step_{self.step:06d}.pt")
                 if self.interrupted:
                     raise Interrupted()
@@ -281,22 +331,29 @@ class Trainer:
         """Start from another run's weights (a training or exported checkpoint): same architecture and extractor."""
         checkpoint = load_checkpoint(path)
         if checkpoint["extractor"] != self.extractor.name:
-            raise ValueError(f"--init {path} was trained with the {checkpoint['extractor']} extractor, this run has "
-                             f"{self.extractor.name}.")
+            raise ValueError(
+                f"--init {path} was trained with the {checkpoint['extractor']} extractor, this run has "
+                f"{self.extractor.name}."
+            )
         # A palette-head network (the head was removed): ConfigError naming the commit that still has it.
         drop_retired_model_keys(checkpoint.get("config", {}).get("model", {}), f"--init {path}")
         try:
             self.model.load_state_dict(checkpoint["model"])
         except RuntimeError as error:
-            raise ValueError(f"--init {path} does not fit this run's [model] config ({str(error).splitlines()[0]}).") from None
+            raise ValueError(
+                f"--init {path} does not fit this run's [model] config ({str(error).splitlines()[0]})."
+            ) from None
         self.log(f"initialised from the weights of {path} (step {checkpoint.get('step', '?')} of its run)")
 
     def _on_signal(self, signum, frame):
         if self.interrupted:  # a second Ctrl-C: stop at once
             raise KeyboardInterrupt
         self.interrupted = True
-        self.log(f"\n{signal.Signals(signum).name}: finishing step {self.step + 1}, saving {self.out / 'last.pt'} and stopping "
-                 "(press Ctrl-C again to abort without saving)")
+        self.log(
+            f"\n{signal.Signals(signum).name}: finishing step {self.step + 1}, "
+            f"saving {self.out / 'last.pt'} and stopping "
+            "(press Ctrl-C again to abort without saving)"
+        )
 
     # ------------------------------------------------------------------ evaluation
     @torch.no_grad()
@@ -308,9 +365,17 @@ class Trainer:
         if self.rank != 0:
             return {}
         config = self.config
-        pick = np.linspace(0, len(self.data.val) - 1, min(config.run.eval_densities, len(self.data.val))).round().astype(int)
+        pick = (
+            np.linspace(0, len(self.data.val) - 1, min(config.run.eval_densities, len(self.data.val)))
+            .round()
+            .astype(int)
+        )
         pairs = [self.data.val[i] for i in pick]
-        style_ids = np.linspace(0, len(self.styles.val) - 1, min(config.run.eval_styles, len(self.styles.val))).round().astype(int)
+        style_ids = (
+            np.linspace(0, len(self.styles.val) - 1, min(config.run.eval_styles, len(self.styles.val)))
+            .round()
+            .astype(int)
+        )
         views = self.path.held_out(config.run.eval_views)
         self.model.eval()
         swd, hist, spreads, rows, fidelity, dark = [], [], [], [], [], 0
@@ -326,7 +391,9 @@ class Trainer:
                 renders = [image.permute(1, 2, 0).cpu().numpy() for image in images]
                 rows.append(torch.cat([_fit(style[0], images.shape[-2:]), *tone_map(images)], dim=-1))
                 renders = [render for render in renders if foreground_mask(render).any()]
-                if not renders:  # no pixel bright enough to count as medium: an albedo near black, no colours to compare
+                if (
+                    not renders
+                ):  # no pixel bright enough to count as medium: an albedo near black, no colours to compare
                     dark += 1
                     continue
                 per_view = [style_distance(render, style_np) for render in renders]
@@ -343,8 +410,13 @@ class Trainer:
         if not fidelity:
             self.log(f"step {self.step}: every validation render is black (albedo near zero); no validation metrics")
             return record
-        return {"val_swd": float(np.mean(swd)), "val_hist": float(np.mean(hist)), "val_view_spread": float(np.mean(spreads)),
-                **{f"val_{key}": float(np.median([row[key] for row in fidelity])) for key in fidelity[0]}, **record}
+        return {
+            "val_swd": float(np.mean(swd)),
+            "val_hist": float(np.mean(hist)),
+            "val_view_spread": float(np.mean(spreads)),
+            **{f"val_{key}": float(np.median([row[key] for row in fidelity])) for key in fidelity[0]},
+            **record,
+        }
 
     # ------------------------------------------------------------------ logging
     def _log_record(self, record: dict) -> None:
@@ -362,7 +434,9 @@ class Trainer:
         path = self.out / "metrics.jsonl"
         if not path.is_file():
             return
-        kept = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= self.step]
+        kept = [
+            line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= self.step
+        ]
         atomic_write_bytes(path, ("".join(line + "\n" for line in kept)).encode())
 
     def _tb(self):
@@ -384,8 +458,10 @@ class Trainer:
         """The losses on the progress bar (on a terminal), else as a status line (logs, ``nohup``)."""
         if self.rank != 0:
             return
-        text = (f"loss {record['loss']:.4g} (hist {record['loss_hist']:.4g}, tv {record['loss_tv']:.3g}, "
-                f"temp {record['loss_temp']:.3g})")
+        text = (
+            f"loss {record['loss']:.4g} (hist {record['loss_hist']:.4g}, tv {record['loss_tv']:.3g}, "
+            f"temp {record['loss_temp']:.3g})"
+        )
         if "val_swd" in record:
             text += f"  val_swd {record['val_swd']:.4f}"
         if self._bar is not None and not self._bar.disable:
@@ -406,21 +482,38 @@ class Trainer:
         states = self._rng_states()  # every rank joins the gather
         if self.rank != 0:
             return path
-        payload = {**self._inference_payload(), "optimizer": self.optimizer.state_dict(),
-                   "scheduler": self.scheduler.state_dict(), "rng": states, "world_size": self.world}
+        payload = {
+            **self._inference_payload(),
+            "optimizer": self.optimizer.state_dict(),
+            "scheduler": self.scheduler.state_dict(),
+            "rng": states,
+            "world_size": self.world,
+        }
         return save_checkpoint(path, payload)
 
     def _inference_payload(self) -> dict:
-        return {"format": CHECKPOINT_FORMAT, "mistyle_version": __version__, "step": self.step, "seconds": self.seconds,
-                "config": config_to_dict(self.config), "extractor": self.extractor.name,
-                "density_scale": self.data.density_scale, "model": self.model.state_dict()}
+        return {
+            "format": CHECKPOINT_FORMAT,
+            "mistyle_version": __version__,
+            "step": self.step,
+            "seconds": self.seconds,
+            "config": config_to_dict(self.config),
+            "extractor": self.extractor.name,
+            "density_scale": self.data.density_scale,
+            "model": self.model.state_dict(),
+            **({"recipe": self.recipe} if self.recipe is not None else {}),
+        }
 
     def _restore(self, checkpoint: dict) -> None:
         if checkpoint["extractor"] != self.extractor.name:
-            raise ValueError(f"The checkpoint was trained with the {checkpoint['extractor']} extractor, "
-                             f"this run has {self.extractor.name}; give the same --vgg-weights / run.extractor.")
+            raise ValueError(
+                f"The checkpoint was trained with the {checkpoint['extractor']} extractor, "
+                f"this run has {self.extractor.name}; give the same --vgg-weights / run.extractor."
+            )
         if checkpoint["world_size"] != self.world:
-            raise ValueError(f"The checkpoint was written by {checkpoint['world_size']} processes; resume with the same number.")
+            raise ValueError(
+                f"The checkpoint was written by {checkpoint['world_size']} processes; resume with the same number."
+            )
         self.model.load_state_dict(checkpoint["model"])
         self.optimizer.load_state_dict(checkpoint["optimizer"])
         self.scheduler.load_state_dict(checkpoint["scheduler"])
@@ -432,4 +525,6 @@ class Trainer:
 
 
 def _fit(image: torch.Tensor, size) -> torch.Tensor:
-    return torch.nn.functional.interpolate(image[None], size=tuple(size), mode="bilinear", antialias=True, align_corners=False)[0]
+    return torch.nn.functional.interpolate(
+        image[None], size=tuple(size), mode="bilinear", antialias=True, align_corners=False
+    )[0]

@@ -1,0 +1,230 @@
+"""Training recipes: a named, complete way to make a checkpoint, run with one command.
+
+    mistyle-train --recipe skpn_cpu --out runs/skpn_cpu     # the bundled network, every stage (hours on 2 cores)
+    mistyle-train --recipe skpn_cpu --out runs/skpn_cpu     # again: finished stages are kept, the rest resumes
+    mistyle-train --recipe tiny --out runs/tiny             # the same machinery in seconds (tests)
+
+A recipe is stages run in order. Each stage trains one of the package's configs (``mistyle/configs/``)
+with its overrides, starts from the previous stage's chosen weights (``init="previous"``) or from
+scratch, and ends by choosing one of its kept checkpoints (``select``):
+
+* ``"last"``: the stage's final weights;
+* ``"step:N"``: the weights of step N (a run that was stopped there, e.g. before it diverged);
+* ``"validation"``: the kept checkpoint with the lowest median RGB SWD, as a ratio to the uniform
+  baseline of the same pair, on the validation split (``VALIDATION_DENSITIES`` x the validation
+  paintings, path traced and scored as the benchmark scores: ``mistyle.benchmark.study``). Never the
+  benchmark's held-out split.
+
+Every checkpoint a recipe writes carries ``recipe`` (its name, the stage, and the whole recipe), and
+``<out>/recipe.json`` records what each stage chose. The shipped checkpoint
+(``mistyle/checkpoints/skpn_cpu.pt``) came from ``skpn_cpu``; its stages and choices were made by hand
+then (``docs/training.md``), and the recipe writes them down: the chosen steps of those runs are given
+with ``select``'s rule that chose them.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
+SELECTIONS = ("last", "step:N", "validation")
+VALIDATION_RES, VALIDATION_SPP = 128, 16
+
+
+@dataclass(frozen=True)
+class Stage:
+    name: str
+    config: str  # a file name in mistyle/configs/
+    overrides: tuple = ()  # --set values, e.g. ("optim.lr=1e-3",)
+    init: str | None = None  # "previous": the previous stage's chosen weights; None: from scratch
+    select: str = "last"  # see the module docstring
+    chose: str = ""  # what the stage chose when it made the shipped checkpoint (a record, not an input)
+
+    def __post_init__(self):
+        if not (self.select in ("last", "validation") or self.select.startswith("step:")):
+            raise ValueError(f"Stage {self.name}: select must be one of {', '.join(SELECTIONS)}, got {self.select!r}.")
+
+
+@dataclass(frozen=True)
+class Recipe:
+    name: str
+    description: str
+    stages: tuple
+    product: str = ""  # the shipped checkpoint it made, if any
+
+    def as_dict(self) -> dict:
+        """The recipe as JSON values (lists, not tuples): what checkpoints and ``recipe.json`` store."""
+        return json.loads(json.dumps(asdict(self)))
+
+
+RECIPES = {
+    recipe.name: recipe
+    for recipe in (
+        Recipe(
+            "skpn_cpu",
+            "the bundled network: the sliced objective at batch 4, then batch 8 with a decaying learning rate",
+            (
+                Stage(
+                    "warmup",
+                    "cpu_sliced.toml",
+                    ("optim.lr=1e-3", "optim.clip_grad=0", "optim.steps=750"),
+                    select="last",
+                    chose="step 750 (the run diverged at step ~1550 at this learning rate)",
+                ),
+                Stage(
+                    "sliced",
+                    "cpu_sliced.toml",
+                    ("optim.steps=4500",),
+                    init="previous",
+                    select="validation",
+                    chose="step 1750 of this stage (total 2500): validation RGB 0.77x, patch 0.64x uniform",
+                ),
+                Stage(
+                    "finetune",
+                    "cpu_sliced_finetune.toml",
+                    init="previous",
+                    select="validation",
+                    chose="step 1600 of this stage (total 4100): validation RGB 0.64x, patch 0.56x uniform",
+                ),
+            ),
+            product="mistyle/checkpoints/skpn_cpu.pt",
+        ),
+        Recipe(
+            "tiny",
+            "two short stages on the tiny dataset: the recipe machinery in seconds",
+            (
+                Stage("first", "tiny.toml", ("optim.steps=6", "run.checkpoint_every=3", "run.eval_every=100")),
+                Stage(
+                    "second",
+                    "tiny.toml",
+                    ("optim.steps=6", "run.checkpoint_every=3", "run.eval_every=100"),
+                    init="previous",
+                    select="step:3",
+                ),
+            ),
+        ),
+    )
+}
+
+
+def recipe(name: str) -> Recipe:
+    if name not in RECIPES:
+        raise ValueError(f"Unknown recipe {name!r}; choose one of {', '.join(RECIPES)}.")
+    return RECIPES[name]
+
+
+@dataclass
+class StageResult:
+    stage: str
+    run: str  # the stage's run folder
+    chosen: str  # the chosen weights, copied to <run>/chosen.pt
+    reason: str
+    scores: dict = field(default_factory=dict)  # validation: checkpoint -> median RGB SWD x uniform
+
+
+def run_recipe(chosen: Recipe, out: Path, overrides: list[str] | None = None, log=print) -> Path:
+    """Run every stage of ``chosen`` into ``out/<n>_<stage>/``; returns the last stage's chosen weights.
+
+    A stage whose ``chosen.pt`` exists is kept as it is; one with a ``last.pt`` resumes. ``overrides``
+    (``--set``) apply to every stage, after the stage's own (e.g. ``run.device="cuda"``)."""
+    from ..model.config import load_config
+    from .trainer import Trainer
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    results: list[StageResult] = []
+    previous = None
+    for number, stage in enumerate(chosen.stages, 1):
+        folder = out / f"{number}_{stage.name}"
+        pick = folder / "chosen.pt"
+        if not pick.exists():
+            keep = ["run.keep_checkpoints=true"]
+            config = load_config(CONFIG_DIR / stage.config, [*stage.overrides, *keep, *(overrides or [])])
+            resume = (folder / "last.pt").exists()
+            init = previous if stage.init == "previous" and not resume else None
+            log(f"recipe {chosen.name}: stage {number}/{len(chosen.stages)} {stage.name} ({stage.config})")
+            stamp = {"name": chosen.name, "stage": stage.name, "recipe": chosen.as_dict()}
+            Trainer(config, folder, resume=resume, init=init, recipe=stamp).run()
+            result = select(stage, folder, log=log)
+            shutil.copyfile(result.chosen, pick)
+            result.chosen = str(pick)
+        else:
+            result = StageResult(stage.name, str(folder), str(pick), "kept from an earlier run")
+        results.append(result)
+        previous = pick
+        (out / "recipe.json").write_text(
+            json.dumps({"recipe": chosen.as_dict(), "stages": [asdict(r) for r in results]}, indent=1) + "\n"
+        )
+    return previous
+
+
+def kept_checkpoints(folder: Path) -> list[Path]:
+    """A run's kept weights (``steps/step_*.pt``), by step."""
+    return sorted((Path(folder) / "steps").glob("step_*.pt"))
+
+
+def select(stage: Stage, folder: Path, log=print, **validation) -> StageResult:
+    """The checkpoint ``stage.select`` chooses among the run in ``folder``."""
+    folder = Path(folder)
+    if stage.select == "last":
+        return StageResult(stage.name, str(folder), str(folder / "final.pt"), "the stage's final weights")
+    if stage.select.startswith("step:"):
+        step = int(stage.select.partition(":")[2])
+        path = folder / "steps" / f"step_{step:06d}.pt"
+        if not path.exists():
+            found = ", ".join(p.name for p in kept_checkpoints(folder)) or "none"
+            raise ValueError(f"Stage {stage.name}: no kept checkpoint of step {step} in {folder} (kept: {found}).")
+        return StageResult(stage.name, str(folder), str(path), f"step {step}")
+    scores = validation_scores(kept_checkpoints(folder), log=log, **validation)
+    if not scores:
+        raise ValueError(f"Stage {stage.name}: {folder / 'steps'} holds no kept checkpoint to choose from.")
+    best = min(scores, key=scores.get)
+    return StageResult(stage.name, str(folder), best, "lowest median validation RGB SWD x uniform", scores)
+
+
+def validation_scores(
+    checkpoints: list[Path],
+    paintings: int = 0,
+    res: int = VALIDATION_RES,
+    spp: int = VALIDATION_SPP,
+    densities: list | None = None,
+    cache=Path("data") / "heldout",
+    log=print,
+) -> dict[str, float]:
+    """``checkpoint -> median RGB SWD x uniform`` on the validation split, each network's feed-forward
+    output scored as ``mistyle-bench`` scores ``network``. ``paintings``: only that many validation
+    paintings (0: all); ``densities``: other ``(Z, Y, X)`` grids than ``VALIDATION_DENSITIES`` (made
+    once and cached in ``cache``)."""
+    import numpy as np
+
+    from ..benchmark.study import metric_views, score, uniform_baseline
+    from ..data.heldout import VALIDATION_DENSITIES, held_out_density
+    from ..io import load_style
+    from ..pipeline import Pipeline, PipelineSettings
+    from .dataset import validation_paintings
+
+    styles = [load_style(path) for path in validation_paintings()[: paintings or None]]
+    if densities is None:
+        densities = [held_out_density(spec, cache) for spec in VALIDATION_DENSITIES]
+    baselines: dict = {}
+    scores = {}
+    for path in checkpoints:
+        pipeline = Pipeline(PipelineSettings(checkpoint=path, refine_steps=0, refine_path_steps=0))
+        views = metric_views(pipeline.camera_distance)
+        options = {"res": res, "spp": spp, "density_scale": pipeline.density_scale, "radiance": pipeline.radiance}
+        ratios = []
+        for d, density in enumerate(densities):
+            for s, style in enumerate(styles):
+                if (d, s) not in baselines:
+                    uniform = uniform_baseline(
+                        density, style, views, density_scale=pipeline.density_scale, radiance=pipeline.radiance
+                    )
+                    baselines[d, s] = score(density, uniform, style, views, **options)[0]["rgb_swd"]
+                albedo = pipeline.stylize(density, style).albedos[0]
+                ratios.append(score(density, albedo, style, views, **options)[0]["rgb_swd"] / baselines[d, s])
+        scores[str(path)] = float(np.median(ratios))
+        log(f"validation: {path.name}: median RGB SWD x uniform {scores[str(path)]:.3f}")
+    return scores

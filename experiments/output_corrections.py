@@ -1,10 +1,10 @@
 """Closed-form stages after the network: can any of them close the gap to direct optimisation? (#13)
 
 The bundled network places a style's structures but mutes its colours next to direct optimisation
-(docs/training.md). Each arm below takes the network's albedo, changes it without a gradient step,
-and is scored like the benchmark (path traced from the metric views, ``mistyle.benchmark.study.score``) on the
-validation split only (``train.dataset.validation_paintings`` x ``val_smoke64``), never the
-benchmark's held-out pairs:
+(docs/decisions/2026-11-25-training-notebook.md). Each arm below takes the network's albedo, changes
+it without a gradient step, and is scored like the benchmark (path traced from the metric views,
+``mistyle.benchmark.study.score``) on the validation split only
+(``train.dataset.validation_paintings`` x ``val_smoke64``), never the benchmark's held-out pairs:
 
 * ``network``: the albedo as the network predicts it (strength 1).
 * ``transport s=<sigma>``: colour transport onto the style's pixel colours. Each albedo value is

@@ -1,10 +1,12 @@
 """Colour matching: the network's arrangement, the style's colours (a closed-form stage after the SKPN).
 
-The SKPN decides where colours go in the medium, but it gives every style much the same colours:
-it stores all the styles it trained on in one set of weights (docs/training.md, "A colour match
-after the network", measured with experiments/gap_decomposition.py). This stage keeps the network's
-arrangement and gives it the style's colours, without a gradient step: a map of colour, fitted from
-a grey response sweep and one low-resolution render of the matched medium.
+The SKPN decides where colours go in the medium, but it gives every style much the same colours: it
+stores all the styles it trained on in one set of weights
+(docs/decisions/2026-11-25-training-notebook.md, "A colour match after the network", measured with
+experiments/gap_decomposition.py).
+This stage keeps the network's arrangement and gives it the style's colours, without a gradient
+step: a map of colour, fitted from a grey response sweep and one low-resolution render of the
+matched medium.
 
 1. **Response.** Under a white light every colour channel renders independently, so one sweep of
    uniform grey albedos ``a`` (``RESPONSE_LEVELS``, path traced with ``volpath`` from one view, three
@@ -33,8 +35,8 @@ a grey response sweep and one low-resolution render of the matched medium.
 
 The map is fitted once (``fit_colour_match``) and is a function of colour only, so a sequence's
 frames share the first frame's map (``ColourMatch.apply``); the albedo flicker still rises with the
-contrast the match adds (docs/training.md). Everything is seeded: the same inputs give the same
-albedo.
+contrast the match adds (docs/decisions/2026-11-25-training-notebook.md). Everything is seeded: the
+same inputs give the same albedo.
 
 Shapes: density ``(Z, Y, X)``, albedo ``(Z, Y, X, 3)`` in [0, 1], style ``(H, W, 3)`` display values
 in [0, 1].

@@ -167,8 +167,8 @@ class RefineSettings:
     The objective is ``objective.style.SlicedObjective`` (RGB and patch sliced Wasserstein, weights
     ``rgb_weight`` and ``patch_weight``) on the medium's body (``LayerViews.body_masks``), with the
     log-albedo parametrisation. These defaults are ``render_final``'s, chosen by
-    ``experiments/objective_study.py`` (``docs/style_fidelity.md``): the layer steps find the style's
-    hues and patterns, the path-traced steps then absorb what multiple scattering changes.
+    ``experiments/objective_study.py`` (``docs/decisions/2026-11-25-style-fidelity-study.md``): the layer
+    steps find the style's hues and patterns, the path-traced steps then absorb what multiple scattering changes.
     """
 
     layer_steps: int = 120
@@ -184,7 +184,8 @@ class RefineSettings:
     patch_weight: float = 0.05
     camera_distance: float = ORBIT_DISTANCE
     layer_steps_per_ray: int = 48
-    temporal_weight: float = 100.0  # sequences: the least flicker of 10 / 100 / 1000 (docs/style_fidelity.md)
+    # Sequences: the least flicker of 10 / 100 / 1000 (docs/decisions/2026-11-25-style-fidelity-study.md).
+    temporal_weight: float = 100.0
     seed: int = 0
 
     def scaled(self, factor: float) -> RefineSettings:

@@ -36,7 +36,7 @@ predicted stylizing kernels (``pipeline.Stylizer.kernels``); a mix is measured a
 mosaic of its styles with areas in proportion to the weights (``pipeline.style_target``). By default a
 single frame at full strength is refined against the style (``--refine``: fast-layer steps,
 ``--refine-path``: path-traced steps; ``Pipeline.refinement``), which is what makes the medium take
-on the style's hues and patterns (``docs/style_fidelity.md``); ``--refine 0`` renders the
+on the style's hues and patterns (``docs/decisions/2026-11-25-style-fidelity-study.md``); ``--refine 0`` renders the
 feed-forward albedo: the network's arrangement with the style's colours (``mistyle.colour_match``,
 no gradient step; ``--no-colour-match`` keeps the network's own colours). Each output is written
 into a hidden staging folder beside it that replaces it only when complete, so a failed or

@@ -347,7 +347,10 @@ def test_recipes_name_package_configs_and_refuse_unknown_names():
     assert Path(mistyle.__file__).resolve().parent in CONFIG_DIR.resolve().parents
     for chosen in RECIPES.values():
         assert all((CONFIG_DIR / stage.config).is_file() for stage in chosen.stages), chosen.name
-    assert RECIPES["skpn_cpu"].product == "mistyle/checkpoints/skpn_cpu.pt"
+    import hashlib
+
+    shipped = RECIPES["skpn_cpu"]
+    assert hashlib.sha256((REPO / shipped.product).read_bytes()).hexdigest() == shipped.product_sha256
     with pytest.raises(ValueError, match="Unknown recipe"):
         recipe("nope")
     with pytest.raises(ValueError, match="select must be one of"):

@@ -87,7 +87,8 @@ class RenderConfig:
 @dataclass
 class LossConfig:
     objective: str = "features"  # "features" (the paper's) | "sliced" (RGB + patch sliced Wasserstein)
-    mask: str = "foreground"  # "foreground": every pixel that sees the medium | "body" (docs/style_fidelity.md)
+    # "foreground": every pixel that sees the medium | "body" (docs/decisions/2026-11-25-style-fidelity-study.md)
+    mask: str = "foreground"
     style: str = "histogram"  # objective "features": "histogram" | "gram" | "meanstd" (ablations)
     patch_weight: float = 0.05  # objective "sliced": weight of the patch term
     style_weight: float = 1.0

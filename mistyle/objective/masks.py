@@ -34,6 +34,6 @@ def body_mask(white_render: torch.Tensor, threshold: float = BODY_THRESHOLD) -> 
 
     Matching a style's colours only there keeps the thin, dark fringes of a medium (which no albedo
     can make bright) from soaking up the style's dark colours while the body stays pale
-    (measured: ``docs/style_fidelity.md``).
+    (measured: ``docs/decisions/2026-11-25-style-fidelity-study.md``).
     """
     return (tone_map(white_render.detach()).mean(dim=1, keepdim=True) > threshold).to(white_render.dtype)

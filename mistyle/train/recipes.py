@@ -18,8 +18,8 @@ scratch, and ends by choosing one of its kept checkpoints (``select``):
 Every checkpoint a recipe writes carries ``recipe`` (its name, the stage, and the whole recipe), and
 ``<out>/recipe.json`` records what each stage chose. The shipped checkpoint
 (``mistyle/checkpoints/skpn_cpu.pt``) came from ``skpn_cpu``; its stages and choices were made by hand
-then (``docs/training.md``), and the recipe writes them down: the chosen steps of those runs are given
-with ``select``'s rule that chose them.
+then (``docs/decisions/2026-11-25-training-notebook.md``), and the recipe writes them down: the chosen
+steps of those runs are given with ``select``'s rule that chose them (``Stage.chose``).
 """
 
 from __future__ import annotations
@@ -54,6 +54,7 @@ class Recipe:
     description: str
     stages: tuple
     product: str = ""  # the shipped checkpoint it made, if any
+    product_sha256: str = ""  # that file's SHA-256, so the recipe names exactly one file
 
     def as_dict(self) -> dict:
         """The recipe as JSON values (lists, not tuples): what checkpoints and ``recipe.json`` store."""
@@ -91,6 +92,7 @@ RECIPES = {
                 ),
             ),
             product="mistyle/checkpoints/skpn_cpu.pt",
+            product_sha256="007e2df1cf7f1b17b6381db84c2b10e4f1fbae14991591d4993dd71fb0080078",
         ),
         Recipe(
             "tiny",

@@ -10,7 +10,7 @@ The method is ``mistyle.pipeline``; this module is argparse -> ``PipelineSetting
     mistyle-render --density a.vol b.vdb --style paintings/ --out out/batch          # every pair, index.html
     mistyle-render --density smoke.vol --mix wave.png:0.7 starry.png:0.3 --strength 0.6 --out out/mix
 
-One output per (density, style) pair (``mistyle.batch``): a single pair into ``--out``, several into
+One output per (density, style) pair (``mistyle.outputs``): a single pair into ``--out``, several into
 ``--out/{density}__{style}/`` with ``--out/index.html``; an existing output is replaced only with
 ``--overwrite``. Each output holds:
 
@@ -219,7 +219,7 @@ class Job:
     """One output's inputs, loaded and checked before any heavy work (``load``), and where it goes."""
 
     args: argparse.Namespace
-    output: object  # batch.Output: the (density, style) pair and its folder
+    output: object  # outputs.Output: the (density, style) pair and its folder
     pipeline: object  # pipeline.Pipeline
     style_parts: list  # [(decoded image, weight)]: what the pipeline is given
     frames: object  # pipeline.Frames
@@ -238,8 +238,8 @@ class Job:
 
 def run(args) -> int:
     from .backend import use_variant
-    from .batch import plan_outputs
     from .io import load_style, staged_directory
+    from .outputs import plan_outputs
     from .pipeline import Pipeline
 
     check_options(args)
@@ -522,6 +522,7 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     from .display import display
     from .io import atomic_write_bytes
     from .objective.metrics import style_distance, style_fidelity
+    from .outputs import REPORT_FILE
     from .pages import SHEET_FILE, write_sheet
 
     style = stylized.target
@@ -530,7 +531,7 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
     report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in layer_images]))
     report.update(style_fidelity(images, style))
-    atomic_write_bytes(job.out / "report.json", (json.dumps(report, indent=1) + "\n").encode())
+    atomic_write_bytes(job.out / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())
     seconds = report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds"]
     lines = [
         f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],

@@ -805,3 +805,50 @@ def test_a_bad_style_late_in_a_batch_stops_it_before_any_output(mi, checkpoint, 
     )
     error = capsys.readouterr().err
     assert code == 2 and "notes.txt is not a readable image" in error and not out.exists()
+
+
+# ------------------------------------------------------------------ --overwrite replaces only mistyle's outputs
+def test_overwrite_never_replaces_the_input_folder(mi, checkpoint, inputs, tmp_path, blob_density, capsys):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for index in range(2):
+        write_vol(frames / f"frame_{index:04d}.vol", blob_density)
+    before = sorted(p.name for p in frames.iterdir())
+    arguments = ["--checkpoint", str(checkpoint), "--style", str(inputs / "style.png"), *FAST, "--overwrite"]
+    assert main(["--density", str(frames), "--out", str(frames), *arguments]) == 2
+    error = capsys.readouterr().err
+    assert "is or holds the input" in error and "Traceback" not in error
+    assert sorted(p.name for p in frames.iterdir()) == before
+    # An --out that holds an input deeper down is refused too.
+    assert main(["--density", str(frames / "frame_0000.vol"), "--out", str(tmp_path), *arguments]) == 2
+    assert "is or holds the input" in capsys.readouterr().err and (frames / "frame_0000.vol").exists()
+    # A style image in the output folder is an input as well.
+    assert main(["--density", str(inputs / "blob.vol"), "--out", str(inputs), *arguments]) == 2
+    assert "is or holds the input" in capsys.readouterr().err and (inputs / "style.png").exists()
+
+
+def test_overwrite_refuses_a_folder_mistyle_did_not_write(mi, checkpoint, inputs, tmp_path, capsys):
+    out = tmp_path / "photos"
+    out.mkdir()
+    (out / "holiday.jpg").write_bytes(b"precious")
+    arguments = [
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        "--style",
+        str(inputs / "style.png"),
+        "--out",
+        str(out),
+        *FAST,
+    ]
+    for extra in ([], ["--overwrite"]):
+        assert main(arguments + extra) == 2
+        assert "not a mistyle render" in capsys.readouterr().err
+        assert (out / "holiday.jpg").read_bytes() == b"precious"
+    # A render is replaced with --overwrite, and only then.
+    render = tmp_path / "render"
+    arguments[arguments.index(str(out))] = str(render)
+    assert main(arguments) == 0 and (render / "report.json").exists()
+    assert main(arguments) == 2 and "pass --overwrite" in capsys.readouterr().err
+    assert main(arguments + ["--overwrite"]) == 0

@@ -68,7 +68,7 @@ def checkpoint_id(path) -> str:
 
 def code_commit() -> str:
     """The git commit of the package's checkout, or "unknown" outside one."""
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parent  # git finds the checkout the package sits in, if any
     try:
         commit = subprocess.run(
             ["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],

@@ -5,15 +5,43 @@ folder stands for the images in it, and a ``--density`` folder for one sequence 
 before). ``--mix a.png:0.7 b.png:0.3`` is one style made of several. A single pair is written to
 ``--out`` itself; several go to ``--out/{density}__{style}/`` with an ``index.html`` beside them.
 An output that already exists is refused unless ``--overwrite`` is given, before any work starts.
+
+``--overwrite`` replaces only what mistyle wrote: a folder is a mistyle output when it holds the
+``report.json`` every render writes (``is_mistyle_output``). A folder with other files, and a
+folder that is or holds one of the run's inputs, is refused whatever the options.
 """
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
 STYLE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".exr")
+REPORT_FILE = "report.json"
+"""Written into every output (last, so only a complete output has it): what marks a folder as mistyle's."""
+
+
+def is_mistyle_output(folder: Path) -> bool:
+    """Whether ``folder`` holds a render's ``report.json`` (a JSON object with its ``inputs``)."""
+    try:
+        report = json.loads((Path(folder) / REPORT_FILE).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(report, dict) and "inputs" in report
+
+
+def check_not_an_input(folder: Path, inputs: list[Path]) -> None:
+    """``ValueError`` when writing ``folder`` (which replaces it whole) would replace an input."""
+    target = Path(folder).resolve()
+    for path in inputs:
+        resolved = Path(path).resolve()
+        if resolved == target or target in resolved.parents:
+            raise ValueError(
+                f"The output folder {folder} is or holds the input {path}; writing it would replace that input. "
+                "Choose an --out outside the inputs."
+            )
 
 
 def safe_name(text: str) -> str:
@@ -135,10 +163,18 @@ def plan_outputs(
                 "rename one of the files."
             )
         seen[output.name] = output
-    if not overwrite:
-        for output in outputs:
-            folder = output.folder
-            if folder.is_dir() and any(p for p in folder.iterdir() if not p.name.startswith(".")):
+    inputs = [source.path for source in sources] + [image for choice in choices for image, _ in choice.parts]
+    for output in outputs:
+        folder = output.folder
+        check_not_an_input(folder, inputs)
+        if folder.is_dir() and any(p for p in folder.iterdir() if not p.name.startswith(".")):
+            if not is_mistyle_output(folder):
+                raise ValueError(
+                    f"{folder} holds files that are not a mistyle render (it has no {REPORT_FILE} from "
+                    "mistyle-render); --overwrite replaces only mistyle's own outputs. Choose another --out, "
+                    "or empty that folder."
+                )
+            if not overwrite:
                 raise ValueError(
                     f"{folder} already holds a render; pass --overwrite to replace it, or choose another --out."
                 )

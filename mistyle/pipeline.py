@@ -281,6 +281,24 @@ def check_finite(what: str, arrays) -> None:
             )
 
 
+MIN_MEDIUM_VOXELS = 8
+"""The fewest non-zero voxels the network stylizes (a medium a couple of voxels across)."""
+
+
+def check_enough_medium(grid: np.ndarray, name: str = "density") -> None:
+    """``ValueError`` for a medium of fewer than ``MIN_MEDIUM_VOXELS`` non-zero voxels.
+
+    DAIN normalises the network's features by their spread over the medium; a single voxel has none,
+    so the normalisation divides by ``sqrt(eps)`` at every level and the features overflow to NaN."""
+    occupied = int(np.count_nonzero(grid))
+    if occupied < MIN_MEDIUM_VOXELS:
+        raise ValueError(
+            f"The {name} holds too little medium to stylize: {occupied} non-zero voxel(s), fewer than "
+            f"{MIN_MEDIUM_VOXELS}. The network normalises its features over the medium, and so few voxels give "
+            "it no spread to measure. Give a volume whose medium spans a few voxels (or resample it larger)."
+        )
+
+
 def default_refinement(config, camera_distance: float | None = None):
     """``mistyle-render``'s refinement schedule (``fit.RefineSettings``) for a checkpoint's ``config``:
     the schedule's defaults with the checkpoint's TV weight and orbit radius."""
@@ -446,22 +464,28 @@ class Pipeline:
         )
         return replace(defaults, layer_steps=layer, path_steps=path)
 
-    def frames(self, density, velocities=None) -> Frames:
+    def frames(self, density, velocities=None, names: list[str] | None = None) -> Frames:
         """``density`` as ``Frames``: one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
-        frames; ``velocities`` ``(Z, Y, X, 3)`` per frame or None. ``ValueError`` for a frame that
-        is not a valid density or holds no medium."""
+        frames; ``velocities`` ``(Z, Y, X, 3)`` per frame or None; ``names``: the frames' names in
+        messages. ``ValueError`` for a frame that is not a valid density or holds too little medium."""
         from .volume import validate_density
 
         if isinstance(density, Frames):
             return density
         array = density if isinstance(density, (list, tuple)) else np.asarray(density)
-        sequence = isinstance(array, (list, tuple)) or (array.ndim == 4 and array.shape[-1] != 1)
+        listed = isinstance(array, (list, tuple))
+        items = list(array) if listed else list(array) if array.ndim == 4 and array.shape[-1] != 1 else [array]
+        sequence = len(items) > 1
         grids = []
-        for index, frame in enumerate(array if sequence else [array]):
-            name = f"density frame {index}" if sequence else "density"
+        for index, frame in enumerate(items):
+            if names is not None:
+                name = f"density {names[index]}"
+            else:
+                name = f"density frame {index}" if sequence else "density"
             grid = validate_density(frame, name=name)
             if not grid.any():
                 raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
+            check_enough_medium(grid, name)
             grids.append(grid)
         if len({grid.shape for grid in grids}) > 1:
             raise ValueError(

@@ -353,7 +353,7 @@ def load(args, output, pipeline, styles: dict) -> Job:
     for name, grid in zip(names, densities):
         if not grid.any():
             raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
-    frames = pipeline.frames(densities, velocities)
+    frames = pipeline.frames(densities, velocities, names)
     return Job(
         args=args,
         output=output,
@@ -517,28 +517,49 @@ def write_assets(job: Job, stylized) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- stage 5: report
+METRIC_KEYS = ("rgb_swd", "patch_swd", "hue_coverage", "swd_final", "hist_final", "swd_layer")
+
+
 def write_report(job: Job, stylized, images, layer_images, report: dict) -> None:
-    """Style metrics of every image against the style, ``report.json``, ``sheet.png`` and a summary line."""
+    """Style metrics of every image against the style, ``report.json``, ``sheet.png`` and a summary line.
+
+    A metric that cannot be computed is ``null`` in the report, with a note: every metric when no
+    pixel of the final render sees the medium, ``patch_swd`` when no 5x5 patch lies inside it."""
     from .display import display
     from .io import atomic_write_bytes
-    from .objective.metrics import style_distance, style_fidelity
+    from .objective.metrics import foreground_mask, style_distance, style_fidelity
     from .outputs import REPORT_FILE
     from .pages import SHEET_FILE, write_sheet
 
     style = stylized.target
-    final = [style_distance(image, style) for image in images]
-    report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
-    report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
-    report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in layer_images]))
-    report.update(style_fidelity(images, style))
+    if any(foreground_mask(image).any() for image in images):
+        final = [style_distance(image, style) for image in images]
+        report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
+        report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
+        seen = [image for image in layer_images if foreground_mask(image).any()]
+        report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in seen])) if seen else None
+        report.update(style_fidelity(images, style))
+    else:
+        report.update(dict.fromkeys(METRIC_KEYS))
+        job.notes.append(
+            f"no pixel of the final render sees the medium (too thin at density scale {job.pipeline.density_scale:g}); "
+            "the style metrics are left out: raise --density-scale to see it"
+        )
+    for key in METRIC_KEYS:
+        if report.get(key) is not None and not np.isfinite(report[key]):
+            report[key] = None
+            job.notes.append(f"{key} left out: too few pixels see the medium to measure it")
     atomic_write_bytes(job.out / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())
     seconds = report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds"]
+
+    def shown(key, digits):
+        return "-" if report[key] is None else f"{report[key]:.{digits}f}"
+
+    refinement = stylized.refinement
     lines = [
         f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
-        f"RGB SWD {report['rgb_swd']:.4f}   patch SWD {report['patch_swd']:.4f}   "
-        f"hue coverage {report['hue_coverage']:.2f}",
-        f"strength {job.args.strength:g}, refine {stylized.refinement.layer_steps}+{stylized.refinement.path_steps} "
-        f"steps, "
+        f"RGB SWD {shown('rgb_swd', 4)}   patch SWD {shown('patch_swd', 4)}   hue coverage {shown('hue_coverage', 2)}",
+        f"strength {job.args.strength:g}, refine {refinement.layer_steps}+{refinement.path_steps} steps, "
         f"{job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s",
     ]
     write_sheet(
@@ -546,15 +567,8 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
         [("style", style), ("fast layer (network)", display(layer_images[0])), ("final render", display(images[0]))],
         lines,
     )
-    print(
-        json.dumps(
-            {
-                k: report[k]
-                for k in ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd", "hue_coverage")
-                if k in report
-            }
-        )
-    )
+    keys = ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd", "hue_coverage")
+    print(json.dumps({key: report[key] for key in keys if key in report}))
 
 
 if __name__ == "__main__":

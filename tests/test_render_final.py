@@ -852,3 +852,54 @@ def test_overwrite_refuses_a_folder_mistyle_did_not_write(mi, checkpoint, inputs
     assert main(arguments) == 0 and (render / "report.json").exists()
     assert main(arguments) == 2 and "pass --overwrite" in capsys.readouterr().err
     assert main(arguments + ["--overwrite"]) == 0
+
+
+# ------------------------------------------------------------------ tiny, sparse and invisible media
+def test_a_medium_of_a_few_voxels_is_refused_before_any_work(mi, checkpoint, inputs, tmp_path, capsys):
+    density = np.zeros((32, 32, 32), np.float32)
+    density[16, 16, 16] = 1.0
+    with pytest.raises(ValueError, match="too little medium"):  # never NaN from the API
+        mistyle.stylize(density, inputs / "style.png", checkpoint=checkpoint)
+    write_vol(tmp_path / "dot.vol", density)
+    out = tmp_path / "out"
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(tmp_path / "dot.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            *FAST,
+        ]
+    )
+    error = capsys.readouterr().err
+    assert code == 2 and "density dot holds too little medium" in error and "NaN" not in error
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dot.vol"]  # nothing written
+
+
+def test_an_invisible_medium_renders_with_its_metrics_left_out(mi, checkpoint, inputs, tmp_path):
+    density = np.zeros((32, 32, 32), np.float32)
+    density[14:18, 14:18, 14:18] = 1e-4
+    write_vol(tmp_path / "faint.vol", density)
+    out = tmp_path / "out"
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(tmp_path / "faint.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            *FAST,
+        ]
+    )
+    assert code == 0
+    text = (out / "report.json").read_text()
+    report = json.loads(text)
+    assert "NaN" not in text and report["rgb_swd"] is None and report["patch_swd"] is None
+    assert any("no pixel of the final render sees the medium" in note for note in report["notes"])

@@ -21,6 +21,9 @@ from .backend import active_variant
 from .conventions import DEFAULT_DENSITY_SCALE
 from .scenes.cameras import split_views
 
+MAX_PASS_SAMPLES = 1 << 26
+"""Paths per launch of the path tracer (a 256^2 image at 1024 spp); larger renders go in passes."""
+
 
 def pixel_centre_estimate(scene, spp: int, seed: int, view_count: int, chunk: int = 256) -> np.ndarray:
     """Mean radiance of ``spp`` paths along each pixel-centre ray: ``(V, H, W, 3)`` float32.
@@ -81,12 +84,14 @@ def path_trace(
     seed: int = 0,
     progress=None,
     bricks: int | None = None,
+    max_pass_samples: int | None = None,
 ) -> tuple[list[np.ndarray], list[float]]:
     """``render`` for several ``View``s of one scene: ``([(res, res, 3)] images, [seconds per view])``.
 
     ``progress(done, count, seconds)`` is called after each view when given. ``bricks``: voxels per
     brick of the medium's majorant bricks (``scenes.bricks``; the same image in expectation, faster
-    on sparse volumes), ``0`` for one medium; by default ``DEFAULT_BRICK``, and 0 under a coat.
+    on sparse volumes), ``0`` for one medium; by default ``DEFAULT_BRICK``, and 0 under a coat. Large
+    ``res^2 spp`` render in several passes (``sample_passes``; ``max_pass_samples``: their limit).
     """
     from .backend import use_variant
     from .scenes import LightSpec, pathtraced_scene
@@ -117,11 +122,34 @@ def path_trace(
             bricks=bricks,
         )
     )
+    passes = sample_passes(res, spp, MAX_PASS_SAMPLES if max_pass_samples is None else max_pass_samples)
     images, seconds = [], []
     for index in range(len(views)):
         started = time.perf_counter()
-        images.append(np.array(mi.render(scene, sensor=index), dtype=np.float32))
+        if len(passes) == 1:
+            image = np.array(mi.render(scene, sensor=index), dtype=np.float32)
+        else:  # the mean of passes weighted by their samples: the same estimator as one pass of ``spp``
+            total = np.zeros((res, res, 3), np.float64)
+            for number, count in enumerate(passes):
+                rendered = mi.render(scene, sensor=index, spp=count, seed=seed * len(passes) + number + 1)
+                total += np.array(rendered, dtype=np.float64) * count
+            image = (total / spp).astype(np.float32)
+        images.append(image)
         seconds.append(time.perf_counter() - started)
         if progress is not None:
             progress(index + 1, len(views), seconds[-1])
     return images, seconds
+
+
+def sample_passes(res: int, spp: int, max_pass_samples: int = MAX_PASS_SAMPLES) -> list[int]:
+    """Samples per pixel of each pass of a ``res``^2 image at ``spp``: one pass when ``res^2 spp`` fits
+    ``max_pass_samples``, else as few near-equal passes as fit (their sum is ``spp``).
+
+    One launch of ``res^2 spp`` paths beyond about 2^31 makes Mitsuba split it into passes whose count
+    must divide ``spp`` (an error otherwise) and can run out of memory; passes of our own avoid both."""
+    pixels = res * res
+    per_pass = max(1, max_pass_samples // pixels)
+    if spp <= per_pass:
+        return [spp]
+    count = -(-spp // per_pass)
+    return [spp // count + (1 if number < spp % count else 0) for number in range(count)]

@@ -209,3 +209,25 @@ def test_correlation_length_of_gaussian_smoothed_noise_is_analytic():
     assert correlation_length(rng.standard_normal(shape), ball) < 1.0  # white noise: uncorrelated at one voxel
     with pytest.raises(ValueError, match="non-empty mask"):
         correlation_length(field, np.zeros(shape, bool))
+
+
+def test_renders_beyond_one_launch_go_in_passes_of_the_same_estimator(mi, blob_density):
+    from mistyle.pathtrace import MAX_PASS_SAMPLES, path_trace, sample_passes
+    from mistyle.scenes import CameraPath
+
+    # The sizes that crashed Mitsuba (a sample count no pass split divides; a segfault past 2^31 paths).
+    for res, spp in ((2048, 1025), (4096, 300), (8192, 65536), (256, 64)):
+        passes = sample_passes(res, spp)
+        assert sum(passes) == spp and max(passes) * res * res <= max(MAX_PASS_SAMPLES, res * res)
+        assert max(passes) - min(passes) <= 1
+    assert sample_passes(256, 64) == [64]  # the default render is one launch, as before
+    albedo = np.full(blob_density.shape + (3,), 0.6, np.float32)
+    views = [CameraPath(distance=2.0).view(0.1)]
+    options = {"res": 24, "spp": 32, "density_scale": 20.0, "light": "constant:8"}
+    whole, _ = path_trace(blob_density, albedo, views, **options)
+    split, _ = path_trace(blob_density, albedo, views, max_pass_samples=24 * 24 * 5, **options)  # 7 passes
+    reference, _ = path_trace(blob_density, albedo, views, **{**options, "spp": 512})
+    assert not np.array_equal(whole[0], split[0])  # other samples...
+    error = [float(np.abs(image[0] - reference[0]).mean()) for image in (whole, split)]
+    assert error[1] < 1.5 * error[0]  # ...of the same estimator
+    np.testing.assert_allclose(split[0].mean(), reference[0].mean(), rtol=0.05)

@@ -92,7 +92,18 @@ def staged_directory(directory):
             ) from None
         if directory.exists() and not directory.is_dir():
             raise ValueError(f"The output path {directory} is a file; choose a folder for --out.")
+        # Holding the lock, no other run writes this output: staging folders beside it are a killed run's.
+        stale = [p for kind in ("partial", "replaced") for p in parent.glob(f".{directory.name}.{kind}-*")]
+        for folder in stale:
+            shutil.rmtree(folder, ignore_errors=True)
+        if stale:
+            from .progress import status
+
+            status(f"note: removed {len(stale)} unfinished staging folder(s) of an earlier run beside {directory}")
         staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.partial-", dir=parent))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(staging, 0o777 & ~umask)  # mkdtemp makes 0700 folders; the output gets the usual mode
         try:
             yield staging
             if directory.exists():

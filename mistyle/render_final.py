@@ -160,13 +160,33 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+class Terminated(Exception):
+    """Raised in the main thread by SIGTERM, so that staging folders are cleaned up as on Ctrl-C."""
+
+
+def _terminate(signum, frame):
+    raise Terminated
+
+
 def main(argv=None) -> int:
+    import signal
+    import threading
+
     from .progress import set_quiet
 
     args = parser().parse_args(argv)
     set_quiet(args.quiet)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return run(args)
+    except KeyboardInterrupt:
+        print("interrupted: the output being written was removed; finished outputs are kept", file=sys.stderr)
+        return 130
+    except Terminated:
+        print("terminated: the output being written was removed; finished outputs are kept", file=sys.stderr)
+        return 143
     except (ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -177,6 +197,9 @@ def main(argv=None) -> int:
             print(f"error: {error}", file=sys.stderr)
             return 2
         raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def log(message: str) -> None:

@@ -438,8 +438,7 @@ def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint,
         raise KeyboardInterrupt
 
     monkeypatch.setattr(render_final, "write_report", interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        main(arguments + ["--view", "0.5", "--overwrite"])
+    assert main(arguments + ["--view", "0.5", "--overwrite"]) == 130
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder or lock left
 
@@ -903,3 +902,71 @@ def test_an_invisible_medium_renders_with_its_metrics_left_out(mi, checkpoint, i
     report = json.loads(text)
     assert "NaN" not in text and report["rgb_swd"] is None and report["patch_swd"] is None
     assert any("no pixel of the final render sees the medium" in note for note in report["notes"])
+
+
+# ------------------------------------------------------------------ interrupts and what they leave
+def test_sigterm_exits_143_in_one_line_and_leaves_nothing(checkpoint, inputs, tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    command = [
+        sys.executable,
+        "-m",
+        "mistyle.render_final",
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        "--style",
+        str(inputs / "style.png"),
+        "--out",
+        str(out),
+        "--res",
+        "16",
+        "--spp",
+        "1",
+        "--refine",
+        "10000",
+        "--quiet",
+    ]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not list(tmp_path.glob(".out.partial-*")) and time.time() < deadline:
+        time.sleep(0.2)
+    assert list(tmp_path.glob(".out.partial-*")), "the run never started staging"
+    time.sleep(1.0)
+    process.send_signal(signal.SIGTERM)
+    _, error = process.communicate(timeout=120)
+    assert process.returncode == 143
+    assert error.strip().splitlines() == ["terminated: the output being written was removed; finished outputs are kept"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_killed_runs_staging_folders_are_removed_by_the_next_run(mi, checkpoint, inputs, tmp_path, capsys):
+    import os
+
+    for name in (".out.partial-abc123", ".out.replaced-def456"):
+        (tmp_path / name / "x").mkdir(parents=True)
+    (tmp_path / ".out.lock").write_text("")  # left by a SIGKILL: its process is gone, so its lock is free
+    previous = os.umask(0o022)
+    try:
+        arguments = [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            str(inputs / "blob.vol"),
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(tmp_path / "out"),
+            *FAST,
+        ]
+        assert main(arguments) == 0
+    finally:
+        os.umask(previous)
+    assert "removed 2 unfinished staging folder(s)" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert (tmp_path / "out").stat().st_mode & 0o777 == 0o755  # the umask's mode, not mkdtemp's 0700

@@ -360,6 +360,9 @@ def write_npz(path, **arrays) -> Path:
 
 # ----------------------------------------------------------------------------- style pictures
 MIN_STYLE_SIZE = 8
+MAX_STYLE_SIDE = 256
+"""Styles are reduced to this many pixels on their longer side when decoded, before any metric or objective
+sees them: the size of the benchmark's styles, twice what the network and the refinement read (128)."""
 STYLE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".gif", ".exr")
 
 
@@ -399,6 +402,12 @@ def _style_file(path: Path, notes: list) -> np.ndarray:
             raise ValueError(f"{path} is not a readable RGB OpenEXR image ({error}).") from None
     try:
         with Image.open(path) as image:
+            if image.format == "JPEG" and max(image.size) > 2 * MAX_STYLE_SIDE:
+                # Decode at 1/2, 1/4 or 1/8 scale, never below the working size: a fraction of the memory.
+                scale = MAX_STYLE_SIDE / max(image.size)
+                full = image.size
+                image.draft("RGB", (round(image.size[0] * scale), round(image.size[1] * scale)))
+                notes.append(f"{path}: {full[0]}x{full[1]} JPEG decoded at {image.size[0]}x{image.size[1]}")
             image.load()
             rgb = _pil_to_array(image, str(path), notes)
     except Image.DecompressionBombError:
@@ -466,7 +475,10 @@ def _style_array(array: np.ndarray, name: str, notes: list) -> np.ndarray:
         values = array.astype(np.float32)
     elif np.issubdtype(array.dtype, np.floating):
         values = array.astype(np.float32)
-        if not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
+        if not np.all(np.isfinite(values)):
+            bad = int(np.count_nonzero(~np.isfinite(values)))
+            raise ValueError(f"{name} holds {bad} NaN or infinite value(s); a style needs finite values in [0, 1].")
+        if values.min() < 0 or values.max() > 1:
             raise ValueError(
                 f"{name} must hold finite values in [0, 1] (display-encoded sRGB), "
                 f"got [{np.nanmin(values):.4g}, {np.nanmax(values):.4g}]."
@@ -485,4 +497,21 @@ def _style_array(array: np.ndarray, name: str, notes: list) -> np.ndarray:
             f"{name} is {values.shape[1]}x{values.shape[0]} pixels; a style image needs at least "
             f"{MIN_STYLE_SIZE}x{MIN_STYLE_SIZE}."
         )
+    if max(values.shape[:2]) > MAX_STYLE_SIDE:
+        values = _reduced(values, name, notes)
     return np.ascontiguousarray(np.clip(values, 0.0, 1.0), dtype=np.float32)
+
+
+def _reduced(values: np.ndarray, name: str, notes: list) -> np.ndarray:
+    """``values (H, W, 3)`` resampled (Lanczos, per channel in float) to ``MAX_STYLE_SIDE`` on its longer side."""
+    from PIL import Image
+
+    height, width = values.shape[:2]
+    scale = MAX_STYLE_SIDE / max(height, width)
+    size = (max(1, round(width * scale)), max(1, round(height * scale)))
+    channels = [np.asarray(Image.fromarray(values[..., c], mode="F").resize(size, Image.LANCZOS)) for c in range(3)]
+    notes.append(
+        f"{name}: {width}x{height} reduced to {size[0]}x{size[1]} (styles are used at up to "
+        f"{MAX_STYLE_SIDE} pixels a side)"
+    )
+    return np.stack(channels, axis=-1)

@@ -970,3 +970,47 @@ def test_a_killed_runs_staging_folders_are_removed_by_the_next_run(mi, checkpoin
     assert "removed 2 unfinished staging folder(s)" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
     assert (tmp_path / "out").stat().st_mode & 0o777 == 0o755  # the umask's mode, not mkdtemp's 0700
+
+
+def test_a_huge_style_is_reduced_at_decode_and_runs_in_little_memory(inputs, tmp_path):
+    import resource
+    import subprocess
+    import sys
+
+    from mistyle.io import MAX_STYLE_SIDE, load_style
+
+    rng = np.random.default_rng(0)
+    tile = Image.fromarray((rng.random((64, 64, 3)) * 255).astype(np.uint8))
+    tile.resize((4096, 4096), Image.BICUBIC).save(tmp_path / "huge.jpg", quality=90)
+    notes = []
+    style = load_style(tmp_path / "huge.jpg", notes)
+    assert max(style.shape[:2]) == MAX_STYLE_SIDE and any("decoded at" in note for note in notes)
+    assert load_style(np.zeros((3000, 1000, 3), np.uint8)).shape == (MAX_STYLE_SIDE, 85, 3)
+
+    def limit():  # 3 GB of address space: the full-size style alone was a 5 GB allocation
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+    command = [
+        sys.executable,
+        "-m",
+        "mistyle.render_final",
+        "--density",
+        str(inputs / "blob.vol"),
+        "--style",
+        str(tmp_path / "huge.jpg"),
+        "--out",
+        str(tmp_path / "out"),
+        *FAST,
+        "--quiet",
+    ]
+    result = subprocess.run(command, capture_output=True, text=True, preexec_fn=limit, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_a_style_with_nan_says_so():
+    from mistyle.io import load_style
+
+    style = np.full((16, 16, 3), 0.5, np.float32)
+    style[3, 4, 1] = np.nan
+    with pytest.raises(ValueError, match="holds 1 NaN or infinite value"):
+        load_style(style)

@@ -93,3 +93,30 @@ def test_data_on_a_device_this_machine_lacks_is_a_clear_error(tmp_path):
         env={**os.environ, "MISTYLE_DEVICE": "gpu"},
     )
     assert bad.returncode != 0 and "MISTYLE_DEVICE='gpu'" in bad.stderr and "'cpu' or 'cuda'" in bad.stderr
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["smoke", "--res", "100000"], "--res must lie in [8, 256] for smoke, got 100000"),
+        (["smoke", "--res", "2048"], "--res must lie in [8, 256] for smoke, got 2048"),
+        (["fire", "--res", "4"], "--res must lie in [8, 256] for fire, got 4"),
+        (["mesh", "--res", "9999"], "--res must lie in [8, 512] for mesh, got 9999"),
+    ],
+)
+def test_mistyle_data_bounds_sizes_before_any_work(tmp_path, capsys, argv, message):
+    from mistyle.data.__main__ import main as data_main
+
+    out = tmp_path / "out"
+    assert data_main([*argv, "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_mistyle_data_keeps_the_last_frame_of_a_two_frame_run_by_default(mi, tmp_path):
+    from mistyle.data.__main__ import main as data_main
+
+    out = tmp_path / "smoke"
+    assert data_main(["--quiet", "smoke", "--res", "8", "--plumes", "1", "--frames", "2", "--out", str(out)]) == 0
+    frames = sorted(p.name for p in out.rglob("*.npz"))
+    assert len(frames) == 1, frames  # frame 2 of 2, not "frames 3-2"

@@ -1,11 +1,11 @@
 """``mistyle-data`` (``python -m mistyle.data``): generate mistyle's training and demo data offline.
 
-    python -m mistyle.data smoke --res 64 --plumes 100 --frames 90 --out data/smoke64
-    python -m mistyle.data smoke --res 128 --plumes 20 --frames 90 --crop 64 --out data/smoke128
-    python -m mistyle.data smoke ... --shard 0/4      # one of four processes or machines
-    python -m mistyle.data fire --res 64 --frames 120 --out data/fire
-    python -m mistyle.data styles --out data/styles
-    python -m mistyle.data mesh --mesh bunny.ply --res 64 --out bunny.vol
+python -m mistyle.data smoke --res 64 --plumes 100 --frames 90 --out data/smoke64
+python -m mistyle.data smoke --res 128 --plumes 20 --frames 90 --crop 64 --out data/smoke128
+python -m mistyle.data smoke ... --shard 0/4      # one of four processes or machines
+python -m mistyle.data fire --res 64 --frames 120 --out data/fire
+python -m mistyle.data styles --out data/styles
+python -m mistyle.data mesh --mesh bunny.ply --res 64 --out bunny.vol
 """
 
 from __future__ import annotations
@@ -36,31 +36,49 @@ def _frames(text: str) -> tuple[int, int]:
     return first, last
 
 
+RES_RANGE = {"smoke": (8, 256), "fire": (8, 256), "mesh": (8, 512)}
+"""Grid sizes each command accepts: a 256^3 simulation holds a few GB of fields; 512^3 voxels as mistyle-render."""
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="mistyle-data", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)")
+    parser = argparse.ArgumentParser(
+        prog="mistyle-data", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)"
+    )
     commands = parser.add_subparsers(dest="command", required=True)
     smoke = commands.add_parser("smoke", help="simulate smoke plumes and write density/velocity/Ls frames")
     smoke.add_argument("--res", type=int, default=64, help="simulation resolution (cubic)")
     smoke.add_argument("--plumes", type=int, default=100)
     smoke.add_argument("--frames", type=int, default=90, help="frames simulated per plume")
-    smoke.add_argument("--keep", type=_frames, default=None, help="kept frames, first-last (1-based); default: the last third")
-    smoke.add_argument("--crop", type=int, default=0, help="store random crops of this size (for high-resolution plumes)")
+    smoke.add_argument(
+        "--keep", type=_frames, default=None, help="kept frames, first-last (1-based); default: the last third"
+    )
+    smoke.add_argument(
+        "--crop", type=int, default=0, help="store random crops of this size (for high-resolution plumes)"
+    )
     smoke.add_argument("--crops-per-frame", type=int, default=5)
     smoke.add_argument("--seed", type=int, default=0)
-    smoke.add_argument("--density-scale", type=float, default=DEFAULT_DENSITY_SCALE,
-                       help="extinction scale the cached Ls is made for")
+    smoke.add_argument(
+        "--density-scale", type=float, default=DEFAULT_DENSITY_SCALE, help="extinction scale the cached Ls is made for"
+    )
     smoke.add_argument("--directions", type=int, default=LS_DIRECTIONS, help="K for the cached Ls")
     smoke.add_argument("--shard", type=_shard, default=(0, 1), help="i/n: this process's share of the plumes")
-    smoke.add_argument("--device", choices=DEVICES, default=None,
-                       help="Mitsuba variant of the Ls precompute: cpu (llvm_ad_rgb) or cuda (cuda_ad_rgb); "
-                            "default: $MISTYLE_DEVICE, else cpu")
+    smoke.add_argument(
+        "--device",
+        choices=DEVICES,
+        default=None,
+        help="Mitsuba variant of the Ls precompute: cpu (llvm_ad_rgb) or cuda (cuda_ad_rgb); "
+        "default: $MISTYLE_DEVICE, else cpu",
+    )
     smoke.add_argument("--out", type=Path, required=True)
     fire = commands.add_parser("fire", help="simulate a burning plume and write its flame density frames")
     fire.add_argument("--res", type=int, default=64)
     fire.add_argument("--frames", type=int, default=120)
-    fire.add_argument("--keep", type=_frames, default=None, help="kept frames, first-last (1-based); default: the last half")
+    fire.add_argument(
+        "--keep", type=_frames, default=None, help="kept frames, first-last (1-based); default: the last half"
+    )
     fire.add_argument("--seed", type=int, default=0)
     fire.add_argument("--out", type=Path, required=True)
     styles = commands.add_parser("styles", help="write the offline default style set as PNGs, with a summary")
@@ -80,6 +98,13 @@ def main(argv=None) -> int:
     from ..progress import set_quiet
 
     set_quiet(args.quiet)
+    low, high = RES_RANGE[args.command] if args.command in RES_RANGE else (None, None)
+    if low is not None and not low <= args.res <= high:
+        print(f"error: --res must lie in [{low}, {high}] for {args.command}, got {args.res}.", file=sys.stderr)
+        return 2
+    if args.command in ("smoke", "fire") and args.frames < 1:
+        print(f"error: --frames must be at least 1, got {args.frames}.", file=sys.stderr)
+        return 2
     if args.command == "mesh":
         return _mesh_command(args)
     if getattr(args, "device", None):
@@ -121,11 +146,18 @@ def main(argv=None) -> int:
 
     from .generate import SmokeDatasetSpec, generate_smoke
 
-    first, last = args.keep if args.keep else (args.frames - args.frames // 3 + 1, args.frames)
+    first, last = args.keep if args.keep else (args.frames - max(1, args.frames // 3) + 1, args.frames)
     spec = SmokeDatasetSpec(
-        resolution=args.res, plumes=args.plumes, frames=args.frames, keep_first=first, keep_last=last,
-        crop=args.crop, crops_per_frame=args.crops_per_frame, seed=args.seed,
-        density_scale=args.density_scale, directions=args.directions,
+        resolution=args.res,
+        plumes=args.plumes,
+        frames=args.frames,
+        keep_first=first,
+        keep_last=last,
+        crop=args.crop,
+        crops_per_frame=args.crops_per_frame,
+        seed=args.seed,
+        density_scale=args.density_scale,
+        directions=args.directions,
     )
     from ..backend import BackendError
 
@@ -136,8 +168,11 @@ def main(argv=None) -> int:
         return 2
     except OSError as error:
         if error.errno == errno.ENOSPC:
-            print(f"error: the disk under {args.out} is full; free space and re-run the same command "
-                  "(finished files are kept, none is half-written).", file=sys.stderr)
+            print(
+                f"error: the disk under {args.out} is full; free space and re-run the same command "
+                "(finished files are kept, none is half-written).",
+                file=sys.stderr,
+            )
         else:
             print(f"error: cannot write under {args.out}: {error}", file=sys.stderr)
         return 1

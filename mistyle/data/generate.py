@@ -49,9 +49,7 @@ class SmokeDatasetSpec:
         if self.plumes < 1 or self.frames < 2:
             raise ValueError("Need at least one plume and two frames.")
         if not 1 <= self.keep_first <= self.keep_last <= self.frames:
-            raise ValueError(
-                f"The kept frames {self.keep_first}-{self.keep_last} must lie within 1-{self.frames}."
-            )
+            raise ValueError(f"The kept frames {self.keep_first}-{self.keep_last} must lie within 1-{self.frames}.")
         if self.crop and not 4 <= self.crop <= self.resolution:
             raise ValueError(f"--crop must lie in [4, {self.resolution}], got {self.crop}.")
 
@@ -112,7 +110,9 @@ def generate_smoke(spec: SmokeDatasetSpec, out: Path, shard: tuple[int, int] = (
         progress_bar.update(1)
         for (frame, crop_id), path in sorted(paths.items(), key=lambda item: (item[0][0], item[0][1] or 0)):
             shape = [spec.crop] * 3 if spec.crop else [spec.resolution] * 3
-            records.append({"path": str(path.relative_to(out)), "plume": plume, "frame": frame, "crop": crop_id, "shape": shape})
+            records.append(
+                {"path": str(path.relative_to(out)), "plume": plume, "frame": frame, "crop": crop_id, "shape": shape}
+            )
             if frame + 1 in kept:
                 pairs.append([str(path.relative_to(out)), str(paths[(frame + 1, crop_id)].relative_to(out))])
     progress_bar.close()
@@ -122,8 +122,11 @@ def generate_smoke(spec: SmokeDatasetSpec, out: Path, shard: tuple[int, int] = (
         "shard": [index, count],
         "files": records,
         "pairs": pairs,
-        "arrays": {"density": "(Z,Y,X) float32", "velocity": "(Z,Y,X,3) float16, (x,y,z), voxels/frame",
-                   "ls": "(Z,Y,X) float16, Ls for unit radiance at spec.density_scale"},
+        "arrays": {
+            "density": "(Z,Y,X) float32",
+            "velocity": "(Z,Y,X,3) float16, (x,y,z), voxels/frame",
+            "ls": "(Z,Y,X) float16, Ls for unit radiance at spec.density_scale",
+        },
         "seconds": time.perf_counter() - started,
         "simulated_frames": simulated,
     }
@@ -148,13 +151,20 @@ def _cropped(array: np.ndarray, window, size: int) -> np.ndarray:
 def _write_frame(path: Path, density, velocity, ls, spec: SmokeDatasetSpec, plume: int, frame: int) -> None:
     # float16 halves the disk for the two fields that tolerate it (1e-3 relative).
     write_npz(
-        path, density=density.astype(np.float32), velocity=velocity.astype(np.float16),
-        ls=ls.astype(np.float16), density_scale=np.float32(spec.density_scale),
-        directions=np.int32(spec.directions), plume=np.int32(plume), frame=np.int32(frame),
+        path,
+        density=density.astype(np.float32),
+        velocity=velocity.astype(np.float16),
+        ls=ls.astype(np.float16),
+        density_scale=np.float32(spec.density_scale),
+        directions=np.int32(spec.directions),
+        plume=np.int32(plume),
+        frame=np.int32(frame),
     )
 
 
-def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path, seed: int = 0, log=status) -> list[Path]:
+def generate_fire(
+    resolution: int, frames: int, keep: tuple[int, int], out: Path, seed: int = 0, log=status
+) -> list[Path]:
     """One fire sequence: ``frameNNNN.npz`` with the flame ``density`` and ``velocity`` for each kept frame."""
     import torch
 
@@ -172,7 +182,12 @@ def generate_fire(resolution: int, frames: int, keep: tuple[int, int], out: Path
             if frame >= keep[0]:
                 path = out / f"frame{frame:04d}.npz"
                 if not path.is_file():
-                    write_npz(path, density=flame.astype(np.float32), velocity=velocity.astype(np.float16), frame=np.int32(frame))
+                    write_npz(
+                        path,
+                        density=flame.astype(np.float32),
+                        velocity=velocity.astype(np.float16),
+                        frame=np.int32(frame),
+                    )
                 written.append(path)
     log(f"fire: {len(written)} frames in {out}")
     return written
@@ -184,7 +199,9 @@ def load_frame(path) -> dict:
         with np.load(path, allow_pickle=False) as data:
             frame = {key: data[key] for key in data.files}
     except (OSError, ValueError, EOFError) as error:
-        raise ValueError(f"{path} is not a readable mistyle frame file ({error}); delete it and re-run generation.") from error
+        raise ValueError(
+            f"{path} is not a readable mistyle frame file ({error}); delete it and re-run generation."
+        ) from error
     missing = {"density", "velocity", "ls"} - frame.keys()
     if missing:
         raise ValueError(f"{path} lacks {sorted(missing)}; it was not written by mistyle.data.")

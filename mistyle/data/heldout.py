@@ -18,11 +18,12 @@ configs' seeds.
 from __future__ import annotations
 
 import hashlib
-import tomllib
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 HELD_OUT_STYLE_DIR = Path(__file__).resolve().parent / "heldout_styles"
 """The held-out styles: package data, so an installed mistyle benchmarks without the repository."""
@@ -39,9 +40,14 @@ class HeldOutDensity:
     frame: int = 0  # smoke: the simulated frame kept (0-based)
 
     def describe(self) -> str:
-        what = {"smoke": "smoke from mistyle's solver", "pyroclastic": "procedural pyroclastic cloud",
-                "mesh": "voxelized noise-displaced mesh"}[self.kind]
-        return f"{what}, {self.resolution}^3, seed {self.seed}" + (f", frame {self.frame}" if self.kind == "smoke" else "")
+        what = {
+            "smoke": "smoke from mistyle's solver",
+            "pyroclastic": "procedural pyroclastic cloud",
+            "mesh": "voxelized noise-displaced mesh",
+        }[self.kind]
+        return f"{what}, {self.resolution}^3, seed {self.seed}" + (
+            f", frame {self.frame}" if self.kind == "smoke" else ""
+        )
 
 
 HELD_OUT_DENSITIES = (
@@ -52,9 +58,7 @@ HELD_OUT_DENSITIES = (
 )
 
 
-VALIDATION_DENSITIES = (
-    HeldOutDensity("val_smoke64", "smoke", 64, HELD_OUT_SEED_BASE + 101, frame=69),
-)
+VALIDATION_DENSITIES = (HeldOutDensity("val_smoke64", "smoke", 64, HELD_OUT_SEED_BASE + 101, frame=69),)
 """Densities for choosing between checkpoints (``experiments/validation_curve.py``): made like the
 benchmark's but from other seeds, so model selection never looks at the benchmark's split."""
 
@@ -70,9 +74,7 @@ def held_out_density(spec: HeldOutDensity, cache: Path | None = None) -> np.ndar
         from .smoke import PlumeConfig, simulate
 
         config = PlumeConfig.random((spec.resolution,) * 3, np.random.default_rng([spec.seed, 0]))
-        for frame, density, _ in simulate(config, spec.frame + 1, seed=spec.seed):
-            pass
-        grid = density
+        _, grid, _ = deque(simulate(config, spec.frame + 1, seed=spec.seed), maxlen=1)[0]  # the last frame
     elif spec.kind == "pyroclastic":
         from .procedural import pyroclastic_sphere
 
@@ -114,5 +116,7 @@ def check_training_styles(paths) -> None:
     held = {file_digest(record["path"]): name for name, record in held_out_styles().items()}
     for path in paths:
         if file_digest(path) in held:
-            raise ValueError(f"{path} is the held-out benchmark style {held[file_digest(path)]!r}; training must "
-                             f"never see it. Remove it from the training style folder.")
+            raise ValueError(
+                f"{path} is the held-out benchmark style {held[file_digest(path)]!r}; training must "
+                f"never see it. Remove it from the training style folder."
+            )

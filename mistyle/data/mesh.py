@@ -24,22 +24,53 @@ _DIRECTIONS = np.array([[1.0, 0.0123, 0.0271], [0.0191, 1.0, -0.0137], [-0.0229,
 def icosphere(subdivisions: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """A unit icosphere: vertices ``(V, 3)`` float64 and outward-wound triangles ``(F, 3)`` int."""
     t = (1.0 + 5.0**0.5) / 2.0
-    vertices = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
-                (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
-    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
-             (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5),
-             (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    vertices = [
+        (-1, t, 0),
+        (1, t, 0),
+        (-1, -t, 0),
+        (1, -t, 0),
+        (0, -1, t),
+        (0, 1, t),
+        (0, -1, -t),
+        (0, 1, -t),
+        (t, 0, -1),
+        (t, 0, 1),
+        (-t, 0, -1),
+        (-t, 0, 1),
+    ]
+    faces = [
+        (0, 11, 5),
+        (0, 5, 1),
+        (0, 1, 7),
+        (0, 7, 10),
+        (0, 10, 11),
+        (1, 5, 9),
+        (5, 11, 4),
+        (11, 10, 2),
+        (10, 7, 6),
+        (7, 1, 8),
+        (3, 9, 4),
+        (3, 4, 2),
+        (3, 2, 6),
+        (3, 6, 8),
+        (3, 8, 9),
+        (4, 9, 5),
+        (2, 4, 11),
+        (6, 2, 10),
+        (8, 6, 7),
+        (9, 8, 1),
+    ]
     vertices = [np.array(v, dtype=np.float64) / np.linalg.norm(v) for v in vertices]
     for _ in range(subdivisions):
         midpoint_cache: dict[tuple[int, int], int] = {}
 
-        def midpoint(a: int, b: int) -> int:
+        def midpoint(a: int, b: int, cache: dict = midpoint_cache) -> int:
             key = (min(a, b), max(a, b))
-            if key not in midpoint_cache:
+            if key not in cache:
                 m = vertices[a] + vertices[b]
                 vertices.append(m / np.linalg.norm(m))
-                midpoint_cache[key] = len(vertices) - 1
-            return midpoint_cache[key]
+                cache[key] = len(vertices) - 1
+            return cache[key]
 
         refined = []
         for a, b, c in faces:
@@ -132,7 +163,9 @@ def voxelize(
     faces = np.asarray(faces, dtype=np.int64)
     check_closed(faces)
     if resolution < 2 or not 0 <= margin < 0.5 or supersample < 1:
-        raise ValueError(f"Need resolution >= 2, margin in [0, 0.5) and supersample >= 1; got {resolution}, {margin}, {supersample}.")
+        raise ValueError(
+            f"Need resolution >= 2, margin in [0, 0.5) and supersample >= 1; got {resolution}, {margin}, {supersample}."
+        )
     placed, box = fit_to_box(vertices, resolution, margin)
 
     mesh = mi.Mesh("voxelized", len(placed), len(faces))

@@ -123,8 +123,14 @@ def spot_noise(
     angle = rng.uniform(0, 2 * np.pi, impulses)[:, None]
     t1 = np.cos(angle) * tangent + np.sin(angle) * bitangent
     t2 = np.cross(normal, t1)
-    scales = np.stack([tangent_size * rng.uniform(0.5, 1.0, impulses),
-                       tangent_size * rng.uniform(0.2, 0.6, impulses), np.full(impulses, normal_size)], axis=1)
+    scales = np.stack(
+        [
+            tangent_size * rng.uniform(0.5, 1.0, impulses),
+            tangent_size * rng.uniform(0.2, 0.6, impulses),
+            np.full(impulses, normal_size),
+        ],
+        axis=1,
+    )
     frames = np.stack([t1, t2, normal], axis=2)  # columns: the kernel's axes
     amplitude = rng.uniform(0.5, 1.0, impulses)
 
@@ -137,12 +143,16 @@ def spot_noise(
         voxels = nearest[:, None, :] + offsets[None, :, ::-1]  # offsets are (z,y,x); use xyz
         inside = np.all((voxels >= 0) & (voxels < res_xyz), axis=-1)
         points = box.bbox_min + (voxels + 0.5) * box.voxel_size
-        local = np.einsum("nkij,nki->nkj", np.broadcast_to(frames[chunk, None], points.shape[:2] + (3, 3)),
-                          points - centre[chunk, None])
+        local = np.einsum(
+            "nkij,nki->nkj",
+            np.broadcast_to(frames[chunk, None], points.shape[:2] + (3, 3)),
+            points - centre[chunk, None],
+        )
         exponent = -0.5 * np.sum((local / scales[chunk, None]) ** 2, axis=-1)
         values = amplitude[chunk, None] * np.exp(exponent) * inside
         flat = (voxels[..., 2] * res_xyz[1] + voxels[..., 1]) * res_xyz[0] + voxels[..., 0]
-        density.index_add_(0, torch.from_numpy(np.where(inside, flat, 0).ravel()),
-                           torch.from_numpy(values.ravel().astype(np.float32)))
+        density.index_add_(
+            0, torch.from_numpy(np.where(inside, flat, 0).ravel()), torch.from_numpy(values.ravel().astype(np.float32))
+        )
     density = density.reshape(box.shape_zyx).numpy()
     return np.clip(density / max(float(np.percentile(density[density > 0], 99)), 1e-6), 0.0, 1.0).astype(np.float32)

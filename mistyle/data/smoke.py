@@ -46,7 +46,7 @@ class PlumeConfig:
     source_noise: float = 0.5  # relative amplitude of the inflow's density noise
 
     @staticmethod
-    def random(resolution: tuple[int, int, int], rng: np.random.Generator) -> "PlumeConfig":
+    def random(resolution: tuple[int, int, int], rng: np.random.Generator) -> PlumeConfig:
         """Random inflow position, direction and speed, as the paper randomises its plumes."""
         tilt = rng.uniform(0.0, math.radians(35.0))
         heading = rng.uniform(0.0, 2.0 * math.pi)
@@ -168,7 +168,11 @@ class SmokeSolver:
         """Face velocities averaged to cell centres, ``(Z, Y, X, 3)`` in ``(x, y, z)`` order."""
         s = self.state
         return torch.stack(
-            [0.5 * (s.u[:, :, 1:] + s.u[:, :, :-1]), 0.5 * (s.v[:, 1:, :] + s.v[:, :-1, :]), 0.5 * (s.w[1:] + s.w[:-1])],
+            [
+                0.5 * (s.u[:, :, 1:] + s.u[:, :, :-1]),
+                0.5 * (s.v[:, 1:, :] + s.v[:, :-1, :]),
+                0.5 * (s.w[1:] + s.w[:-1]),
+            ],
             dim=-1,
         )
 
@@ -248,8 +252,10 @@ class _NeumannPoisson:
     def __init__(self, shape, dtype):
         z, y, x = shape
         bases = [self._basis(z, 0.0), self._basis(y, 0.5), self._basis(x, 0.0)]
-        eigen = [2.0 * torch.cos(math.pi * (torch.arange(n, dtype=torch.float64) + shift) / n) - 2.0
-                 for n, shift in ((z, 0.0), (y, 0.5), (x, 0.0))]
+        eigen = [
+            2.0 * torch.cos(math.pi * (torch.arange(n, dtype=torch.float64) + shift) / n) - 2.0
+            for n, shift in ((z, 0.0), (y, 0.5), (x, 0.0))
+        ]
         total = eigen[0][:, None, None] + eigen[1][None, :, None] + eigen[2][None, None, :]
         self.inverse_eigen = (1.0 / total).to(dtype)
         self.bases = [b.to(dtype) for b in bases]
@@ -298,7 +304,10 @@ class FireSolver(SmokeSolver):
 
     def __init__(self, config: FireConfig, seed: int = 0, dtype=torch.float32):
         super().__init__(config, seed, dtype)
-        self.state.extras = {"fuel": torch.zeros_like(self.state.density), "temperature": torch.zeros_like(self.state.density)}
+        self.state.extras = {
+            "fuel": torch.zeros_like(self.state.density),
+            "temperature": torch.zeros_like(self.state.density),
+        }
 
     def step(self) -> tuple[np.ndarray, np.ndarray]:
         state = self.state
@@ -314,7 +323,9 @@ class FireSolver(SmokeSolver):
 
     def _inflow(self):
         super()._inflow()
-        fuel = self._source * (1.0 + self.config.source_noise * (2.0 * torch.rand(self._source.shape, generator=self.generator) - 1.0))
+        fuel = self._source * (
+            1.0 + self.config.source_noise * (2.0 * torch.rand(self._source.shape, generator=self.generator) - 1.0)
+        )
         self.state.extras["fuel"] = torch.maximum(self.state.extras["fuel"], fuel)
         self.state.extras["temperature"] = torch.maximum(self.state.extras["temperature"], self._source * 0.5)
         self.state.density = self.state.density * (1.0 - self._source)  # the inflow itself carries no soot

@@ -27,9 +27,13 @@ from ..io import STYLE_SUFFIXES, load_style
 from .heldout import check_training_styles
 
 PHOTOS = {
-    "astronaut": "astronaut.png", "chelsea": "chelsea.png", "coffee": "coffee.png",
-    "hubble_deep_field": "hubble_deep_field.jpg", "immunohistochemistry": "ihc.png",
-    "retina": "retina.jpg", "rocket": "rocket.jpg",
+    "astronaut": "astronaut.png",
+    "chelsea": "chelsea.png",
+    "coffee": "coffee.png",
+    "hubble_deep_field": "hubble_deep_field.jpg",
+    "immunohistochemistry": "ihc.png",
+    "retina": "retina.jpg",
+    "rocket": "rocket.jpg",
 }
 TEXTURES = {"brick": "brick.png", "grass": "grass.png", "gravel": "gravel.png"}
 MATERIALS = ("marble", "jade", "fire", "wood", "cells", "clouds", "lava")
@@ -127,7 +131,9 @@ def _hsv_to_rgb(h, s, v):
 def apply_palette(gray: np.ndarray, colours: np.ndarray) -> np.ndarray:
     """Map values in [0, 1] through a piecewise-linear colour ramp; ``(H, W) -> (H, W, 3)``."""
     positions = np.linspace(0.0, 1.0, len(colours))
-    return np.stack([np.interp(np.clip(gray, 0, 1), positions, colours[:, c]) for c in range(3)], axis=-1).astype(np.float32)
+    return np.stack([np.interp(np.clip(gray, 0, 1), positions, colours[:, c]) for c in range(3)], axis=-1).astype(
+        np.float32
+    )
 
 
 def material_texture(kind: str, size: int = 128, seed: int = 0) -> np.ndarray:
@@ -193,8 +199,14 @@ def painting_crops(image: np.ndarray, size: int, count: int, rng: np.random.Gene
     return [square_style(crop, size).permute(1, 2, 0).numpy() for crop in crops]
 
 
-def offline_style_set(size: int = 128, crops_per_photo: int = 6, palettes_per_texture: int = 4,
-                      materials_each: int = 6, crops_per_painting: int = 3, seed: int = 0) -> list[tuple[str, np.ndarray]]:
+def offline_style_set(
+    size: int = 128,
+    crops_per_photo: int = 6,
+    palettes_per_texture: int = 4,
+    materials_each: int = 6,
+    crops_per_painting: int = 3,
+    seed: int = 0,
+) -> list[tuple[str, np.ndarray]]:
     """The offline default style set: ``(name, image (size, size, 3))`` pairs; names are ``source/stem_index``."""
     rng = np.random.default_rng(seed)
     styles = []
@@ -226,7 +238,8 @@ def style_set_diversity(styles: list[tuple[str, np.ndarray]]) -> dict:
     for name, _ in styles:
         sources[name.split("/")[0]] = sources.get(name.split("/")[0], 0) + 1
     return {
-        "count": len(styles), "by_source": sources,
+        "count": len(styles),
+        "by_source": sources,
         "mean_pairwise_colour_distance": float(pairwise[np.triu_indices(len(styles), 1)].mean()),
         "hue_coverage": float(_hue_coverage(means)),
         "contrast_range": [float(stds.min()), float(stds.max())],

@@ -21,8 +21,9 @@ def make_tiny_dataset(out, log=print) -> Path:
     """Write (or complete) the tiny dataset under ``out``; returns ``out``."""
     out = Path(out)
     generate_smoke(TINY_SMOKE, out / "smoke", log=log)
-    styles = offline_style_set(size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=0,
-                               seed=7)
+    styles = offline_style_set(
+        size=32, crops_per_photo=1, palettes_per_texture=1, materials_each=1, crops_per_painting=0, seed=7
+    )
     for name, image in styles[::3]:
         path = out / "styles" / (name.replace("/", "_") + ".png")
         if not path.is_file():

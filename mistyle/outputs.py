@@ -140,9 +140,11 @@ def plan_outputs(
     mix: list[str] | None,
     out: Path,
     overwrite: bool,
+    resume: bool = False,
 ) -> list[Output]:
     """Every (density, style) pair's output folder, checked before any work: distinct names, and no
-    existing output replaced without ``overwrite``."""
+    existing output replaced without ``overwrite``. With ``resume``, pairs whose output is complete are
+    left out (``finished_outputs`` names them)."""
     sources = [DensitySource(Path(p)) for p in densities or []] + [
         DensitySource(Path(p), mesh=True) for p in meshes or []
     ]
@@ -174,8 +176,19 @@ def plan_outputs(
                     "mistyle-render); --overwrite replaces only mistyle's own outputs. Choose another --out, "
                     "or empty that folder."
                 )
-            if not overwrite:
+            if not overwrite and not resume:
                 raise ValueError(
-                    f"{folder} already holds a render; pass --overwrite to replace it, or choose another --out."
+                    f"{folder} already holds a render; pass --overwrite to replace it, --resume to keep it "
+                    "and make only the missing outputs, or choose another --out."
                 )
+    if resume and not overwrite:
+        return [output for output in outputs if not is_mistyle_output(output.folder)]
     return outputs
+
+
+def batch_renders(out: Path) -> list[Path]:
+    """The complete outputs in a batch folder ``out``: what its index shows."""
+    out = Path(out)
+    if not out.is_dir():
+        return []
+    return sorted(p for p in out.iterdir() if p.is_dir() and not p.name.startswith(".") and is_mistyle_output(p))

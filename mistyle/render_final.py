@@ -106,6 +106,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--strength", type=float, default=1.0, help="0: a uniform grey medium ... 1: the full style")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--overwrite", action="store_true", help="replace outputs that already exist")
+    p.add_argument(
+        "--resume", action="store_true", help="keep the outputs already complete, make only the missing ones"
+    )
     p.add_argument("--vdb", action="store_true", help="also write volume.vdb for densities that are not .vdb files")
     p.add_argument("--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)")
     p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
@@ -266,7 +269,11 @@ def run(args) -> int:
     from .pipeline import Pipeline
 
     check_options(args)
-    outputs = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite)
+    planned = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite or args.resume)
+    outputs = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite, args.resume)
+    batch = len(planned) > 1
+    if len(outputs) < len(planned):
+        log(f"note: --resume: {len(planned) - len(outputs)} of {len(planned)} output(s) already complete, kept")
     # Every input is looked at before the first output is made, so a bad file late in a batch
     # does not stop it half way (each density is read in full when its turn comes). Each style is
     # decoded once, with the notes on its conversion.
@@ -285,26 +292,38 @@ def run(args) -> int:
         vdb_interpreter()  # no OpenVDB binding: say so before any work
     use_variant(args.device)
     pipeline = Pipeline(settings_from(args), log=log)
-    for number, output in enumerate(outputs, 1):
-        if len(outputs) > 1:
-            log(f"[{number}/{len(outputs)}] {output.name}")
-        job = load(args, output, pipeline, styles)
-        # Everything is written into a staging folder that replaces the output only when it is complete.
-        with staged_directory(output.folder) as staging:
-            job.out = staging
-            report = {"inputs": _inputs_record(job), "notes": job.notes}
-            write_coat_mesh(job)
-            stylized = stylize_frames(job, report)
-            images, layer_images = render_frames(job, stylized, report)
-            report["files"] = write_assets(job, stylized)
-            write_report(job, stylized, images, layer_images, report)
-    if len(outputs) > 1:
-        from .pages import write_index
-
-        write_index(args.out, f"mistyle: {len(outputs)} renders", [f"checkpoint {pipeline.stylizer.path}"])
-    where = f"{args.out}/ ({len(outputs)} outputs and index.html)" if len(outputs) > 1 else f"{args.out}/"
+    try:
+        for number, output in enumerate(outputs, 1):
+            if batch:
+                log(f"[{number}/{len(outputs)}] {output.name}")
+            job = load(args, output, pipeline, styles)
+            # Everything is written into a staging folder that replaces the output only when it is complete.
+            with staged_directory(output.folder) as staging:
+                job.out = staging
+                report = {"inputs": _inputs_record(job), "notes": job.notes}
+                write_coat_mesh(job)
+                stylized = stylize_frames(job, report)
+                images, layer_images = render_frames(job, stylized, report)
+                report["files"] = write_assets(job, stylized)
+                write_report(job, stylized, images, layer_images, report)
+    finally:
+        if batch:  # also when a pair failed: the index shows the outputs that are complete
+            write_batch_index(args.out, pipeline)
+    where = f"{args.out}/ ({len(planned)} outputs and index.html)" if batch else f"{args.out}/"
     print(f"wrote {where}: sheet.png, density and albedo grids with scene.xml, EXR + PNG images, report.json")
     return 0
+
+
+def write_batch_index(out: Path, pipeline) -> None:
+    """``out/index.html`` for the complete outputs on disk, titled with their number."""
+    from .outputs import batch_renders
+    from .pages import write_index
+
+    count = len(batch_renders(out))
+    if count:
+        write_index(
+            out, f"mistyle: {count} render{'s' if count != 1 else ''}", [f"checkpoint {pipeline.stylizer.path}"]
+        )
 
 
 # ---------------------------------------------------------------------------- stage 0: options

@@ -1014,3 +1014,57 @@ def test_a_style_with_nan_says_so():
     style[3, 4, 1] = np.nan
     with pytest.raises(ValueError, match="holds 1 NaN or infinite value"):
         load_style(style)
+
+
+def test_a_batch_that_fails_late_keeps_an_index_and_resumes(mi, checkpoint, inputs, tmp_path, blob_density, capsys):
+    styles = tmp_path / "styles"
+    styles.mkdir()
+    for name in ("wave", "night"):
+        (styles / f"{name}.png").write_bytes((inputs / "style.png").read_bytes())
+    dot = np.zeros((16, 16, 16), np.float32)
+    dot[8, 8, 8] = 1.0  # too little medium: refused when its turn comes
+    np.save(tmp_path / "late.npy", dot)
+    out = tmp_path / "batch"
+    arguments = [
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        str(tmp_path / "late.npy"),
+        "--style",
+        str(styles),
+        "--out",
+        str(out),
+        *FAST,
+    ]
+
+    def renders():
+        return sorted(p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith("."))
+
+    assert main(arguments) == 2
+    assert renders() == ["blob__night", "blob__wave"]
+    assert "mistyle: 2 renders" in (out / "index.html").read_text()
+    capsys.readouterr()
+    assert main(arguments) == 2 and "--resume to keep it" in capsys.readouterr().err
+    np.save(tmp_path / "late.npy", blob_density)  # the input fixed
+    kept = (out / "blob__wave" / "report.json").read_bytes()
+    assert main(arguments + ["--resume"]) == 0
+    assert "2 of 4 output(s) already complete, kept" in capsys.readouterr().err
+    assert renders() == ["blob__night", "blob__wave", "late__night", "late__wave"]
+    assert (out / "blob__wave" / "report.json").read_bytes() == kept  # not made again
+    # A subset made again keeps the index true to what is on disk.
+    subset = [
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        "--style",
+        str(styles),
+        "--out",
+        str(out),
+        *FAST,
+        "--overwrite",
+    ]
+    assert main(subset) == 0
+    index = (out / "index.html").read_text()
+    assert "mistyle: 4 renders" in index and all(name in index for name in renders())

@@ -26,6 +26,7 @@ CPU (``cuda_ad_rgb`` with ``device="cuda"``).
 from __future__ import annotations
 
 import functools
+import os
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +70,8 @@ def stylize(
     style's colours (``colour_match``), and with ``refine=True`` refined against the style.
 
     Args:
-        density: ``(Z, Y, X)`` or a sequence ``(T, Z, Y, X)``, finite, >= 0, not all zero.
+        density: ``(Z, Y, X)`` or a sequence ``(T, Z, Y, X)``, finite, >= 0, not all zero; or a density
+            file's path (``load_density``).
         style_image: a path, or an ``(H, W, 3)`` array (uint8, uint16 or float in [0, 1]), or a mix
             ``[(style, weight), ...]`` (weights >= 0, normalised to sum 1).
         strength: 0 gives a uniform grey medium of the styled one's brightness, 1 the full style.
@@ -85,6 +87,8 @@ def stylize(
     Returns:
         ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) float32 albedo in [0, 1].
     """
+    if isinstance(density, (str, os.PathLike)):
+        density = load_density(density)
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
     steps = {} if refine else {"refine_steps": 0, "refine_path_steps": 0}
     settings = PipelineSettings(

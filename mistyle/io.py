@@ -312,6 +312,11 @@ def load_density_frames(path, grid: str | None = None) -> DensityFrames:
 def _read_density_file(path: Path, grid: str | None = None) -> dict:
     if not path.exists():
         raise ValueError(f"Density {path} does not exist.")
+    if path.is_dir():
+        raise ValueError(
+            f"Density {path} is a folder; a folder of frames is a sequence: load it with "
+            "mistyle.io.load_density_frames, or give it to mistyle-render --density."
+        )
     if not path.is_file():
         raise ValueError(f"Density {path} is not a file.")
     suffix = path.suffix.lower()
@@ -339,7 +344,8 @@ def _read_density_file(path: Path, grid: str | None = None) -> dict:
                     raise ValueError(f"it has no 'density' array (it holds {held})")
                 array, velocity = arrays["density"], arrays.get("velocity")
         except (OSError, EOFError, ValueError) as error:
-            raise ValueError(f"{path} cannot be read as a density ({error}).") from None
+            reason = "not a numpy file of numbers" if "pickle" in str(error) else str(error)
+            raise ValueError(f"{path} cannot be read as a density ({reason}).") from None
     density = validate_density(array, name=os.fspath(path))
     if velocity is not None:
         velocity = np.asarray(velocity, np.float32)

@@ -112,7 +112,7 @@ def parse_mix_item(text: str) -> tuple[Path, float]:
         value = None
     if not path or value is None or not (value >= 0 and value < float("inf")):
         raise ValueError(
-            f"--mix takes IMAGE:WEIGHT items with weights >= 0, e.g. --mix a.png:0.7 b.png:0.3; got {text!r}."
+            f"--mix takes IMAGE:WEIGHT items with finite weights >= 0, e.g. --mix a.png:0.7 b.png:0.3; got {text!r}."
         )
     return Path(path), value
 

@@ -60,7 +60,12 @@ def validate_strength(strength, name: str = "strength") -> float:
 
 def style_parts(style) -> list[tuple[object, float]]:
     """``style`` as ``[(image or path, weight)]``: one image or path, or a list of ``(style, weight)``."""
-    if isinstance(style, (list, tuple)) and style and all(isinstance(p, tuple) and len(p) == 2 for p in style):
+    if isinstance(style, (list, tuple)) and not all(isinstance(p, tuple) and len(p) == 2 for p in style or [None]):
+        raise ValueError(
+            f"A style is an image (array or path) or a mix [(style, weight), ...]; got a list of {len(style)} "
+            "item(s) that are not (style, weight) pairs."
+        )
+    if isinstance(style, (list, tuple)):
         weights = [float(w) for _, w in style]
         if not all(np.isfinite(w) and w >= 0 for w in weights) or sum(weights) <= 0:
             raise ValueError(f"Style mix weights must be >= 0 with a positive sum, got {weights}.")

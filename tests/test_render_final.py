@@ -1068,3 +1068,25 @@ def test_a_batch_that_fails_late_keeps_an_index_and_resumes(mi, checkpoint, inpu
     assert main(subset) == 0
     index = (out / "index.html").read_text()
     assert "mistyle: 4 renders" in index and all(name in index for name in renders())
+
+
+def test_messages_say_what_is_wrong(checkpoint, inputs, tmp_path, blob_density):
+    from mistyle.io import load_density
+    from mistyle.outputs import parse_mix_item
+
+    with pytest.raises(ValueError, match="is a folder; a folder of frames is a sequence"):
+        load_density(tmp_path)
+    (tmp_path / "garbage.npy").write_bytes(
+        b"\x93NUMPY\x01\x00v\x00{'descr': '|O', 'fortran_order': False, 'shape': (2,), }"
+    )
+    with pytest.raises(ValueError) as error:
+        load_density(tmp_path / "garbage.npy")
+    assert "pickle" not in str(error.value)
+    with pytest.raises(ValueError, match="finite weights >= 0"):
+        parse_mix_item("a.png:inf")
+    for style in ([], [inputs / "style.png", inputs / "style.png"]):
+        with pytest.raises(ValueError, match="not \\(style, weight\\) pairs"):
+            mistyle.stylize(blob_density, style, checkpoint=checkpoint)
+    write_vol(tmp_path / "blob.vol", blob_density)
+    by_path = mistyle.stylize(str(tmp_path / "blob.vol"), inputs / "style.png", checkpoint=checkpoint)
+    assert by_path.shape == blob_density.shape + (3,)

@@ -36,7 +36,7 @@ class LightSpec:
         if self.kind not in LIGHT_KINDS:
             raise ValueError(f"Unknown light kind {self.kind!r}. {LIGHT_HELP}")
         if not (math.isfinite(self.value) and self.value > 0):
-            raise ValueError(f"A {self.kind} light's strength must be a finite number > 0, got {self.value}.")
+            raise ValueError(f"The {self.kind} light's strength must be a finite number > 0, got {self.value}.")
         if not all(math.isfinite(v) for v in self.position):
             raise ValueError(f"A light's position must be finite, got {self.position}.")
 

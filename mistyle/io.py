@@ -430,6 +430,9 @@ def _pil_to_array(image, name: str, notes: list) -> np.ndarray:
     """A Pillow image as an ``(H, W, C)`` array (C in 1-4) that ``_style_array`` understands."""
     from PIL import ImageCms
 
+    frames = getattr(image, "n_frames", 1)
+    if frames > 1:
+        notes.append(f"{name}: an animated image of {frames} frames; its first frame is the style")
     icc = image.info.get("icc_profile")
     if image.mode == "P" or image.mode == "PA":
         has_alpha = image.mode == "PA" or "transparency" in image.info
@@ -492,6 +495,8 @@ def _style_array(array: np.ndarray, name: str, notes: list) -> np.ndarray:
     else:
         raise ValueError(f"{name} has the pixel type {array.dtype}; use uint8, uint16 or float in [0, 1].")
     channels = values.shape[-1]
+    if channels in (2, 4) and not values[..., -1].any():
+        raise ValueError(f"{name} is fully transparent (alpha 0 everywhere): it has no colours to give a medium.")
     if channels in (2, 4):  # alpha: composite over black, the renders' background
         values = values[..., :-1] * values[..., -1:]
         notes.append(f"{name}: alpha composited over black (the renders' background)")

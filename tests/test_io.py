@@ -63,3 +63,18 @@ def test_foreign_checkpoints_never_get_the_advice_to_unpickle_them(tmp_path):
     assert "weights_only" not in str(error.value) and "only checkpoints written by mistyle" in str(error.value)
     with pytest.raises(ValueError, match="No checkpoint file"):
         load_checkpoint(tmp_path / "nowhere.pt")
+
+
+def test_a_transparent_style_is_refused_and_an_animated_one_is_named(tmp_path):
+    from PIL import Image
+
+    from mistyle.io import load_style
+
+    Image.fromarray(np.zeros((16, 16, 4), np.uint8), "RGBA").save(tmp_path / "clear.png")
+    with pytest.raises(ValueError, match="fully transparent"):
+        load_style(tmp_path / "clear.png")
+    frames = [Image.fromarray(np.full((16, 16, 3), value, np.uint8)) for value in (40, 200)]
+    frames[0].save(tmp_path / "moving.gif", save_all=True, append_images=frames[1:])
+    notes = []
+    load_style(tmp_path / "moving.gif", notes)
+    assert any("animated image of 2 frames; its first frame is the style" in note for note in notes)

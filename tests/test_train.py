@@ -386,3 +386,11 @@ def test_validation_selection_scores_kept_checkpoints_and_picks_the_lowest(mi, t
     assert chosen.chosen == min(chosen.scores, key=chosen.scores.get)
     with pytest.raises(ValueError, match="no kept checkpoint of step 5"):
         recipes.select(recipes.Stage("s", "tiny.toml", select="step:5"), tmp_path / "run")
+
+
+@pytest.mark.parametrize("extra, message", [(("--resume",), "No checkpoint at"), (("--init", "nope.pt"), "nope.pt")])
+def test_a_run_that_cannot_start_leaves_no_folder(tmp_path, tiny_smoke, extra, message):
+    out = tmp_path / "run"
+    result = run(out, tiny_smoke, *extra, check=False)
+    assert result.returncode == 2 and message in result.stderr and "Traceback" not in result.stderr
+    assert not out.exists()

@@ -101,7 +101,15 @@ def main(argv=None) -> int:
             raise ValueError(
                 "--init starts a new run from a checkpoint's weights; --resume continues one: give one of them."
             )
-        trainer = Trainer(config, args.out, resume=args.resume, init=args.init)
+        created = not args.out.exists()
+        try:
+            trainer = Trainer(config, args.out, resume=args.resume, init=args.init)
+        except BaseException:
+            if created:  # a run that never started leaves no folder behind
+                import shutil
+
+                shutil.rmtree(args.out, ignore_errors=True)
+            raise
         try:
             final = trainer.run()
         except Interrupted:

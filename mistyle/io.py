@@ -12,6 +12,7 @@ in one place, ``load_style``.
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import os
 import struct
@@ -40,6 +41,16 @@ def atomic_output(path):
     try:
         yield Path(tmp)
         os.replace(tmp, path)
+    except OSError as error:
+        # numpy's short writes raise "N requested and M written" with no errno: a full disk all the same.
+        if error.errno == errno.ENOSPC or "requested and" in str(error):
+            where = next(p for p in path.absolute().parents if not p.name.startswith("."))  # not a staging folder
+            full = OSError(
+                f"The disk under {where} is full; nothing was written. Free space there or choose another --out."
+            )
+            full.errno = errno.ENOSPC
+            raise full from None
+        raise
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
@@ -145,7 +156,10 @@ def write_exr(path, image) -> Path:
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_output(path) as tmp:
         with OpenEXR.File(header, {"RGB": rgb}) as exr:
-            exr.write(str(tmp))
+            try:
+                exr.write(str(tmp))
+            except RuntimeError as error:  # OpenEXR reports I/O failures as RuntimeError
+                raise OSError(errno.ENOSPC if "No space left" in str(error) else None, str(error)) from None
     return Path(path)
 
 

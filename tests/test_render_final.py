@@ -1090,3 +1090,36 @@ def test_messages_say_what_is_wrong(checkpoint, inputs, tmp_path, blob_density):
     write_vol(tmp_path / "blob.vol", blob_density)
     by_path = mistyle.stylize(str(tmp_path / "blob.vol"), inputs / "style.png", checkpoint=checkpoint)
     assert by_path.shape == blob_density.shape + (3,)
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 1 MB tmpfs: a real full disk (needs the right to mount; skipped without it)."""
+    import subprocess
+
+    mount = tmp_path / "small"
+    mount.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount)], capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+    yield mount
+    subprocess.run(["umount", str(mount)], capture_output=True)
+
+
+def test_a_full_disk_says_so_and_leaves_nothing(mi, checkpoint, inputs, full_disk, capsys):
+    out = full_disk / "out"  # the 64^3 albedo alone (3 MB) does not fit
+    code = main(
+        [
+            "--checkpoint",
+            str(checkpoint),
+            "--density",
+            "examples/smoke_64.vol",
+            "--style",
+            str(inputs / "style.png"),
+            "--out",
+            str(out),
+            *FAST,
+        ]
+    )
+    error = capsys.readouterr().err
+    assert code == 2 and f"The disk under {full_disk} is full" in error and "requested and" not in error
+    assert list(full_disk.iterdir()) == []

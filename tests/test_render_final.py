@@ -905,7 +905,16 @@ def test_an_invisible_medium_renders_with_its_metrics_left_out(mi, checkpoint, i
 
 
 # ------------------------------------------------------------------ interrupts and what they leave
-def test_sigterm_exits_143_in_one_line_and_leaves_nothing(checkpoint, inputs, tmp_path):
+@pytest.mark.parametrize(
+    "signal_name, code, line",
+    [
+        ("SIGTERM", 143, "terminated: the output being written was removed; finished outputs are kept"),
+        ("SIGINT", 130, "interrupted: the output being written was removed; finished outputs are kept"),
+    ],
+)
+def test_a_signal_during_refinement_exits_in_one_line_and_leaves_nothing(
+    checkpoint, inputs, tmp_path, signal_name, code, line
+):
     import signal
     import subprocess
     import sys
@@ -938,10 +947,10 @@ def test_sigterm_exits_143_in_one_line_and_leaves_nothing(checkpoint, inputs, tm
         time.sleep(0.2)
     assert list(tmp_path.glob(".out.partial-*")), "the run never started staging"
     time.sleep(1.0)
-    process.send_signal(signal.SIGTERM)
+    process.send_signal(getattr(signal, signal_name))  # Ctrl-C is SIGINT
     _, error = process.communicate(timeout=120)
-    assert process.returncode == 143
-    assert error.strip().splitlines() == ["terminated: the output being written was removed; finished outputs are kept"]
+    assert process.returncode == code
+    assert error.strip().splitlines() == [line]
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 

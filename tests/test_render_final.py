@@ -1093,6 +1093,10 @@ def test_messages_say_what_is_wrong(checkpoint, inputs, tmp_path, blob_density):
     assert "pickle" not in str(error.value)
     with pytest.raises(ValueError, match="finite weights >= 0"):
         parse_mix_item("a.png:inf")
+    from mistyle.scenes import LightSpec
+
+    with pytest.raises(ValueError, match="The area light's strength must be a finite number > 0, got -1.0. Use"):
+        LightSpec.parse("area:-1")
     for style in ([], [inputs / "style.png", inputs / "style.png"]):
         with pytest.raises(ValueError, match="not \\(style, weight\\) pairs"):
             mistyle.stylize(blob_density, style, checkpoint=checkpoint)

@@ -60,7 +60,7 @@ class LightSpec:
             if kind == "area":
                 return cls("area", float(rest) if rest else default_radiance)
         except ValueError as error:
-            raise ValueError(f"--light {text!r}: {error}. {LIGHT_HELP}") from None
+            raise ValueError(f"--light {text!r}: {str(error).rstrip('.')}. {LIGHT_HELP}") from None
         raise ValueError(f"--light {text!r} is not a known light. {LIGHT_HELP}")
 
     def emitters(self) -> dict:

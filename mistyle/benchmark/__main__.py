@@ -63,9 +63,9 @@ def main(argv=None) -> int:
             return 0
         split = "quick" if args.quick else args.split
         res, spp = (32, 4) if args.quick else (args.res, args.spp)
-        for name, value in (("--res", res), ("--spp", spp)):
-            if not 8 <= value <= 4096 if name == "--res" else not 1 <= value <= 4096:
-                raise ValueError(f"{name} is out of range, got {value}.")
+        for name, value, low in (("--res", res, 8), ("--spp", spp, 1)):
+            if not low <= value <= 4096:
+                raise ValueError(f"{name} must lie in [{low}, 4096], got {value}.")
         pairs = split_pairs(
             split,
             args.densities.split(",") if args.densities else None,

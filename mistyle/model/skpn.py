@@ -330,7 +330,7 @@ class SKPN(nn.Module):
 def inference_precision(device: torch.device) -> str:
     """``"bf16"`` where the hardware computes bfloat16 natively (CUDA; CPUs with AVX-512 BF16 or AMX, as
     oneDNN reports), else ``"fp32"``: elsewhere bfloat16 convolutions are emulated, about 200x slower
-    than float32 at 64^3 on an AMD EPYC without AVX-512 BF16 (``experiments/bench_skpn.py``)."""
+    than float32 at 64^3 on an AMD EPYC without AVX-512 BF16 (``SKPN.infer`` with either ``precision``)."""
     if torch.device(device).type == "cuda":
         return "bf16"
     return "bf16" if torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported() else "fp32"

@@ -143,8 +143,8 @@ def plan_outputs(
     resume: bool = False,
 ) -> list[Output]:
     """Every (density, style) pair's output folder, checked before any work: distinct names, and no
-    existing output replaced without ``overwrite``. With ``resume``, pairs whose output is complete are
-    left out (``finished_outputs`` names them)."""
+    existing output replaced without ``overwrite`` or kept without ``resume`` (the caller then skips
+    the complete ones: ``is_mistyle_output``)."""
     sources = [DensitySource(Path(p)) for p in densities or []] + [
         DensitySource(Path(p), mesh=True) for p in meshes or []
     ]
@@ -181,8 +181,6 @@ def plan_outputs(
                     f"{folder} already holds a render; pass --overwrite to replace it, --resume to keep it "
                     "and make only the missing outputs, or choose another --out."
                 )
-    if resume and not overwrite:
-        return [output for output in outputs if not is_mistyle_output(output.folder)]
     return outputs
 
 

@@ -265,12 +265,13 @@ class Job:
 def run(args) -> int:
     from .backend import use_variant
     from .io import load_style, staged_directory
-    from .outputs import plan_outputs
+    from .outputs import is_mistyle_output, plan_outputs
     from .pipeline import Pipeline
 
     check_options(args)
-    planned = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite or args.resume)
-    outputs = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite, args.resume)
+    planned = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite, args.resume)
+    keep = args.resume and not args.overwrite
+    outputs = [output for output in planned if not (keep and is_mistyle_output(output.folder))]
     batch = len(planned) > 1
     if len(outputs) < len(planned):
         log(f"note: --resume: {len(planned) - len(outputs)} of {len(planned)} output(s) already complete, kept")
@@ -392,9 +393,6 @@ def load(args, output, pipeline, styles: dict) -> Job:
     else:
         loaded = load_density_frames(output.density.path, grid=args.grid)
         densities, velocities, names, transforms = loaded.densities, loaded.velocities, loaded.names, loaded.transforms
-    for name, grid in zip(names, densities):
-        if not grid.any():
-            raise ValueError(f"The density {name} is all zero; there is no medium to stylize or render.")
     frames = pipeline.frames(densities, velocities, names)
     return Job(
         args=args,

@@ -228,13 +228,17 @@ def table(rows: list[Row]) -> str:
 
 
 def report(out) -> str:
-    """Rewrite ``table.md``, ``sheet.jpg`` and ``index.html`` in ``out`` from its rows; returns the table."""
+    """Rewrite ``table.md`` (all pairs, then each density's), ``sheet.jpg`` and ``index.html`` in ``out``
+    from its rows; returns the table."""
     from ..io import atomic_write_bytes
     from ..pages import write_index
 
     out = Path(out)
     rows = read_rows(out / ROWS_FILE)
     text = table(rows)
+    densities = list(dict.fromkeys(row.density for row in rows))
+    if len(densities) > 1:  # a method can lead on one kind of density and not on another
+        text += "".join(f"\n### {name}\n\n" + table([r for r in rows if r.density == name]) for name in densities)
     atomic_write_bytes(out / TABLE_FILE, text.encode())
     write_sheet(rows, out / "tiles", out / SHEET_FILE)
     write_index(out, "mistyle: style-fidelity benchmark", [f"{len(rows)} rows; the table is {TABLE_FILE}"])

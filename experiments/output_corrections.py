@@ -177,7 +177,7 @@ def extrapolated(stylizer, density, style, strength: float) -> np.ndarray:
         }
         for site in kernels.sites
     }
-    return stylizer._one(density, StylizingKernels(sites), 1.0)
+    return stylizer.network_albedo(density, StylizingKernels(sites), 1.0)
 
 
 if __name__ == "__main__":

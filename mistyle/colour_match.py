@@ -170,6 +170,41 @@ class ColourMatch:
         result[inside] = np.exp(np.interp(moved, self.shown_levels, self.log_levels))[voxel_colour]
         return result, (colours, carried, len(self.stages))
 
+    def apply_torch(self, albedo, inside):
+        """``apply`` at strength 1 on a torch ``albedo (3, Z, Y, X)``, differentiable (the map is piecewise
+        linear in shown colour), where the boolean ``inside (Z, Y, X)`` holds; float32 ``(3, Z, Y, X)``.
+        A look's fit optimises the network through it (``mistyle.look``)."""
+        import torch
+
+        def table(values):
+            return torch.as_tensor(np.asarray(values), dtype=torch.float64, device=albedo.device)
+
+        log_levels, shown_levels = table(self.log_levels), table(self.shown_levels)
+        colours = albedo.permute(1, 2, 3, 0)[inside].double()  # (N, 3)
+        shown = interpolate(colours.clamp(RESPONSE_LEVELS[0], 1.0).log(), log_levels, shown_levels)
+        carried = shown
+        for direction, source, target in self.stages:
+            direction = table(direction)
+            projected = carried @ direction
+            carried = carried + (interpolate(projected, table(source), table(target)) - projected)[:, None] * direction
+        moved = carried.clamp(float(self.shown_levels[0]), float(self.shown_levels[-1]))
+        matched = interpolate(moved, shown_levels, log_levels).exp().float()
+        result = albedo.permute(1, 2, 3, 0).clone()
+        result[inside] = matched
+        return result.permute(3, 0, 1, 2)
+
+
+def interpolate(x, xp, fp):
+    """``np.interp`` in torch (``xp`` increasing, ties allowed; constant beyond its ends), differentiable in ``x``."""
+    import torch
+
+    index = torch.searchsorted(xp, x.detach().contiguous()).clamp(1, len(xp) - 1)
+    left, right = xp[index - 1], xp[index]
+    span = right - left
+    weight = torch.where(span > 0, (x - left) / torch.where(span > 0, span, torch.ones_like(span)), 1.0)
+    value = fp[index - 1] + weight.clamp(0.0, 1.0) * (fp[index] - fp[index - 1])
+    return torch.where(x <= xp[0], fp[0], torch.where(x >= xp[-1], fp[-1], value))
+
 
 def distinct_colours(colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct rows of ``colours (N, 3)`` (float32, non-negative), sorted by red, then green, then

@@ -71,15 +71,10 @@ def check_writable_dir(directory) -> Path:
 
 
 @contextlib.contextmanager
-def staged_directory(directory):
-    """Yield an empty staging folder; when the block succeeds, it becomes ``directory`` whole.
-
-    The staging folder is a hidden sibling of ``directory``, so the final rename stays on one file
-    system. An existing ``directory`` is replaced only once the new one is complete; a failure or an
-    interrupt removes the staging folder and leaves ``directory`` as it was. A lock file beside it
-    refuses a second run into the same ``directory`` while one is in progress, so a finished folder
-    always comes from one run.
-    """
+def output_lock(directory, wait: bool = False):
+    """Hold the lock file beside ``directory`` for the block; yield ``(directory, parent)``. A second run
+    into the same output is refused while it is held (``wait``: waits for it instead), and staging
+    folders left beside it by a killed run are removed."""
     import fcntl
     import shutil
 
@@ -96,7 +91,7 @@ def staged_directory(directory):
         ) from None
     try:
         try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(lock, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             raise ValueError(
                 f"Another mistyle run is writing to {directory}; wait for it to finish or choose another --out."
@@ -111,10 +106,35 @@ def staged_directory(directory):
             from .progress import status
 
             status(f"note: removed {len(stale)} unfinished staging folder(s) of an earlier run beside {directory}")
-        staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.partial-", dir=parent))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(staging, 0o777 & ~umask)  # mkdtemp makes 0700 folders; the output gets the usual mode
+        yield directory, parent
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(parent / f".{directory.name}.lock")
+        lock.close()
+
+
+def _staging_folder(directory: Path, parent: Path) -> Path:
+    staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.partial-", dir=parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(staging, 0o777 & ~umask)  # mkdtemp makes 0700 folders; the output gets the usual mode
+    return staging
+
+
+@contextlib.contextmanager
+def staged_directory(directory):
+    """Yield an empty staging folder; when the block succeeds, it becomes ``directory`` whole.
+
+    The staging folder is a hidden sibling of ``directory``, so the final rename stays on one file
+    system. An existing ``directory`` is replaced only once the new one is complete; a failure or an
+    interrupt removes the staging folder and leaves ``directory`` as it was. A lock file beside it
+    refuses a second run into the same ``directory`` while one is in progress, so a finished folder
+    always comes from one run.
+    """
+    import shutil
+
+    with output_lock(directory) as (directory, parent):
+        staging = _staging_folder(directory, parent)
         try:
             yield staging
             if directory.exists():
@@ -126,10 +146,41 @@ def staged_directory(directory):
                 os.replace(staging, directory)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def chunk_staging(directory):
+    """Yield an empty staging folder beside ``directory`` for one chunk of a sequence, removed after the
+    block. It takes no lock: chunks render side by side (on a farm, at once) and each merges its
+    files into ``directory`` under ``output_lock(directory, wait=True)`` (``merge_files``)."""
+    import shutil
+
+    directory = Path(directory).absolute()
+    if directory.name in ("", ".", ".."):
+        directory = directory.resolve()
+    try:
+        directory.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.chunk-", dir=directory.parent))
+    except OSError as error:
+        raise ValueError(
+            f"Cannot write to the output directory {directory} ({error.strerror or error}); choose another --out."
+        ) from None
+    try:
+        yield staging
     finally:
-        with contextlib.suppress(OSError):
-            os.unlink(parent / f".{directory.name}.lock")
-        lock.close()
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def merge_files(staging: Path, directory: Path) -> list[str]:
+    """Move every file of ``staging`` (``chunk_staging``) into ``directory``, each replacing its namesake
+    atomically and keeping the others; returns the names moved. Hold ``output_lock(directory)``."""
+    Path(directory).mkdir(parents=True, exist_ok=True)
+    moved = []
+    for path in sorted(Path(staging).iterdir()):
+        if path.is_file():
+            os.replace(path, Path(directory) / path.name)
+            moved.append(path.name)
+    return moved
 
 
 def atomic_write_bytes(path, data: bytes) -> Path:
@@ -178,6 +229,14 @@ def linear_to_srgb(image: np.ndarray) -> np.ndarray:
     """The sRGB transfer curve on linear values, clipped to [0, 1]."""
     x = np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0)
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def read_png(path) -> np.ndarray:
+    """An 8-bit PNG as ``(H, W, 3)`` uint8 (what ``write_png`` wrote)."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return np.asarray(image.convert("RGB"), dtype=np.uint8).copy()
 
 
 def write_png(path, image, srgb: bool = True) -> Path:
@@ -294,6 +353,17 @@ def load_density(path, grid: str | None = None) -> np.ndarray:
     return _read_density_file(Path(path), grid)["density"]
 
 
+def density_frame_files(path) -> list[Path]:
+    """The frame files of a density: the file itself, or a folder's density files sorted by name."""
+    path = Path(path)
+    if not path.is_dir():
+        return [path]
+    files = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES and p.is_file())
+    if not files:
+        raise ValueError(f"The folder {path} holds no {', '.join(DENSITY_SUFFIXES)} density frames.")
+    return files
+
+
 def load_density_frames(path, grid: str | None = None) -> DensityFrames:
     """Density frames from a file or a folder of frame files (sorted by name).
 
@@ -301,12 +371,7 @@ def load_density_frames(path, grid: str | None = None) -> DensityFrames:
     velocities are returned only when every frame has one. All frames must share one grid size.
     """
     path = Path(path)
-    if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES and p.is_file())
-        if not files:
-            raise ValueError(f"The folder {path} holds no {', '.join(DENSITY_SUFFIXES)} density frames.")
-    else:
-        files = [path]
+    files = density_frame_files(path)
     frames = [_read_density_file(file, grid) for file in files]
     shapes = {frame["density"].shape for frame in frames}
     if len(shapes) > 1:

@@ -35,273 +35,17 @@ import numpy as np
 
 from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
 from .io import load_style
-
-PACKAGE = Path(__file__).resolve().parent
-DEFAULT_CHECKPOINT = PACKAGE / "checkpoints" / "skpn_cpu.pt"
-SCALE_STRUCTURES_RANGE = (0.125, 8.0)
-# Rec. 709 luma of display RGB: the brightness a neutral (strength 0) medium keeps from the style.
-LUMA_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
-
-
-def validate_scale_structures(factor, name: str = "scale_structures") -> float:
-    """The structure-scale factor, in ``SCALE_STRUCTURES_RANGE``; ``ValueError`` naming ``name``."""
-    low, high = SCALE_STRUCTURES_RANGE
-    if not (np.isfinite(factor) and low <= factor <= high):
-        raise ValueError(f"{name} must lie in [{low}, {high}], got {factor}.")
-    return float(factor)
-
-
-def validate_strength(strength, name: str = "strength") -> float:
-    """A style strength in [0, 1]; ``ValueError`` naming ``name``."""
-    if not (np.isfinite(strength) and 0.0 <= strength <= 1.0):
-        raise ValueError(f"{name} must lie in [0, 1] (0: a uniform grey medium, 1: the full style), got {strength}.")
-    return float(strength)
-
-
-def style_parts(style) -> list[tuple[object, float]]:
-    """``style`` as ``[(image or path, weight)]``: one image or path, or a list of ``(style, weight)``."""
-    if isinstance(style, (list, tuple)) and not all(isinstance(p, tuple) and len(p) == 2 for p in style or [None]):
-        raise ValueError(
-            f"A style is an image (array or path) or a mix [(style, weight), ...]; got a list of {len(style)} "
-            "item(s) that are not (style, weight) pairs."
-        )
-    if isinstance(style, (list, tuple)):
-        weights = [float(w) for _, w in style]
-        if not all(np.isfinite(w) and w >= 0 for w in weights) or sum(weights) <= 0:
-            raise ValueError(f"Style mix weights must be >= 0 with a positive sum, got {weights}.")
-        return [(image, float(w)) for image, w in style]
-    return [(style, 1.0)]
-
-
-def style_target(images: list[np.ndarray], weights, height: int = 256) -> np.ndarray:
-    """The picture a style's look is measured and refined against: the image itself, or for a mix a
-    mosaic ``(height, W, 3)`` of its images side by side, each given a width in proportion to its
-    weight (scaled to ``height``, tiled across its strip), so every style's colours and patterns
-    count as much as its weight."""
-    from PIL import Image
-
-    if len(images) == 1:
-        return images[0]
-    weights = np.asarray(weights, dtype=np.float64) / np.sum(weights)
-    strips = []
-    for image, weight in zip(images, weights):
-        width = round(height * len(images) * weight)
-        if width < 1:
-            continue
-        scaled = (
-            np.asarray(
-                Image.fromarray((image * 255 + 0.5).astype(np.uint8)).resize(
-                    (max(1, round(image.shape[1] * height / image.shape[0])), height), Image.LANCZOS
-                ),
-                dtype=np.float32,
-            )
-            / 255
-        )
-        repeats = -(-width // scaled.shape[1])
-        strips.append(np.tile(scaled, (1, repeats, 1))[:, :width])
-    return np.concatenate(strips, axis=1)
-
-
-class Stylizer:
-    """A loaded checkpoint: ``stylizer(density, style) -> albedo``; see ``stylize``.
-
-    Attributes:
-        trained: the checkpoint's ``mistyle.model.checkpoint.TrainedModel`` (network, config,
-            extractor, density scale).
-    """
-
-    def __init__(self, checkpoint=None, device: str = "cpu", vgg_weights=None):
-        import torch
-
-        from .model.checkpoint import load_model
-
-        path = Path(checkpoint) if checkpoint is not None else DEFAULT_CHECKPOINT
-        if not path.is_file():
-            if checkpoint is None:
-                raise ValueError(
-                    f"The bundled checkpoint {path} is missing; train one with "
-                    "`python -m mistyle.train --config configs/cpu.toml --out runs/cpu` and pass --checkpoint."
-                )
-            raise ValueError(
-                f"Checkpoint {path} does not exist; give a file written by `python -m mistyle.train` "
-                "(e.g. runs/cpu/final.pt), or leave --checkpoint out for the bundled one."
-            )
-        self.trained = load_model(path, vgg_weights)
-        self.device = torch.device(device)
-        self.trained.model.to(self.device)
-        self.trained.extractor.to(self.device)
-
-    @property
-    def path(self) -> Path:
-        return self.trained.path
-
-    @property
-    def config(self):
-        return self.trained.config
-
-    @property
-    def extractor(self):
-        return self.trained.extractor
-
-    @property
-    def density_scale(self) -> float:
-        return self.trained.density_scale
-
-    def style_tensor(self, style: np.ndarray):
-        """``(H, W, 3)`` style -> the ``(3, S, S)`` square the network and the objective see."""
-        from .model.features import square_style
-
-        return square_style(style, self.config.data.style_size)
-
-    def style_inputs(self, style: np.ndarray):
-        """What the network reads of ``style`` (``model.skpn.StyleInputs``)."""
-        return self.trained.model.encode_style(self.style_tensor(style)[None].to(self.device), self.extractor)
-
-    def kernels(self, style, notes: list | None = None):
-        """The stylizing kernels (``model.skpn.StylizingKernels``) the network applies for ``style``:
-        one image or path, or a mix ``[(style, weight)]``, whose kernels are blended with the
-        weights normalised to sum 1."""
-        import torch
-
-        from .model.skpn import StylizingKernels
-
-        model = self.trained.model
-        with torch.no_grad():
-            return StylizingKernels.blend(
-                [
-                    (model.predict_kernels(self.style_inputs(load_style(image, notes))), weight)
-                    for image, weight in style_parts(style)
-                ]
-            )
-
-    def weakened(self, kernels, grid: np.ndarray, strength: float):
-        """``kernels`` at ``strength``: blended with ``SKPN.neutral_kernels`` whose grey is the luma of the
-        full-strength albedo's density-weighted mean on ``grid``, so that fading the style out keeps
-        the medium's brightness and removes its hues and patterns (0: uniform grey, 1: ``kernels``)."""
-        from .model.skpn import StylizingKernels
-
-        if validate_strength(strength) == 1.0:
-            return kernels
-        return StylizingKernels.blend([(kernels, strength), (self.neutral(kernels, grid), 1.0 - strength)])
-
-    def neutral(self, kernels, grid: np.ndarray):
-        """``SKPN.neutral_kernels`` of ``kernels`` whose grey is the luma of the density-weighted mean of
-        the albedo ``kernels`` give on ``grid`` (what ``weakened`` fades towards)."""
-        full = self._one(grid, kernels, 1.0)
-        grey = float(np.tensordot(grid / grid.sum(), full, axes=3) @ LUMA_WEIGHTS)
-        return self.trained.model.neutral_kernels(kernels, grey)
-
-    def __call__(
-        self,
-        density,
-        style,
-        scale_structures: float = 1.0,
-        notes: list | None = None,
-        strength: float = 1.0,
-        match_colours: bool = True,
-    ) -> np.ndarray:
-        """Albedo ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) of ``density`` for ``style`` (see ``kernels``)
-        at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame).
-
-        ``match_colours``: give the network's arrangement the style's colours (``colour_match``; for a
-        mix, the colours of ``style_target``), moved ``strength`` of the way; a sequence shares the map
-        fitted on its first frame. A medium too thin to be seen keeps the network's colours (said in
-        ``notes``). False: the network's albedo as predicted."""
-        from .volume import validate_density
-
-        array = np.asarray(density)
-        sequence = array.ndim == 4 and array.shape[-1] != 1
-        frames = array if sequence else array[None]
-        validate_scale_structures(scale_structures)
-        validate_strength(strength)
-        parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
-        inputs = self.kernels(parts)
-        grids, albedos = [], []
-        for index, frame in enumerate(frames):
-            grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
-            if not grid.any():
-                raise ValueError(
-                    f"{'Frame ' + str(index) + ' of the density' if sequence else 'The density'} is all zero; "
-                    "there is no medium to stylize."
-                )
-            if index == 0:
-                inputs = self.weakened(inputs, grid, strength)
-            grids.append(grid)
-            albedos.append(self._one(grid, inputs, scale_structures))
-        if match_colours and strength > 0:
-            target = style_target([image for image, _ in parts], [weight for _, weight in parts])
-            albedos = self.match_colours(albedos, grids, target, strength, notes)
-        return np.stack(albedos) if sequence else albedos[0]
-
-    def match_colours(
-        self, albedos: list, grids: list, target: np.ndarray, strength: float = 1.0, notes: list | None = None
-    ) -> list:
-        """The frames' albedos ``[(Z, Y, X, 3)]`` on ``grids`` with the colours of the picture ``target (H, W, 3)``
-        (``colour_match``), through the map fitted on the first frame, moved ``strength`` of the way. A medium
-        too thin to be seen keeps its albedos (said in ``notes``)."""
-        from .colour_match import InvisibleMedium, fit_colour_match
-
-        render = self.config.render
-        try:
-            match = fit_colour_match(
-                albedos[0],
-                grids[0],
-                target,
-                density_scale=self.density_scale,
-                radiance=render.radiance,
-                camera_distance=render.camera_distance,
-            )
-        except InvisibleMedium:
-            if notes is not None:
-                notes.append(
-                    "colour match skipped: the medium is too thin to be seen at this density scale, "
-                    "so the network's own colours are kept"
-                )
-            return albedos
-        return [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
-
-    def _one(self, grid: np.ndarray, inputs, scale_structures: float) -> np.ndarray:
-        import torch
-        import torch.nn.functional as F
-
-        shape = grid.shape
-        density = torch.from_numpy(grid)[None, None].to(self.device)
-        if scale_structures != 1.0:
-            size = tuple(max(4, round(n * scale_structures)) for n in shape)
-            density = F.interpolate(density, size=size, mode="trilinear", align_corners=False)
-        with torch.no_grad():
-            albedo = self.trained.model.infer(density, inputs)  # bfloat16, empty space cropped: SKPN.infer
-            if tuple(albedo.shape[2:]) != shape:
-                albedo = F.interpolate(albedo, size=shape, mode="trilinear", align_corners=False)
-        return np.ascontiguousarray(albedo[0].permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
-
-
-def check_finite(what: str, arrays) -> None:
-    """``ValueError`` naming the stage whose output holds NaN/inf, instead of handing it on."""
-    for index, array in enumerate(arrays):
-        if not np.all(np.isfinite(array)):
-            raise ValueError(
-                f"{what} {index} holds NaN/inf values; nothing was written. Check the density's range "
-                "(normalise it and use --density-scale) and the light's strength."
-            )
-
-
-MIN_MEDIUM_VOXELS = 8
-"""The fewest non-zero voxels the network stylizes (a medium a couple of voxels across)."""
-
-
-def check_enough_medium(grid: np.ndarray, name: str = "density") -> None:
-    """``ValueError`` for a medium of fewer than ``MIN_MEDIUM_VOXELS`` non-zero voxels.
-
-    DAIN normalises the network's features by their spread over the medium; a single voxel has none,
-    so the normalisation divides by ``sqrt(eps)`` at every level and the features overflow to NaN."""
-    occupied = int(np.count_nonzero(grid))
-    if occupied < MIN_MEDIUM_VOXELS:
-        raise ValueError(
-            f"The {name} holds too little medium to stylize: {occupied} non-zero voxel(s), fewer than "
-            f"{MIN_MEDIUM_VOXELS}. The network normalises its features over the medium, and so few voxels give "
-            "it no spread to measure. Give a volume whose medium spans a few voxels (or resample it larger)."
-        )
+from .stylizer import (  # noqa: F401 - also the pipeline's names: callers import them from here
+    DEFAULT_CHECKPOINT,
+    MIN_MEDIUM_VOXELS,
+    Stylizer,
+    check_enough_medium,
+    check_finite,
+    style_parts,
+    style_target,
+    validate_scale_structures,
+    validate_strength,
+)
 
 
 def default_refinement(config, camera_distance: float | None = None):
@@ -551,6 +295,67 @@ class Pipeline:
         check_finite("The corrected albedo of frame", albedos)
         return Stylization(frames, network, albedos, target, refinement, report, notes)
 
+    def fit_look(
+        self,
+        density,
+        style,
+        key_frames=None,
+        look_settings=None,
+        notes: list | None = None,
+        progress=None,
+        style_names=None,
+    ):
+        """``look.fit_look`` on ``density``'s frames (a frame, a sequence or a list) with this pipeline's
+        network, density scale, orbit and structure scale; ``key_frames`` default to the first, middle
+        and last frame."""
+        from .look import fit_look
+
+        frames = self.frames(density)
+        return fit_look(
+            self.stylizer,
+            frames.densities,
+            style,
+            key_frames=key_frames,
+            density_scale=frames.density_scale,
+            camera_distance=self.camera_distance,
+            scale_structures=self.settings.scale_structures,
+            settings=look_settings,
+            notes=notes,
+            progress=progress,
+            style_names=style_names,
+        )
+
+    def look_stylization(self, density, look, velocities=None, notes: list | None = None) -> Stylization:
+        """Every frame of ``density`` stylized by ``look`` (``look.Look``): the look's tuned network and
+        colour match on each frame's own density, no refinement unless the settings name steps (then
+        each frame is refined on its own, from the look's albedo). The target is the look's style."""
+        from .objective.metrics import temporal_flicker
+
+        s = self.settings
+        notes = [] if notes is None else notes
+        frames = self.frames(density, velocities)
+        notes.extend(look.notes_for(frames.densities[0].shape, frames.density_scale))
+        report: dict = {}
+        started = time.perf_counter()
+        network = [look.apply(grid) for grid in frames.densities]
+        report["stylize_seconds"] = time.perf_counter() - started
+        check_finite("The look's albedo of frame", network)
+        self.log(f"stylized {len(network)} frame(s) from the look in {report['stylize_seconds']:.2f} s")
+        if frames.sequence and frames.velocities is not None:
+            report["temporal_flicker"] = temporal_flicker(np.stack(network), np.stack(frames.velocities))
+        refinement = replace(self.refinement(1), layer_steps=s.refine_steps or 0, path_steps=s.refine_path_steps or 0)
+        albedos = network
+        if refinement.layer_steps or refinement.path_steps:
+            # Each frame on its own: a chunk of a sequence must not depend on the frames before it.
+            albedos, seconds = [], 0.0
+            for index in range(len(network)):
+                one = Frames([frames.densities[index]], None, frames.density_scale)
+                refined, took = self.refine(one, [network[index]], look.style, refinement)
+                albedos += refined
+                seconds += took
+            report["refine_seconds"] = seconds
+        return Stylization(frames, network, albedos, look.style, refinement, report, notes)
+
     def refine(self, frames: Frames, albedos: list, target: np.ndarray, refinement) -> tuple[list, float]:
         """``fit.refine_albedo`` of every frame against ``target`` with the schedule ``refinement``:
         ``(refined albedos, seconds)``.
@@ -600,7 +405,7 @@ class Pipeline:
 
     # ------------------------------------------------------------------------ render
     def path_trace(
-        self, frames: Frames, albedos: list, views: list | None = None, coat_mesh=None, progress=None
+        self, frames: Frames, albedos: list, views: list | None = None, coat_mesh=None, progress=None, first: int = 0
     ) -> tuple[list, list]:
         """Path-trace frame ``i`` with ``albedos[i]`` from ``views`` (default ``self.views()``): every view
         of a single frame, or for a sequence frame ``i`` from view ``i mod len(views)``. Returns
@@ -609,7 +414,7 @@ class Pipeline:
         from .pathtrace import path_trace
 
         images, seconds = [], []
-        for frame, frame_views in self.render_plan(frames, views):
+        for frame, frame_views in self.render_plan(frames, views, first):
             frame_images, took = path_trace(
                 frames.densities[frame],
                 albedos[frame],
@@ -623,12 +428,13 @@ class Pipeline:
         check_finite("The path-traced image", images)
         return images, seconds
 
-    def render_plan(self, frames: Frames, views: list | None = None) -> list[tuple[int, list]]:
+    def render_plan(self, frames: Frames, views: list | None = None, first: int = 0) -> list[tuple[int, list]]:
         """``(frame, views)`` to path trace: every view of one frame, or each frame of a sequence
-        from the views in turn."""
+        from the views in turn; ``first``: the index of ``frames``' first frame in the whole sequence
+        (a chunk's frames take the views the whole sequence would give them)."""
         views = self.views() if views is None else views
-        if frames.sequence:
-            return [(i, [views[i % len(views)]]) for i in range(len(frames.densities))]
+        if frames.sequence or first:
+            return [(i, [views[(first + i) % len(views)]]) for i in range(len(frames.densities))]
         return [(0, views)]
 
     def trace_options(self) -> dict:

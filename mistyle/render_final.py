@@ -103,8 +103,43 @@ def parser() -> argparse.ArgumentParser:
         metavar="IMAGE:WEIGHT",
         help="one style mixed from several, e.g. --mix a.png:0.7 b.png:0.3 (weights normalised)",
     )
+    styles.add_argument(
+        "--look",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="apply a look fitted with --save-look (no --style; no per-frame refinement unless --refine is given)",
+    )
+    p.add_argument(
+        "--save-look",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="fit the style as a look on --key-frames of the density and write it to FILE; with --out, "
+        "also render every frame from it",
+    )
+    p.add_argument(
+        "--key-frames",
+        default=None,
+        metavar="I,J,...",
+        help="0-based frames the look is fitted on (default: the first, middle and last frame)",
+    )
+    p.add_argument(
+        "--look-steps",
+        type=int,
+        default=None,
+        metavar="STEPS",
+        help="steps of the look's fit (default: mistyle.look.LookSettings.steps)",
+    )
+    p.add_argument(
+        "--frames",
+        default=None,
+        metavar="A-B",
+        help="render only frames A to B (0-based, inclusive) of a sequence; files keep their index in the whole "
+        "sequence, so chunks rendered into one --out merge there (each replaces only its own frames)",
+    )
     p.add_argument("--strength", type=float, default=1.0, help="0: a uniform grey medium ... 1: the full style")
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=Path, default=None, help="the output folder (optional with --save-look)")
     p.add_argument("--overwrite", action="store_true", help="replace outputs that already exist")
     p.add_argument(
         "--resume", action="store_true", help="keep the outputs already complete, make only the missing ones"
@@ -256,63 +291,162 @@ class Job:
     transforms: list | None = None  # per frame, the vdb.VdbTransform of a .vdb density
     notes: list[str] = field(default_factory=list)
     out: Path | None = None  # the staging folder of the run (``io.staged_directory``), set in ``run``
+    first: int = 0  # the index of the first frame in the whole sequence (``--frames``)
+    total_frames: int = 1  # the whole sequence's frames
+    look: object = None  # look.Look: stylize with it instead of the style
+    merged: bool = False  # the output merges frame by frame into its folder (``io.chunk_staging``)
+    report: dict = field(default_factory=dict)
 
     @property
     def sequence(self) -> bool:
-        return self.frames.sequence
+        return self.frames.sequence or self.merged
 
 
 def run(args) -> int:
     from .backend import use_variant
-    from .io import load_style, staged_directory
+    from .io import chunk_staging, load_style, output_lock, staged_directory
     from .outputs import is_mistyle_output, plan_outputs
     from .pipeline import Pipeline
 
     check_options(args)
-    planned = plan_outputs(args.density, args.mesh, args.style, args.mix, args.out, args.overwrite, args.resume)
-    keep = args.resume and not args.overwrite
+    look_mode = args.look is not None or args.save_look is not None
+    sources = args.density or args.mesh
+    # A look's sequence, and any --frames chunk, merges frame by frame into its folder.
+    merging = args.frame_range is not None or (look_mode and all(Path(p).is_dir() for p in sources))
+    planned = []
+    if args.out is not None:
+        styles_given = [args.look] if args.look is not None else args.style
+        planned = plan_outputs(
+            args.density, args.mesh, styles_given, args.mix, args.out, args.overwrite or merging, args.resume
+        )
+    keep = args.resume and not args.overwrite and not merging
     outputs = [output for output in planned if not (keep and is_mistyle_output(output.folder))]
     batch = len(planned) > 1
     if len(outputs) < len(planned):
         log(f"note: --resume: {len(planned) - len(outputs)} of {len(planned)} output(s) already complete, kept")
-    # Every input is looked at before the first output is made, so a bad file late in a batch
-    # does not stop it half way (each density is read in full when its turn comes). Each style is
-    # decoded once, with the notes on its conversion.
+    for source in dict.fromkeys(sources):
+        if not Path(source).exists():
+            raise ValueError(f"{'Mesh' if args.mesh else 'Density'} {source} does not exist.")
     styles = {}
-    for path in dict.fromkeys(image for output in outputs for image, _ in output.style.parts):
-        notes: list[str] = []
-        styles[path] = (load_style(path, notes), notes)
-        for note in notes:
-            log(f"note: {note}")
-    for source in dict.fromkeys(output.density for output in outputs):
-        if not source.path.exists():
-            raise ValueError(f"{'Mesh' if source.mesh else 'Density'} {source.path} does not exist.")
+    if args.look is None:
+        # Every input is looked at before the first output is made, so a bad file late in a batch
+        # does not stop it half way (each density is read in full when its turn comes). Each style is
+        # decoded once, with the notes on its conversion.
+        images = [image for output in outputs for image, _ in output.style.parts]
+        if args.save_look is not None:
+            images = [path for path, _ in _look_style_parts(args)]
+        for path in dict.fromkeys(images):
+            notes: list[str] = []
+            styles[path] = (load_style(path, notes), notes)
+            for note in notes:
+                log(f"note: {note}")
     if args.vdb or any(output.density.path.suffix.lower() == ".vdb" for output in outputs):
         from .vdb import vdb_interpreter
 
         vdb_interpreter()  # no OpenVDB binding: say so before any work
     use_variant(args.device)
     pipeline = Pipeline(settings_from(args), log=log)
+    look = None
+    if args.look is not None:
+        from .look import Look
+
+        look = Look.load(args.look, stylizer=pipeline.stylizer)
+        styles[args.look] = (look.style, [])
+    elif args.save_look is not None:
+        look = save_look(args, pipeline, styles)
+        if not outputs:
+            print(f"wrote the look {args.save_look}")
+            return 0
+        for output in outputs:
+            styles[output.style.parts[0][0]] = (look.style, [])
     try:
         for number, output in enumerate(outputs, 1):
             if batch:
                 log(f"[{number}/{len(outputs)}] {output.name}")
             job = load(args, output, pipeline, styles)
-            # Everything is written into a staging folder that replaces the output only when it is complete.
-            with staged_directory(output.folder) as staging:
-                job.out = staging
-                report = {"inputs": _inputs_record(job), "notes": job.notes}
-                write_coat_mesh(job)
-                stylized = stylize_frames(job, report)
-                images, layer_images = render_frames(job, stylized, report)
-                report["files"] = write_assets(job, stylized)
-                write_report(job, stylized, images, layer_images, report)
+            job.look, job.merged = look, merging
+            if merging:
+                with chunk_staging(output.folder) as staging:
+                    job.out = staging
+                    render_job(job)
+                    with output_lock(output.folder, wait=True) as (folder, _):
+                        merge_chunk(job, folder)
+            else:
+                # Everything is written into a staging folder that replaces the output only when it is complete.
+                with staged_directory(output.folder) as staging:
+                    job.out = staging
+                    render_job(job)
     finally:
         if batch:  # also when a pair failed: the index shows the outputs that are complete
             write_batch_index(args.out, pipeline)
     where = f"{args.out}/ ({len(planned)} outputs and index.html)" if batch else f"{args.out}/"
-    print(f"wrote {where}: sheet.png, density and albedo grids with scene.xml, EXR + PNG images, report.json")
+    looked = f"the look {args.save_look}, and " if args.save_look is not None else ""
+    print(f"wrote {looked}{where}: sheet.png, density and albedo grids with scene.xml, EXR + PNG images, report.json")
     return 0
+
+
+def render_job(job: Job) -> None:
+    """Stylize, path trace and write one output into ``job.out``."""
+    report = job.report = {"inputs": _inputs_record(job), "notes": job.notes}
+    write_coat_mesh(job)
+    stylized = stylize_frames(job, report)
+    images, layer_images = render_frames(job, stylized, report)
+    report["files"] = write_assets(job, stylized)
+    write_report(job, stylized, images, layer_images, report)
+
+
+def _look_style_parts(args) -> list[tuple[Path, float]]:
+    """The style a look is fitted to: ``--style``'s one image, or ``--mix``'s images and weights."""
+    from .outputs import style_choices
+
+    (choice,) = style_choices(args.style, args.mix)
+    return list(choice.parts)
+
+
+def save_look(args, pipeline, styles: dict):
+    """Fit the look of ``--save-look`` on the key frames of the one density, and write it."""
+    from .io import load_density_frames
+    from .look import LookSettings, parse_key_frames
+    from .progress import bar
+
+    source = (args.density or args.mesh)[0]
+    if args.mesh:
+        from .data.mesh import load_mesh, voxelize
+
+        densities = [voxelize(*load_mesh(source), args.mesh_res, supersample=2)]
+        names = [Path(source).stem]
+    else:
+        loaded = load_density_frames(source, grid=args.grid)
+        densities, names = loaded.densities, loaded.names
+    frames = pipeline.frames(densities, None, names)
+    keys = None if args.key_frames is None else parse_key_frames(args.key_frames, len(frames.densities))
+    parts = [(styles[path][0], weight) for path, weight in _look_style_parts(args)]
+    names = [Path(path).name for path, _ in _look_style_parts(args)]
+    notes: list[str] = []
+    look_settings = LookSettings() if args.look_steps is None else LookSettings(steps=args.look_steps)
+    with bar(look_settings.steps, "fitting the look") as progress_bar:
+
+        def progress(step, steps, loss):
+            progress_bar.set_postfix_str(f"loss {loss:.4g}", refresh=False)
+            progress_bar.update(1)
+
+        look = pipeline.fit_look(
+            frames,
+            parts if len(parts) > 1 else parts[0][0],
+            key_frames=keys,
+            look_settings=look_settings,
+            notes=notes,
+            progress=progress,
+            style_names=names,
+        )
+    for note in notes:
+        log(f"note: {note}")
+    look.save(args.save_look)
+    log(
+        f"fitted the look on frame(s) {', '.join(map(str, look.meta['key_frames']))} in "
+        f"{look.meta['fit_seconds']:.1f} s: {args.save_look}"
+    )
+    return look
 
 
 def write_batch_index(out: Path, pipeline) -> None:
@@ -366,6 +500,57 @@ def check_options(args) -> None:
     for ok, message in checks:
         if not ok:
             raise ValueError(message + ".")
+    check_look_options(args)
+
+
+def check_look_options(args) -> None:
+    """The options of looks and frame chunks, together (``--save-look``, ``--look``, ``--key-frames``, ``--frames``)."""
+    if args.out is None and args.save_look is None:
+        raise ValueError("--out is required (only --save-look alone, which writes the look file, needs none).")
+    sources = (args.density or []) + (args.mesh or [])
+    if args.save_look is not None:
+        if args.look is not None:
+            raise ValueError("--save-look fits a new look from --style; it does not take --look.")
+        if len(sources) != 1:
+            raise ValueError(
+                f"--save-look fits one look on one density (a file or a folder of frames); got {len(sources)}."
+            )
+        if args.style and (len(args.style) != 1 or Path(args.style[0]).is_dir()):
+            raise ValueError("--save-look fits one style: give one --style image (or one --mix).")
+        if args.strength != 1.0:
+            raise ValueError("A look holds its style at full strength; --save-look does not take --strength.")
+    if args.look is not None and args.strength != 1.0:
+        raise ValueError("A look holds its style at full strength; --look does not take --strength.")
+    for name, value in (("--key-frames", args.key_frames), ("--look-steps", args.look_steps)):
+        if value is not None and args.save_look is None:
+            raise ValueError(f"{name} is about fitting a look; it needs --save-look.")
+    if args.look_steps is not None and not 0 <= args.look_steps <= 10000:
+        raise ValueError(f"--look-steps must lie in [0, 10000], got {args.look_steps}.")
+    if args.save_look is not None:
+        path = Path(args.save_look)
+        if path.is_dir() or not path.parent.is_dir():
+            raise ValueError(
+                f"--save-look {path} must be a file in an existing folder (e.g. looks/wave.look); "
+                f"{'it is a folder' if path.is_dir() else 'its folder does not exist'}."
+            )
+    if args.frames is not None:
+        args.frame_range = parse_frame_range(args.frames)
+        if args.mesh:
+            raise ValueError("--frames selects frames of a density sequence; a mesh has one frame.")
+    else:
+        args.frame_range = None
+
+
+def parse_frame_range(text: str) -> tuple[int, int]:
+    """``--frames A-B`` (or ``A``): the 0-based, inclusive range ``(A, B)``."""
+    first, dash, last = str(text).partition("-")
+    try:
+        first, last = int(first), int(last) if dash else int(first)
+    except ValueError:
+        raise ValueError(f"--frames takes A-B (0-based, inclusive), e.g. --frames 0-49; got {text!r}.") from None
+    if first < 0 or last < first:
+        raise ValueError(f"--frames A-B needs 0 <= A <= B, got {text!r}.")
+    return first, last
 
 
 # ---------------------------------------------------------------------------- stage 1: load and check
@@ -393,6 +578,15 @@ def load(args, output, pipeline, styles: dict) -> Job:
     else:
         loaded = load_density_frames(output.density.path, grid=args.grid)
         densities, velocities, names, transforms = loaded.densities, loaded.velocities, loaded.names, loaded.transforms
+    total, first = len(densities), 0
+    if args.frame_range is not None:
+        first, last = args.frame_range
+        if last >= total:
+            raise ValueError(f"--frames {first}-{last} lies outside {output.density.path}'s frames 0-{total - 1}.")
+        chosen = slice(first, last + 1)
+        densities, names = densities[chosen], names[chosen]
+        velocities = None if velocities is None else velocities[chosen]
+        transforms = None if transforms is None else transforms[chosen]
     frames = pipeline.frames(densities, velocities, names)
     return Job(
         args=args,
@@ -405,6 +599,8 @@ def load(args, output, pipeline, styles: dict) -> Job:
         coat_mesh=coat_mesh,
         transforms=transforms,
         notes=notes,
+        first=first,
+        total_frames=total,
     )
 
 
@@ -444,7 +640,7 @@ def _inputs_record(job: Job) -> dict:
 
 def _frame_suffix(job: Job, index: int) -> str:
     """How a frame's files are told apart: ``_frameNNNN`` in a sequence, nothing for one frame."""
-    return f"_frame{index:04d}" if job.sequence else ""
+    return f"_frame{job.first + index:04d}" if job.sequence else ""
 
 
 # ---------------------------------------------------------------------------- stage 2: stylize and refine
@@ -453,8 +649,11 @@ def stylize_frames(job: Job, report: dict):
     written as ``albedo*.npy`` (the grids by ``write_assets``)."""
     from .io import write_npy
 
-    style = job.style_parts if len(job.style_parts) > 1 else job.style_parts[0][0]
-    stylized = job.pipeline.stylize(job.frames, style, notes=job.notes)
+    if job.look is not None:
+        stylized = job.pipeline.look_stylization(job.frames, job.look, notes=job.notes)
+    else:
+        style = job.style_parts if len(job.style_parts) > 1 else job.style_parts[0][0]
+        stylized = job.pipeline.stylize(job.frames, style, notes=job.notes)
     report.update(stylized.report)
     for index, albedo in enumerate(stylized.network):
         write_npy(job.out / f"albedo{_frame_suffix(job, index)}.npy", albedo)
@@ -470,7 +669,7 @@ def render_frames(job: Job, stylized, report: dict):
     from .progress import bar
 
     args, pipeline = job.args, job.pipeline
-    plan = pipeline.render_plan(job.frames, job.views)
+    plan = pipeline.render_plan(job.frames, job.views, job.first)
     total = sum(len(views) for _, views in plan)
     started = time.perf_counter()
     with bar(total, "path tracing", unit="image") as progress_bar:
@@ -480,6 +679,7 @@ def render_frames(job: Job, stylized, report: dict):
             job.views,
             coat_mesh=job.coat_mesh_path,
             progress=lambda done, count, seconds: progress_bar.update(1),
+            first=job.first,
         )
     layer_images = [
         image
@@ -492,11 +692,11 @@ def render_frames(job: Job, stylized, report: dict):
 
     kind = "sequence" if job.sequence else "turntable" if args.turntable else "view"
     for index, image in enumerate(images):
-        stem = f"{kind}_{index:04d}" if len(images) > 1 else "final"
+        stem = f"{kind}_{job.first + index:04d}" if len(images) > 1 or job.merged else "final"
         write_exr(job.out / f"{stem}.exr", image)
         write_png(job.out / f"{stem}.png", display(image), srgb=False)
         write_png(job.out / f"{stem}_network_layer.png", display(layer_images[index]), srgb=False)
-    if len(images) > 1:
+    if len(images) > 1 and not job.merged:  # a merged folder's video is made of all its frames (merge_chunk)
         frames = [(display(image) * 255 + 0.5).astype(np.uint8) for image in images]
         report["video"] = [
             write_mp4(job.out / f"{kind}.mp4", frames, args.fps).name,
@@ -518,7 +718,7 @@ def write_assets(job: Job, stylized) -> list[str]:
     options = job.pipeline.trace_options()
     scene_options = {key: value for key, value in options.items() if key not in ("device", "bricks")}
     written = []
-    for frame, views in job.pipeline.render_plan(job.frames, job.views):
+    for frame, views in job.pipeline.render_plan(job.frames, job.views, job.first):
         suffix = _frame_suffix(job, frame)
         density, albedo = job.frames.densities[frame], stylized.albedos[frame]
         if stylized.refined:
@@ -589,6 +789,11 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
         if report.get(key) is not None and not np.isfinite(report[key]):
             report[key] = None
             job.notes.append(f"{key} left out: too few pixels see the medium to measure it")
+    if job.merged:  # the folder's report, sheet and index describe all its frames: merge_chunk
+        report["frames"] = {
+            f"{job.first + index:04d}": frame_metrics(image, style) for index, image in enumerate(images)
+        }
+        return
     atomic_write_bytes(job.out / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())
     seconds = report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds"]
 
@@ -609,6 +814,99 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     )
     keys = ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd", "hue_coverage")
     print(json.dumps({key: report[key] for key in keys if key in report}))
+
+
+def frame_metrics(image: np.ndarray, style: np.ndarray) -> dict:
+    """One frame's style metrics (``objective.metrics.style_fidelity``), None where they cannot be measured."""
+    from .objective.metrics import foreground_mask, style_fidelity
+
+    if not foreground_mask(image).any():
+        return dict.fromkeys(("rgb_swd", "patch_swd", "hue_coverage"))
+    metrics = style_fidelity([image], style)
+    return {key: (float(value) if value is not None and np.isfinite(value) else None) for key, value in metrics.items()}
+
+
+FRAME_METRICS = ("rgb_swd", "patch_swd", "hue_coverage")
+
+
+def merge_chunk(job: Job, folder: Path) -> None:
+    """Move a chunk's files from ``job.out`` into ``folder`` (``io.merge_files``), then write the folder's
+    ``report.json`` (every frame present, each with its metrics; the chunks that made them), its video,
+    ``sheet.png`` (its first frame) and ``index.html``. Two chunks give the files one run gives."""
+    from .io import atomic_write_bytes, merge_files, read_png, write_gif, write_mp4
+    from .outputs import REPORT_FILE, is_mistyle_output
+    from .pages import SHEET_FILE, write_index, write_sheet
+
+    chunk = job.report
+    merge_files(job.out, folder)
+    old = json.loads((folder / REPORT_FILE).read_text()) if is_mistyle_output(folder) else {}
+    if old and old.get("inputs", {}).get("shape_zyx") != chunk["inputs"]["shape_zyx"]:
+        job.notes.append("this folder held frames of another grid size; they are kept, but belong to another sequence")
+    frames = {**old.get("frames", {}), **chunk["frames"]}
+    frames = dict(sorted(frames.items()))
+    done = set(chunk["frames"])
+    timings = {key: chunk[key] for key in ("stylize_seconds", "refine_seconds", "render_seconds") if key in chunk}
+    this = {"frames": [job.first, job.first + len(job.frames.densities) - 1], **timings}
+    for key in ("temporal_flicker", "temporal_flicker_unwarped"):
+        if key in chunk:
+            this[key] = chunk[key]
+    chunks = [
+        c
+        for c in old.get("chunks", [])
+        if not set(f"{i:04d}" for i in range(c["frames"][0], c["frames"][1] + 1)) <= done
+    ]
+    report = {
+        "inputs": {**chunk["inputs"], "frames": len(frames), "frames_in_sequence": job.total_frames},
+        "notes": list(dict.fromkeys(old.get("notes", []) + job.notes)),
+        "frames": frames,
+        "chunks": sorted(chunks + [this], key=lambda c: c["frames"][0]),
+    }
+    for key in FRAME_METRICS:
+        values = [entry[key] for entry in frames.values() if entry.get(key) is not None]
+        report[key] = float(np.mean(values)) if values else None
+    stems = [f"sequence_{index}" for index in frames]
+    shown = [read_png(folder / f"{stem}.png") for stem in stems if (folder / f"{stem}.png").is_file()]
+    if len(shown) > 1:
+        report["video"] = [
+            write_mp4(folder / "sequence.mp4", shown, job.args.fps).name,
+            write_gif(folder / "sequence.gif", shown, job.args.fps).name,
+        ]
+    first = stems[0]
+    style = job.look.style if job.look is not None else job.style_parts[0][0]
+    # The look's own record of its style, not its file's name: a farm's workers hold it under another.
+    described = job.look.meta.get("style", "a look") if job.look is not None else job.output.style.describe()
+    lines = [
+        f"{job.output.density.path.name} x {described}"[:110],
+        f"{len(frames)} of {job.total_frames} frames; mean RGB SWD {_shown(report, 'rgb_swd', 4)}, "
+        f"patch SWD {_shown(report, 'patch_swd', 4)}, hue coverage {_shown(report, 'hue_coverage', 2)}",
+        f"first frame {frames and next(iter(frames))} shown; {job.args.res}^2 x {job.args.spp} spp",
+    ]
+    write_sheet(
+        folder / SHEET_FILE,
+        [
+            ("style", style),
+            ("fast layer (feed-forward)", read_png(folder / f"{first}_network_layer.png") / 255.0),
+            ("final render", read_png(folder / f"{first}.png") / 255.0),
+        ],
+        lines,
+    )
+    atomic_write_bytes(folder / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())  # the index lists it
+    write_index(
+        folder,
+        f"mistyle: {len(frames)} frame{'s' if len(frames) != 1 else ''} of {job.output.density.name}",
+        [
+            f"frame {index}: RGB SWD {_shown(entry, 'rgb_swd', 4)}, patch SWD {_shown(entry, 'patch_swd', 4)}, "
+            f"hue coverage {_shown(entry, 'hue_coverage', 2)}"
+            for index, entry in frames.items()
+        ],
+    )
+    report["files"] = sorted(p.name for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
+    atomic_write_bytes(folder / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())
+    print(json.dumps({"frames": this["frames"], **{key: report[key] for key in FRAME_METRICS}}))
+
+
+def _shown(record: dict, key: str, digits: int) -> str:
+    return "-" if record.get(key) is None else f"{record[key]:.{digits}f}"
 
 
 if __name__ == "__main__":

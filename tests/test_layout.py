@@ -17,13 +17,15 @@ LAYERS = [
     {"model", "objective"},
     {"fit", "response", "data"},
     {"colour_match"},
+    {"stylizer"},
+    {"look"},
     {"pipeline"},
     {"api", "benchmark"},
     {"render_final", "train"},
-    {"demo"},
+    {"demo", "farm"},
 ]
 RANK = {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
-INFERENCE = ("pipeline", "api", "benchmark", "render_final", "demo")
+INFERENCE = ("stylizer", "look", "pipeline", "api", "benchmark", "render_final", "demo", "farm")
 
 
 def unit_of(module: str) -> str:

@@ -107,6 +107,15 @@ class StylizingKernels(NamedTuple):
         return StylizingKernels(sites)
 
 
+class EncodedDensity(NamedTuple):
+    """``SKPN.encode``'s output: the unpadded ``size (D, H, W)``, the encoder's three feature maps (full,
+    1/2, 1/4 resolution of the grid padded to a multiple of 4) and DAIN's density masks by resolution."""
+
+    size: tuple
+    features: tuple
+    masks: dict
+
+
 class StylizingKernelPredictor(nn.Module):
     """Three FC layers from one level's (mean, std), and the style code if any, to one stylizing kernel."""
 
@@ -265,34 +274,50 @@ class SKPN(nn.Module):
     ) -> torch.Tensor:
         """Albedo ``(B, 3, D, H, W)`` of ``density (B, 1, D, H, W)``; ``style``: ``encode_style``'s output
         (or, for ``style_code="moments"``, the bare list of levels), or kernels from ``predict_kernels``."""
+        kernels = style if isinstance(style, StylizingKernels) else self.predict_kernels(style)
+        return self.decode(self.encode(density), kernels)
+
+    def encode(self, density: torch.Tensor) -> EncodedDensity:
+        """The encoder's half of ``forward``: what ``decode`` needs of ``density (B, 1, D, H, W)``, which
+        does not depend on the style (so a look's fit computes it once per key frame)."""
         if density.dim() != 5 or density.shape[1] != 1:
             raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
-        kernels = (style if isinstance(style, StylizingKernels) else self.predict_kernels(style)).sites
-        size = density.shape[2:]
+        size = tuple(density.shape[2:])
         padded = F.pad(density, [p for n in reversed(size) for p in (0, (-n) % 4)])
-        masks = {}
-
-        def stylize(x, site):
-            if site not in kernels:
-                return x
-            kernel = kernels[site]
-            mask = None
-            if self.config.norm == "dain":
-                if x.shape[2:] not in masks:
-                    masks[x.shape[2:]] = density_mask(padded, x.shape[2:])
-                mask = masks[x.shape[2:]]
-            return dain(_apply_kernel(x, kernel), mask, kernel["gamma"], kernel["beta"])
-
         e0 = self.encoder[0](padded)
         e1 = self.encoder[1](e0)
         e2 = self.encoder[2](e1)
-        x = stylize(e2, 0)
-        x = stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 1)
+        masks = {}
+        if self.config.norm == "dain":
+            masks = {tuple(e.shape[2:]): density_mask(padded, e.shape[2:]) for e in (e0, e1, e2)}
+        return EncodedDensity(size, (e0, e1, e2), masks)
+
+    def decode(self, encoded: EncodedDensity, kernels: StylizingKernels) -> torch.Tensor:
+        """The stylized decoder's half of ``forward``: albedo ``(B, 3, D, H, W)``."""
+        return self.decode_head(self.decode_body(encoded, kernels), kernels, encoded)
+
+    def _stylize(self, x: torch.Tensor, site: int, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
+        if site not in kernels.sites:
+            return x
+        kernel = kernels.sites[site]
+        mask = encoded.masks.get(tuple(x.shape[2:])) if self.config.norm == "dain" else None
+        return dain(_apply_kernel(x, kernel), mask, kernel["gamma"], kernel["beta"])
+
+    def decode_body(self, encoded: EncodedDensity, kernels: StylizingKernels) -> torch.Tensor:
+        """The decoder up to its last kernel site: full-resolution features ``(B, w0, D', H', W')``
+        (``decode_head`` finishes them; a fit that tunes only the head computes these once)."""
+        e0, e1, e2 = encoded.features
+        x = self._stylize(e2, 0, kernels, encoded)
+        x = self._stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 1, kernels, encoded)
         x = F.relu(self.decoder[0](torch.cat([x, e1], dim=1)), inplace=True)
-        x = stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 2)
-        x = F.relu(self.decoder[1](torch.cat([x, e0], dim=1)), inplace=True)
-        x = stylize(x, 3)
+        x = self._stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 2, kernels, encoded)
+        return F.relu(self.decoder[1](torch.cat([x, e0], dim=1)), inplace=True)
+
+    def decode_head(self, x: torch.Tensor, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
+        """The last kernel site and convolution on ``decode_body``'s features: albedo ``(B, 3, D, H, W)``."""
+        x = self._stylize(x, 3, kernels, encoded)
         albedo = 0.5 * (torch.tanh(self.decoder[2](x).float()) + 1.0)
+        size = encoded.size
         return albedo[..., : size[0], : size[1], : size[2]]
 
     @torch.no_grad()
@@ -321,10 +346,7 @@ class SKPN(nn.Module):
         kernels = style if isinstance(style, StylizingKernels) else self.predict_kernels(style)  # float32: cheap
         with torch.autocast(density.device.type, dtype=torch.bfloat16, enabled=precision == "bf16"):
             albedo = self(part, kernels).float()
-        if window is None:
-            return albedo
-        pads = [p for w, n in reversed(list(zip(window, density.shape[2:]))) for p in (w.start, n - w.stop)]
-        return F.pad(albedo, pads, mode="replicate")
+        return uncrop(albedo, window, density.shape[2:])
 
 
 def inference_precision(device: torch.device) -> str:
@@ -349,6 +371,15 @@ def occupied_window(density: torch.Tensor, margin: int) -> tuple[slice, slice, s
         high = min(int(present[-1]) + 1 + margin, occupied.shape[axis])
         window.append(slice(low, high))
     return None if all(w.start == 0 and w.stop == n for w, n in zip(window, occupied.shape)) else tuple(window)
+
+
+def uncrop(albedo: torch.Tensor, window: tuple[slice, slice, slice] | None, size) -> torch.Tensor:
+    """``albedo`` computed over ``window`` of a grid of ``size (D, H, W)`` (``occupied_window``) back on the
+    whole grid, its faces' values repeated outside the window (where there is no medium to show them)."""
+    if window is None:
+        return albedo
+    pads = [p for w, n in reversed(list(zip(window, size))) for p in (w.start, n - w.stop)]
+    return F.pad(albedo, pads, mode="replicate")
 
 
 def parameter_count(model: nn.Module) -> int:

@@ -1,0 +1,515 @@
+"""Looks: a style fitted once on a few key frames, then applied feed-forward to every frame.
+
+    from mistyle.look import fit_look, Look
+
+    look = fit_look(pipeline, frames, "wave.png")        # fitted on the first, middle and last frame
+    look.save("wave.look")
+    look = Look.load("wave.look")                        # the bundled network, or checkpoint=...
+    albedo = look.stylize(density)                       # (Z, Y, X, 3): any frame, 1 s at 64^3
+
+What a look holds (``LOOK_VERSION`` 1):
+
+* **Stylizing kernels**, fine-tuned at test time. They start from the SKPN's prediction for the
+  style and are fitted, with the last decoder convolution (``LookSettings.tune_decoder``), through
+  the fast layer against the sliced objective (RGB and patch sliced Wasserstein, the refinement's) on
+  the key frames' renders. The encoder is not tuned: its features of each key frame are computed
+  once, which is what makes the fit cheap. Everything else of the network is the checkpoint's, so
+  a look is a few hundred kilobytes and names the checkpoint it was fitted with (its SHA-256).
+* **The colour match's map** (``colour_match.ColourMatch``), fitted on the first key frame's albedo
+  after the fit: a function of colour, shared by every frame like a sequence's.
+* The style's thumbnail (``THUMBNAIL_SIDE`` pixels), the density scale, the orbit and the fit's
+  settings, so that a render from the look is measured against its style and lit as it was fitted.
+
+Applied to a frame, the look runs the network on that frame's own density with the fitted kernels
+and decoder, then the colour match: colours follow the smoke as it moves, and no frame is refined.
+The choice of what to tune and for how long is measured in ``experiments/look_study.py``
+(``results/look_study/``).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import io
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+LOOK_FORMAT = "mistyle-look"
+LOOK_VERSION = 1
+THUMBNAIL_SIDE = 256
+"""The longest side of the style picture a look keeps: what renders from it are measured against."""
+SIZE_RATIO_NOTE = 2.0
+"""A frame more than this many times larger or smaller (longest side) than the key frames gets a note."""
+DENSITY_SCALE_TOLERANCE = 1e-6
+COLOUR_MATCH_MODES = ("through", "after", "none")
+
+
+@dataclass
+class LookSettings:
+    """How a look is fitted (``fit_look``); the defaults are ``mistyle-render --save-look``'s."""
+
+    steps: int = 90
+    lr: float = 0.02
+    views_per_step: int = 3
+    layer_res: int = 64
+    layer_steps_per_ray: int = 48
+    tune_sites: tuple = (0, 1, 2, 3)  # the kernel sites tuned (SKPN.sites; (3,): the head only, much cheaper)
+    tune_decoder: tuple = (2,)  # indices of SKPN.decoder's convolutions tuned with the kernels
+    rgb_weight: float = 1.0
+    patch_weight: float = 0.05
+    tv_weight: float = 10.0
+    colour_match: str = "through"  # "through": fitted first, the network tuned through it; "after"; "none"
+    seed: int = 0
+
+    def __post_init__(self):
+        if not 0 <= self.steps <= 10000:
+            raise ValueError(f"A look's fit steps must lie in [0, 10000], got {self.steps}.")
+        if not set(self.tune_decoder) <= {0, 1, 2}:
+            raise ValueError(f"tune_decoder takes decoder convolutions 0, 1, 2; got {self.tune_decoder}.")
+        if self.colour_match not in COLOUR_MATCH_MODES:
+            raise ValueError(f"colour_match must be one of {', '.join(COLOUR_MATCH_MODES)}, got {self.colour_match!r}.")
+        if not set(self.tune_sites) <= {0, 1, 2, 3} or not self.tune_sites:
+            raise ValueError(f"tune_sites takes kernel sites 0-3 (at least one); got {self.tune_sites}.")
+        self.tune_decoder = tuple(sorted(set(int(i) for i in self.tune_decoder)))
+        self.tune_sites = tuple(sorted(set(int(i) for i in self.tune_sites)))
+
+    @property
+    def head_only(self) -> bool:
+        """Only the last site and convolution are tuned: the decoder's body is computed once per key frame."""
+        return self.tune_sites == (3,) and set(self.tune_decoder) <= {2}
+
+
+def default_key_frames(count: int) -> list[int]:
+    """The frames a look is fitted on by default: the first, middle and last of ``count`` frames."""
+    if count < 1:
+        raise ValueError("A look needs at least one frame to fit on.")
+    return sorted({0, (count - 1) // 2, count - 1})
+
+
+def parse_key_frames(text: str, count: int) -> list[int]:
+    """``--key-frames``: comma-separated 0-based frame indices (``"0,40,80"``), checked against ``count``."""
+    try:
+        frames = sorted({int(part) for part in text.split(",") if part.strip()})
+    except ValueError:
+        raise ValueError(f"--key-frames takes comma-separated frame indices such as 0,40,80; got {text!r}.") from None
+    if not frames:
+        raise ValueError(f"--key-frames names no frame: {text!r}.")
+    outside = [f for f in frames if not 0 <= f < count]
+    if outside:
+        raise ValueError(
+            f"--key-frames {', '.join(map(str, outside))} lie outside the sequence's frames 0-{count - 1}."
+        )
+    return frames
+
+
+def checkpoint_digest(path) -> str:
+    """SHA-256 of a checkpoint file: which network a look was fitted with."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+@dataclass
+class Look:
+    """A fitted look (module docstring). ``network`` is the checkpoint's SKPN with the tuned decoder
+    layers; ``stylizer`` the loaded checkpoint it came from (``stylizer.Stylizer``)."""
+
+    kernels: object  # model.skpn.StylizingKernels, batch of one
+    decoder: dict  # "<index>.weight"/"<index>.bias" -> tensor: the tuned decoder convolutions
+    colour_match: object | None  # colour_match.ColourMatch
+    thumbnail: np.ndarray  # (H, W, 3) uint8 display RGB
+    meta: dict  # checkpoint digest and name, density scale, orbit, key frame shape, settings, fit seconds
+    stylizer: object = field(default=None, repr=False)
+    _network: object = field(default=None, repr=False)
+
+    @property
+    def density_scale(self) -> float:
+        return float(self.meta["density_scale"])
+
+    @property
+    def camera_distance(self) -> float:
+        return float(self.meta["camera_distance"])
+
+    @property
+    def style(self) -> np.ndarray:
+        """The style picture ``(H, W, 3)`` float32 in [0, 1] the look was fitted to (its thumbnail)."""
+        return self.thumbnail.astype(np.float32) / 255.0
+
+    @property
+    def network(self):
+        """The SKPN the look applies: the checkpoint's, with the tuned decoder convolutions."""
+        if self._network is None:
+            model = self.stylizer.trained.model
+            if self.decoder:
+                model = copy.deepcopy(model)
+                model.decoder.load_state_dict({**model.decoder.state_dict(), **self.decoder})
+            self._network = model.eval()
+        return self._network
+
+    def network_albedo(self, grid: np.ndarray) -> np.ndarray:
+        """The tuned network's albedo ``(Z, Y, X, 3)`` of ``grid (Z, Y, X)``, before the colour match."""
+        return self.stylizer.network_albedo(
+            grid, self.kernels, float(self.meta.get("scale_structures", 1.0)), model=self.network
+        )
+
+    def stylize(
+        self, density, density_scale: float | None = None, notes: list | None = None
+    ) -> np.ndarray | list[np.ndarray]:
+        """Albedo ``(Z, Y, X, 3)`` of one density frame, or a list of them for a sequence ``(T, Z, Y, X)``
+        or a list of frames: the tuned network, then the look's colour match. ``density_scale`` (the
+        scale the frames will be rendered at) other than the look's adds a note, as does a frame of a
+        very different size from the key frames."""
+        from .stylizer import check_enough_medium
+        from .volume import validate_density
+
+        array = density if isinstance(density, (list, tuple)) else np.asarray(density)
+        sequence = isinstance(array, (list, tuple)) or array.ndim == 4
+        frames = list(array) if sequence else [array]
+        grids = []
+        for index, frame in enumerate(frames):
+            name = f"density frame {index}" if sequence else "density"
+            grid = validate_density(frame, name=name)
+            if not grid.any():
+                raise ValueError(f"The {name} is all zero; there is no medium to stylize.")
+            check_enough_medium(grid, name)
+            grids.append(grid)
+        if notes is not None:
+            notes.extend(self.notes_for(grids[0].shape, density_scale))
+        albedos = [self.apply(grid) for grid in grids]
+        return albedos if sequence else albedos[0]
+
+    def apply(self, grid: np.ndarray) -> np.ndarray:
+        """``stylize`` of one checked ``(Z, Y, X)`` float32 grid."""
+        albedo = self.network_albedo(grid)
+        return albedo if self.colour_match is None else self.colour_match.apply(albedo, grid)
+
+    def notes_for(self, shape: tuple, density_scale: float | None) -> list[str]:
+        """What a user should know before applying the look to frames of ``shape`` at ``density_scale``."""
+        notes = []
+        if density_scale is not None and abs(density_scale - self.density_scale) > DENSITY_SCALE_TOLERANCE * max(
+            1.0, self.density_scale
+        ):
+            notes.append(
+                f"the look was fitted at density scale {self.density_scale:g} and these frames render at "
+                f"{density_scale:g}: the medium's colours will show lighter or darker than fitted; refit the "
+                f"look at {density_scale:g} (--save-look with --density-scale) to keep them"
+            )
+        fitted = max(self.meta["key_frame_shape"])
+        ratio = max(shape) / fitted
+        if ratio > SIZE_RATIO_NOTE or ratio < 1.0 / SIZE_RATIO_NOTE:
+            notes.append(
+                f"the look was fitted on {fitted}-voxel frames and this one is {max(shape)} voxels across: its "
+                f"patterns come out {'finer' if ratio > 1 else 'coarser'} relative to the medium; "
+                f"--scale-structures {1 / ratio:.3g} at fit time, or fitting on frames of this size, keeps them"
+            )
+        return notes
+
+    # ------------------------------------------------------------------------ files
+    def to_bytes(self) -> bytes:
+        """The look as a weights-only ``torch.save`` file (tensors, numbers, strings; no pickled code)."""
+        import torch
+
+        match = None
+        if self.colour_match is not None:
+            match = {
+                "log_levels": torch.from_numpy(np.asarray(self.colour_match.log_levels, np.float64)),
+                "shown_levels": torch.from_numpy(np.asarray(self.colour_match.shown_levels, np.float64)),
+                "stages": [
+                    [torch.from_numpy(np.asarray(part, np.float64)) for part in stage]
+                    for stage in self.colour_match.stages
+                ],
+            }
+        record = {
+            "format": LOOK_FORMAT,
+            "version": LOOK_VERSION,
+            "kernels": {
+                str(site): {key: value.detach().cpu().float().clone() for key, value in parts.items()}
+                for site, parts in self.kernels.sites.items()
+            },
+            "decoder": {key: value.detach().cpu().float().clone() for key, value in self.decoder.items()},
+            "colour_match": match,
+            "thumbnail": torch.from_numpy(np.ascontiguousarray(self.thumbnail, np.uint8)),
+            "meta": self.meta,
+        }
+        buffer = io.BytesIO()
+        torch.save(record, buffer)
+        return buffer.getvalue()
+
+    def save(self, path) -> Path:
+        """Write the look to ``path`` (any file name), atomically."""
+        from .io import atomic_write_bytes
+
+        path = Path(path)
+        if path.is_dir():
+            raise ValueError(f"--save-look {path} is a folder; give a file name such as {path / 'style.look'}.")
+        if not path.parent.is_dir():
+            raise ValueError(f"The folder of --save-look {path} does not exist; create it or choose another path.")
+        atomic_write_bytes(path, self.to_bytes())
+        return path
+
+    @classmethod
+    def load(cls, path, stylizer=None, checkpoint=None, device: str = "cpu") -> Look:
+        """The look in ``path``, bound to ``stylizer`` (a ``stylizer.Stylizer``) or to ``checkpoint``'s
+        network (None: the bundled one). ``ValueError`` (one line) for a file that is not a look, a
+        look of another format version, or a look fitted with another network."""
+        import torch
+
+        from .colour_match import ColourMatch
+        from .model.skpn import StylizingKernels
+        from .stylizer import Stylizer
+
+        path = Path(path)
+        if not path.is_file():
+            raise ValueError(f"Look {path} does not exist; fit one with mistyle-render ... --save-look {path}.")
+        try:
+            record = torch.load(path, map_location="cpu", weights_only=True)
+        except Exception as error:  # torch raises many types for a damaged or foreign file
+            reason = str(error).strip().splitlines()[0][:120] if str(error).strip() else type(error).__name__
+            raise ValueError(
+                f"{path} is not a readable mistyle look ({reason}); fit it again with mistyle-render --save-look."
+            ) from None
+        if not isinstance(record, dict) or record.get("format") != LOOK_FORMAT:
+            raise ValueError(f"{path} is not a mistyle look; fit one with mistyle-render --style S --save-look {path}.")
+        if record.get("version") != LOOK_VERSION:
+            raise ValueError(
+                f"{path} is a look of format version {record.get('version')}, and this mistyle reads version "
+                f"{LOOK_VERSION}; fit it again with this mistyle (mistyle-render --style S --save-look {path})."
+            )
+        try:
+            meta = dict(record["meta"])
+            kernels = StylizingKernels(
+                {
+                    int(site): {key: value.float() for key, value in parts.items()}
+                    for site, parts in record["kernels"].items()
+                }
+            )
+            decoder = {key: value.float() for key, value in record["decoder"].items()}
+            thumbnail = record["thumbnail"].numpy()
+            match = record["colour_match"]
+            if match is not None:
+                match = ColourMatch(
+                    match["log_levels"].numpy(),
+                    match["shown_levels"].numpy(),
+                    tuple(tuple(part.numpy() for part in stage) for stage in match["stages"]),
+                )
+            meta["density_scale"], meta["key_frame_shape"], meta["checkpoint_sha256"]  # noqa: B018
+        except (KeyError, TypeError, AttributeError, ValueError) as error:
+            raise ValueError(
+                f"{path} is a damaged mistyle look (missing {error}); fit it again with --save-look."
+            ) from None
+        stylizer = stylizer if stylizer is not None else Stylizer(checkpoint, device)
+        digest = checkpoint_digest(stylizer.path)
+        if digest != meta["checkpoint_sha256"]:
+            raise ValueError(
+                f"{path} was fitted with the network {meta.get('checkpoint_name', '?')} (SHA-256 "
+                f"{meta['checkpoint_sha256'][:12]}), not {stylizer.path.name} ({digest[:12]}); pass that "
+                "checkpoint with --checkpoint, or fit the look again with this one."
+            )
+        kernels = StylizingKernels(
+            {
+                site: {key: value.to(stylizer.device) for key, value in parts.items()}
+                for site, parts in kernels.sites.items()
+            }
+        )
+        decoder = {key: value.to(stylizer.device) for key, value in decoder.items()}
+        return cls(kernels, decoder, match, thumbnail, meta, stylizer=stylizer)
+
+
+def thumbnail_of(style: np.ndarray, side: int = THUMBNAIL_SIDE) -> np.ndarray:
+    """``style (H, W, 3)`` in [0, 1] as uint8, its longest side at most ``side`` pixels."""
+    from PIL import Image
+
+    image = Image.fromarray((np.clip(style, 0, 1) * 255 + 0.5).astype(np.uint8))
+    scale = side / max(image.size)
+    if scale < 1:
+        image = image.resize(
+            (max(1, round(image.size[0] * scale)), max(1, round(image.size[1] * scale))), Image.LANCZOS
+        )
+    return np.asarray(image, dtype=np.uint8).copy()
+
+
+def fit_look(
+    stylizer,
+    densities: Sequence[np.ndarray],
+    style,
+    *,
+    key_frames: Sequence[int] | None = None,
+    density_scale: float | None = None,
+    camera_distance: float | None = None,
+    scale_structures: float = 1.0,
+    settings: LookSettings | None = None,
+    notes: list | None = None,
+    progress: Callable[[int, int, float], None] | None = None,
+    style_names: list[str] | None = None,
+) -> Look:
+    """Fit a ``Look`` of ``style`` (an image or path, or a mix ``[(style, weight)]``) on the
+    ``key_frames`` (default ``default_key_frames``) of ``densities`` (checked ``(Z, Y, X)`` frames of one
+    shape) with ``stylizer``'s network (``stylizer.Stylizer``). ``progress(step, steps, loss)`` after
+    each step. ``style_names``: what the look calls its style (default: the image files' names)."""
+    import torch
+    import torch.nn.functional as F
+
+    from .bridge_torch import render_views
+    from .colour_match import InvisibleMedium, fit_colour_match
+    from .integrators import prepare_density
+    from .io import load_style
+    from .model.features import square_style
+    from .model.skpn import DEFAULT_CROP_MARGIN, StylizingKernels, occupied_window, uncrop
+    from .objective.losses import tv_loss
+    from .objective.masks import body_mask
+    from .objective.style import SLICED_STYLE_SIZE, SlicedObjective
+    from .scenes import CameraPath
+    from .stylizer import style_parts, style_target
+
+    settings = LookSettings() if settings is None else settings
+    started = time.perf_counter()
+    densities = [np.asarray(d, dtype=np.float32) for d in densities]
+    keys = default_key_frames(len(densities)) if key_frames is None else sorted(set(int(k) for k in key_frames))
+    if not keys or not all(0 <= k < len(densities) for k in keys):
+        raise ValueError(f"Key frames {keys} must lie within the sequence's frames 0-{len(densities) - 1}.")
+    density_scale = stylizer.density_scale if density_scale is None else float(density_scale)
+    config = stylizer.config
+    camera_distance = config.render.camera_distance if camera_distance is None else float(camera_distance)
+    radiance = config.render.radiance
+    device = stylizer.device
+
+    parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
+    target = style_target([image for image, _ in parts], [weight for _, weight in parts])
+    thumbnail = thumbnail_of(target)
+    if style_names is None:
+        style_names = [
+            Path(image).name if isinstance(image, (str, Path)) else "an image" for image, _ in style_parts(style)
+        ]
+    weights = [weight for _, weight in parts]
+    described = " + ".join(
+        name if len(parts) == 1 else f"{weight / sum(weights):.2f} x {name}"
+        for name, weight in zip(style_names, weights)
+    )
+    initial = stylizer.kernels(parts)
+
+    network = copy.deepcopy(stylizer.trained.model).float().eval()
+    for parameter in network.parameters():
+        parameter.requires_grad_(False)
+    tuned = []
+    for index in settings.tune_decoder:
+        for parameter in network.decoder[index].parameters():
+            parameter.requires_grad_(True)
+            tuned.append(parameter)
+    free = {
+        site: {
+            key: value.detach().clone().float().requires_grad_(key != "bias" and site in settings.tune_sites)
+            for key, value in kernel.items()
+        }
+        for site, kernel in initial.sites.items()
+    }
+    parameters = [value for kernel in free.values() for value in kernel.values() if value.requires_grad] + tuned
+    optimizer = torch.optim.Adam(parameters, lr=settings.lr)
+
+    # Per key frame, what does not change during the fit: the encoder's features, the layer's Ls grid,
+    # the resampled shape and crop window.
+    frames = []
+    for key in keys:
+        grid = densities[key]
+        tensor = torch.from_numpy(grid)[None, None].to(device)
+        if scale_structures != 1.0:
+            size = tuple(max(4, round(n * scale_structures)) for n in grid.shape)
+            tensor = F.interpolate(tensor, size=size, mode="trilinear", align_corners=False)
+        window = occupied_window(tensor, DEFAULT_CROP_MARGIN)
+        part = tensor if window is None else tensor[(..., *window)]
+        with torch.no_grad():
+            encoded = network.encode(part)
+            body = network.decode_body(encoded, StylizingKernels(free)) if settings.head_only else None
+        frames.append((grid, window, tuple(tensor.shape[2:]), encoded, prepare_density(grid, density_scale), body))
+
+    def albedo_of(frame) -> torch.Tensor:
+        grid, window, size, encoded, _, body = frame
+        kernels = StylizingKernels(free)
+        if body is None:
+            body = network.decode_body(encoded, kernels)
+        albedo = uncrop(network.decode_head(body, kernels, encoded), window, size)
+        if size != grid.shape:
+            albedo = F.interpolate(albedo, size=grid.shape, mode="trilinear", align_corners=False)
+        return albedo[0]
+
+    def fit_match(albedo):
+        first = densities[keys[0]]
+        try:
+            return fit_colour_match(
+                albedo,
+                first,
+                target,
+                density_scale=density_scale,
+                radiance=radiance,
+                camera_distance=camera_distance,
+                seed=settings.seed,
+            )
+        except InvisibleMedium:
+            if notes is not None:
+                notes.append("the look has no colour match: its key frame is too thin to be seen at this density scale")
+            return None
+
+    match = None
+    if settings.colour_match == "through":
+        with torch.no_grad():
+            first = frames[0]
+            match = fit_match(albedo_of(first).permute(1, 2, 3, 0).cpu().numpy())
+    insides = [torch.from_numpy(frame[0] > 0).to(device) for frame in frames]
+
+    objective = SlicedObjective(rgb_weight=settings.rgb_weight, patch_weight=settings.patch_weight, seed=settings.seed)
+    targets = objective.targets(square_style(target, SLICED_STYLE_SIZE).to(device)[None])
+    orbit, rng = CameraPath(distance=camera_distance), np.random.default_rng(settings.seed)
+    render = dict(steps=settings.layer_steps_per_ray, radiance=radiance)
+    losses = []
+    for step in range(settings.steps):
+        frame = frames[step % len(frames)]
+        views = orbit.sample(settings.views_per_step, rng)
+        prepared = frame[4]
+        with torch.no_grad():
+            white = torch.ones((3,) + frame[0].shape, device=device)
+            masks = body_mask(render_views(white, prepared, views, settings.layer_res, **render))
+        albedo = albedo_of(frame)
+        if match is not None:
+            albedo = match.apply_torch(albedo, insides[step % len(frames)])
+        images = render_views(albedo, prepared, views, settings.layer_res, **render)
+        loss = objective.loss(images[None], targets, masks) + settings.tv_weight * tv_loss(albedo[None])
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        losses.append(float(loss.detach()))
+        if progress is not None:
+            progress(step + 1, settings.steps, losses[-1])
+
+    kernels = StylizingKernels(
+        {site: {key: value.detach() for key, value in kernel.items()} for site, kernel in free.items()}
+    )
+    decoder = {
+        f"{index}.{name}": value.detach().clone()
+        for index in settings.tune_decoder
+        for name, value in network.decoder[index].named_parameters()
+    }
+    meta = {
+        "checkpoint_sha256": checkpoint_digest(stylizer.path),
+        "checkpoint_name": stylizer.path.name,
+        "style": described,
+        "density_scale": density_scale,
+        "camera_distance": camera_distance,
+        "scale_structures": float(scale_structures),
+        "key_frames": keys,
+        "key_frame_shape": list(densities[keys[0]].shape),
+        "frames_seen": len(densities),
+        "settings": {
+            key: list(value) if isinstance(value, tuple) else value for key, value in asdict(settings).items()
+        },
+        "final_loss": losses[-1] if losses else None,
+    }
+    look = Look(kernels, decoder, match, thumbnail, meta, stylizer=stylizer)
+    if settings.colour_match == "after":
+        look.colour_match = fit_match(look.network_albedo(densities[keys[0]]))
+    look.meta["fit_seconds"] = time.perf_counter() - started
+    return look

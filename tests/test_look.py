@@ -1,0 +1,235 @@
+"""Looks (``mistyle.look``): fitted once, saved, loaded, applied to any frame; chunked renders merge, also
+on a two-worker Dask cluster (``mistyle.farm``)."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from mistyle import __version__
+from mistyle.farm import frame_chunks
+from mistyle.farm import main as farm_main
+from mistyle.io import write_vol
+from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, fit_look, parse_key_frames
+from mistyle.model.config import config_to_dict, load_config
+from mistyle.model.features import make_extractor
+from mistyle.model.skpn import SKPN
+from mistyle.pipeline import Stylizer
+from mistyle.render_final import main
+
+STEPS = 3
+
+
+def tiny_checkpoint(path, seed=0):
+    """An untrained tiny-config SKPN in the training checkpoint format."""
+    config = load_config("configs/tiny.toml")
+    config.model.style_channels = make_extractor("filterbank").channels
+    torch.manual_seed(seed)
+    torch.save(
+        {
+            "format": 1,
+            "mistyle_version": __version__,
+            "step": 0,
+            "config": config_to_dict(config),
+            "extractor": "filterbank",
+            "density_scale": 20.0,
+            "model": SKPN(config.model).state_dict(),
+        },
+        path,
+    )
+    return path
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    return tiny_checkpoint(tmp_path_factory.mktemp("ckpt") / "tiny.pt")
+
+
+@pytest.fixture(scope="module")
+def stylizer(checkpoint):
+    return Stylizer(checkpoint)
+
+
+@pytest.fixture(scope="module")
+def style():
+    rng = np.random.default_rng(0)
+    return np.repeat(np.repeat(rng.random((8, 8, 3)), 4, axis=0), 4, axis=1).astype(np.float32)
+
+
+def moving_frames(blob_density, count=4):
+    return [np.roll(blob_density, shift, axis=2) for shift in range(count)]
+
+
+@pytest.fixture(scope="module")
+def look(stylizer, blob_density, style):
+    return fit_look(stylizer, moving_frames(blob_density), style, settings=LookSettings(steps=STEPS))
+
+
+def test_key_frames_default_to_first_middle_last_and_parse_checked():
+    assert default_key_frames(1) == [0] and default_key_frames(2) == [0, 1] and default_key_frames(9) == [0, 4, 8]
+    assert parse_key_frames("4, 0,4", 5) == [0, 4]
+    for text, message in (("a,b", "comma-separated"), ("", "names no frame"), ("0,9", "outside")):
+        with pytest.raises(ValueError, match=message):
+            parse_key_frames(text, 5)
+
+
+def test_a_fit_changes_the_network_and_a_saved_look_stylizes_as_the_fitted_one(
+    look, stylizer, blob_density, style, tmp_path
+):
+    initial = stylizer.kernels(style)
+    tuned = look.kernels.sites[3]["gamma"]
+    assert not torch.equal(tuned, initial.sites[3]["gamma"])  # the fit moved the head's kernel
+    assert look.meta["key_frames"] == [0, 1, 3] and np.isfinite(look.meta["final_loss"])
+    albedo = look.stylize(blob_density)
+    assert albedo.shape == blob_density.shape + (3,) and np.isfinite(albedo).all()
+    assert 0 <= albedo.min() and albedo.max() <= 1
+    path = look.save(tmp_path / "any name.mylook")
+    assert path.stat().st_size < 1 << 20
+    loaded = Look.load(path, stylizer=stylizer)
+    np.testing.assert_array_equal(loaded.stylize(blob_density), albedo)
+    np.testing.assert_array_equal(loaded.thumbnail, look.thumbnail)
+    assert loaded.density_scale == look.density_scale
+
+
+def test_frames_are_stylized_each_on_its_own(look, blob_density):
+    frames = moving_frames(blob_density, 3)
+    together = look.stylize(np.stack(frames))
+    for frame, albedo in zip(frames, together):
+        np.testing.assert_array_equal(look.stylize(frame), albedo)
+
+
+def test_other_density_scales_and_sizes_get_a_note(look, blob_density):
+    notes = []
+    look.stylize(blob_density, density_scale=look.density_scale * 2, notes=notes)
+    assert any("density scale" in note for note in notes)
+    notes = []
+    big = np.zeros((48, 48, 48), np.float32)
+    big[8:40, 8:40, 8:40] = 1.0
+    look.stylize(big, notes=notes)
+    assert any("voxels across" in note for note in notes)
+
+
+def test_damaged_foreign_and_mismatched_looks_are_one_clear_error(look, stylizer, checkpoint, tmp_path):
+    path = look.save(tmp_path / "good.look")
+    (tmp_path / "garbage.look").write_bytes(b"\x00\x01 not a look")
+    (tmp_path / "truncated.look").write_bytes(path.read_bytes()[:200])
+    torch.save({"format": "mistyle-look", "version": LOOK_VERSION + 1}, tmp_path / "future.look")
+    torch.save({"weights": torch.zeros(3)}, tmp_path / "foreign.look")
+    torch.save({"format": "mistyle-look", "version": LOOK_VERSION, "meta": {}}, tmp_path / "hollow.look")
+    cases = {
+        "garbage.look": "not a readable mistyle look",
+        "truncated.look": "not a readable mistyle look",
+        "future.look": f"format version {LOOK_VERSION + 1}",
+        "foreign.look": "is not a mistyle look",
+        "hollow.look": "damaged mistyle look",
+        "missing.look": "does not exist",
+    }
+    for name, message in cases.items():
+        with pytest.raises(ValueError, match=message) as error:
+            Look.load(tmp_path / name, stylizer=stylizer)
+        assert "\n" not in str(error.value)
+    other = Stylizer(tiny_checkpoint(tmp_path / "other.pt", seed=1))
+    with pytest.raises(ValueError, match="fitted with the network tiny.pt"):
+        Look.load(path, stylizer=other)
+
+
+# ---------------------------------------------------------------------------- the command line
+@pytest.fixture(scope="module")
+def sequence(tmp_path_factory, blob_density):
+    folder = tmp_path_factory.mktemp("sequence")
+    frames = folder / "frames"
+    frames.mkdir()
+    for index, frame in enumerate(moving_frames(blob_density)):
+        write_vol(frames / f"smoke_{index:03d}.vol", frame)
+    rng = np.random.default_rng(1)
+    Image.fromarray((rng.random((32, 32, 3)) * 255).astype(np.uint8)).save(folder / "style.png")
+    return folder
+
+
+def render(checkpoint, *arguments):
+    return main(["--checkpoint", str(checkpoint), "--res", "16", "--spp", "2", "--quiet", *map(str, arguments)])
+
+
+def files_of(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and p.name != "report.json"}
+
+
+def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpoint, sequence, tmp_path):
+    frames, style = sequence / "frames", sequence / "style.png"
+    look = tmp_path / "wave.look"
+    args = ["--density", frames, "--style", style, "--save-look", look, "--key-frames", "0,3", "--look-steps", STEPS]
+    assert render(checkpoint, *args) == 0
+    assert look.is_file() and not (tmp_path / "out").exists()
+
+    whole, chunked = tmp_path / "whole", tmp_path / "chunked"
+    assert render(checkpoint, "--density", frames, "--look", look, "--out", whole) == 0
+    assert render(checkpoint, "--density", frames, "--look", look, "--out", chunked, "--frames", "2-3") == 0
+    assert render(checkpoint, "--density", frames, "--look", look, "--out", chunked, "--frames", "0-1") == 0
+    assert files_of(whole) == files_of(chunked)
+    assert "sequence_0003.exr" in files_of(whole) and "albedo_frame0000.npy" in files_of(whole)
+    one, two = (json.loads((folder / "report.json").read_text()) for folder in (whole, chunked))
+    assert one["frames"] == two["frames"] and list(two["frames"]) == ["0000", "0001", "0002", "0003"]
+    assert [chunk["frames"] for chunk in two["chunks"]] == [[0, 1], [2, 3]]
+    assert two["inputs"]["frames_in_sequence"] == 4 and two["rgb_swd"] == pytest.approx(one["rgb_swd"])
+
+    # Rendering a chunk again replaces only its frames.
+    kept = (chunked / "sequence_0000.exr").stat().st_mtime_ns
+    assert render(checkpoint, "--density", frames, "--look", look, "--out", chunked, "--frames", "3") == 0
+    assert (chunked / "sequence_0000.exr").stat().st_mtime_ns == kept
+    assert files_of(whole) == files_of(chunked)
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--look", "{look}", "--strength", "0.5", "--out", "{out}"], "full strength"),
+        (["--style", "{style}", "--key-frames", "0", "--out", "{out}"], "needs --save-look"),
+        (["--look", "{look}", "--frames", "5-9", "--out", "{out}"], "outside"),
+        (["--look", "{look}", "--frames", "b-a", "--out", "{out}"], "--frames takes A-B"),
+        (["--look", "{garbage}", "--out", "{out}"], "not a readable mistyle look"),
+        (["--style", "{style}", "--save-look", "{out}/missing/x.look"], "folder does not exist"),
+        (["--style", "{style}"], "--out is required"),
+    ],
+)
+def test_bad_look_options_are_one_clear_line(checkpoint, sequence, look, tmp_path, capsys, arguments, message):
+    good = look.save(tmp_path / "good.look")
+    (tmp_path / "garbage.look").write_bytes(b"nope")
+    values = dict(look=good, garbage=tmp_path / "garbage.look", style=sequence / "style.png", out=tmp_path / "out")
+    code = render(checkpoint, "--density", sequence / "frames", *[a.format(**values) for a in arguments])
+    error = capsys.readouterr().err
+    assert code == 2 and message in error and len(error.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------------------- the farm
+def test_frame_chunks_cover_the_range_once():
+    assert frame_chunks(10, 4) == [(0, 3), (4, 7), (8, 9)]
+    assert frame_chunks(10, 3, (2, 6)) == [(2, 4), (5, 6)]
+    with pytest.raises(ValueError, match="outside"):
+        frame_chunks(4, 2, (3, 5))
+    with pytest.raises(ValueError, match="at least 1"):
+        frame_chunks(4, 0)
+
+
+def test_a_two_worker_cluster_renders_what_one_process_renders(tmp_path, blob_density):
+    from PIL import Image
+
+    checkpoint = tiny_checkpoint(tmp_path / "tiny.pt")
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for index, frame in enumerate(moving_frames(blob_density, 5)):
+        write_vol(frames / f"f_{index:02d}.vol", frame)
+    Image.fromarray((np.random.default_rng(2).random((32, 32, 3)) * 255).astype(np.uint8)).save(tmp_path / "s.png")
+    options = ["--checkpoint", str(checkpoint), "--res", "16", "--spp", "2", "--quiet"]
+    look = tmp_path / "s.look"
+    fit = ["--density", frames, "--style", tmp_path / "s.png", "--save-look", look, "--look-steps", "2"]
+    assert main([*map(str, fit), *options]) == 0
+    single = tmp_path / "single"
+    assert main(["--density", str(frames), "--look", str(look), "--out", str(single), *options]) == 0
+
+    farmed = tmp_path / "farmed"
+    argv = ["--local-workers", "2", "--density", str(frames), "--look", str(look), "--out", str(farmed)]
+    assert farm_main([*argv, "--chunk", "2", "--", *options]) == 0
+    assert files_of(single) == files_of(farmed)

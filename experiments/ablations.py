@@ -485,24 +485,11 @@ def sequence_flicker(checkpoint: Path, args) -> dict:
 def held_out_sequence(cache: str):
     """``FLICKER_FRAMES`` densities ``(T, Z, Y, X)`` and velocities ``(T, Z, Y, X, 3)`` of the held-out smoke64
     plume from its benchmark frame on (simulated once, cached beside the held-out densities)."""
-    import numpy as np
-
     from mistyle.data.heldout import HELD_OUT_DENSITIES
-    from mistyle.data.smoke import PlumeConfig, simulate
+    from mistyle.data.heldout import held_out_sequence as frames_of
 
-    path = Path(cache) / f"smoke64_sequence{FLICKER_FRAMES}.npz"
-    if not path.exists():
-        spec = next(s for s in HELD_OUT_DENSITIES if s.name == "smoke64")
-        config = PlumeConfig.random((spec.resolution,) * 3, np.random.default_rng([spec.seed, 0]))
-        frames = [
-            (d, v) for t, d, v in simulate(config, spec.frame + FLICKER_FRAMES, seed=spec.seed) if t >= spec.frame
-        ]
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(
-            path, densities=np.stack([d for d, _ in frames]), velocities=np.stack([v for _, v in frames])
-        )
-    data = np.load(path)
-    return data["densities"].astype(np.float32), data["velocities"].astype(np.float32)
+    spec = next(s for s in HELD_OUT_DENSITIES if s.name == "smoke64")
+    return frames_of(spec.frame, FLICKER_FRAMES, Path(cache))
 
 
 _UNIFORM: dict = {}

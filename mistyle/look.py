@@ -57,12 +57,17 @@ class LookSettings:
     views_per_step: int = 3
     layer_res: int = 64
     layer_steps_per_ray: int = 48
-    tune_sites: tuple = (0, 1, 2, 3)  # the kernel sites tuned (SKPN.sites; (3,): the head only, much cheaper)
+    tune_sites: tuple = (3,)  # the kernel sites tuned (SKPN.sites; (3,), the head only, reuses the decoder's body)
     tune_decoder: tuple = (2,)  # indices of SKPN.decoder's convolutions tuned with the kernels
     rgb_weight: float = 1.0
     patch_weight: float = 0.05
     tv_weight: float = 10.0
-    colour_match: str = "through"  # "through": fitted first, the network tuned through it; "after"; "none"
+    colour_match: str = (
+        "after"  # "after": fitted on the tuned network's albedo; "through": first, fitted through; "none"
+    )
+    noise_channels: int = 0  # smooth noise fields (look_noise) the head adds, weighted, before its tanh
+    texture_side: int = 32  # > 0: a texture of this many texels along the box's longest side, added before the tanh
+    texture_lr: float = 0.05
     seed: int = 0
 
     def __post_init__(self):
@@ -125,6 +130,8 @@ class Look:
     colour_match: object | None  # colour_match.ColourMatch
     thumbnail: np.ndarray  # (H, W, 3) uint8 display RGB
     meta: dict  # checkpoint digest and name, density scale, orbit, key frame shape, settings, fit seconds
+    noise_weight: object = None  # (3, noise channels) tensor, or None
+    texture: object = None  # (3, tz, ty, tx) tensor over the box, or None
     stylizer: object = field(default=None, repr=False)
     _network: object = field(default=None, repr=False)
 
@@ -154,9 +161,17 @@ class Look:
 
     def network_albedo(self, grid: np.ndarray) -> np.ndarray:
         """The tuned network's albedo ``(Z, Y, X, 3)`` of ``grid (Z, Y, X)``, before the colour match."""
-        return self.stylizer.network_albedo(
-            grid, self.kernels, float(self.meta.get("scale_structures", 1.0)), model=self.network
-        )
+        import torch
+
+        with torch.no_grad():
+            frame = prepare_frame(self.network, grid, self.meta.get("scale_structures", 1.0), self.noise_spec())
+            albedo = frame_albedo(self.network, frame, self.kernels, self.noise_weight, self.texture)
+        return np.ascontiguousarray(albedo.permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
+
+    def noise_spec(self) -> tuple[int, int] | None:
+        """``(channels, seed)`` of the look's noise fields, or None."""
+        channels = int(self.meta.get("noise_channels", 0))
+        return (channels, int(self.meta.get("noise_seed", 0))) if channels else None
 
     def stylize(
         self, density, density_scale: float | None = None, notes: list | None = None
@@ -234,6 +249,8 @@ class Look:
             },
             "decoder": {key: value.detach().cpu().float().clone() for key, value in self.decoder.items()},
             "colour_match": match,
+            "noise_weight": None if self.noise_weight is None else self.noise_weight.detach().cpu().float().clone(),
+            "texture": None if self.texture is None else self.texture.detach().cpu().half().clone(),
             "thumbnail": torch.from_numpy(np.ascontiguousarray(self.thumbnail, np.uint8)),
             "meta": self.meta,
         }
@@ -291,6 +308,8 @@ class Look:
             )
             decoder = {key: value.float() for key, value in record["decoder"].items()}
             thumbnail = record["thumbnail"].numpy()
+            noise_weight = record.get("noise_weight")
+            texture = record.get("texture")
             match = record["colour_match"]
             if match is not None:
                 match = ColourMatch(
@@ -318,7 +337,95 @@ class Look:
             }
         )
         decoder = {key: value.to(stylizer.device) for key, value in decoder.items()}
-        return cls(kernels, decoder, match, thumbnail, meta, stylizer=stylizer)
+        noise_weight = None if noise_weight is None else noise_weight.float().to(stylizer.device)
+        texture = None if texture is None else texture.float().to(stylizer.device)
+        return cls(kernels, decoder, match, thumbnail, meta, noise_weight, texture, stylizer=stylizer)
+
+
+NOISE_SCALES = (1 / 64, 2 / 64)
+"""The blur of a look's noise fields, as fractions of the grid's longest side (1 and 2 voxels at 64^3): the
+scales of the strokes and grain the head can add where the density alone has none."""
+
+
+def look_noise(shape: tuple, channels: int, seed: int):
+    """``(channels, Z, Y, X)`` float32 tensor: Gaussian noise blurred at ``NOISE_SCALES`` in turn (channel
+    ``c`` at scale ``c mod len``), each channel scaled to unit spread. Fixed in the grid's space."""
+    import torch
+    import torch.nn.functional as F
+
+    generator = torch.Generator().manual_seed(int(seed))
+    fields = torch.randn((channels, 1) + tuple(shape), generator=generator)
+    out = []
+    for channel in range(channels):
+        voxels = max(NOISE_SCALES[channel % len(NOISE_SCALES)] * max(shape), 0.5)
+        radius = max(1, int(np.ceil(3 * voxels)))
+        taps = torch.exp(-0.5 * (torch.arange(-radius, radius + 1, dtype=torch.float32) / voxels) ** 2)
+        taps = taps / taps.sum()
+        field = fields[channel : channel + 1]
+        for axis in range(3):
+            kernel = taps.view((1, 1) + tuple(len(taps) if a == axis else 1 for a in range(3)))
+            field = F.conv3d(field, kernel, padding=tuple(radius if a == axis else 0 for a in range(3)))
+        out.append(field[0, 0] / field.std().clamp_min(1e-12))
+    return torch.stack(out)
+
+
+def prepare_frame(network, grid: np.ndarray, scale_structures: float = 1.0, noise=None, body_kernels=None) -> dict:
+    """What a look's network computes of one frame before its tuned parts: the (resampled, cropped)
+    density's encoder features, its crop window, the noise fields on the padded crop (``noise``:
+    ``(channels, seed)``), and with ``body_kernels`` the decoder's body (a head-only fit reuses it)."""
+    import torch
+    import torch.nn.functional as F
+
+    from .model.skpn import DEFAULT_CROP_MARGIN, occupied_window
+
+    device = next(network.parameters()).device
+    tensor = torch.from_numpy(np.ascontiguousarray(grid, dtype=np.float32))[None, None].to(device)
+    if scale_structures != 1.0:
+        size = tuple(max(4, round(n * scale_structures)) for n in grid.shape)
+        tensor = F.interpolate(tensor, size=size, mode="trilinear", align_corners=False)
+    size = tuple(tensor.shape[2:])
+    window = occupied_window(tensor, DEFAULT_CROP_MARGIN)
+    part = tensor if window is None else tensor[(..., *window)]
+    with torch.no_grad():
+        encoded = network.encode(part)
+        body = None if body_kernels is None else network.decode_body(encoded, body_kernels)
+    fields = None
+    if noise is not None:
+        fields = look_noise(size, *noise).to(device)
+        if window is not None:
+            fields = fields[(slice(None), *window)]
+        padded = encoded.features[0].shape[2:]
+        fields = F.pad(fields, [p for n, m in reversed(list(zip(fields.shape[1:], padded))) for p in (0, m - n)])[None]
+    return {"grid": grid, "size": size, "window": window, "encoded": encoded, "body": body, "noise": fields}
+
+
+def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None):
+    """A look's albedo ``(3, Z, Y, X)`` of a ``prepare_frame`` frame (differentiable in ``kernels``, the
+    tuned decoder layers, ``noise_weight (3, channels)`` and ``texture (3, tz, ty, tx)``, which is
+    stretched over the box whatever its resolution)."""
+    import torch
+    import torch.nn.functional as F
+
+    from .model.skpn import uncrop
+
+    encoded = frame["encoded"]
+    body = frame["body"] if frame["body"] is not None else network.decode_body(encoded, kernels)
+    offset = None
+    if noise_weight is not None and frame["noise"] is not None:
+        offset = torch.einsum("oc,bcdhw->bodhw", noise_weight, frame["noise"])
+    if texture is not None:
+        stretched = F.interpolate(texture[None], size=frame["size"], mode="trilinear", align_corners=False)
+        if frame["window"] is not None:
+            stretched = stretched[(slice(None), slice(None), *frame["window"])]
+        padded = encoded.features[0].shape[2:]
+        pads = [p for n, m in reversed(list(zip(stretched.shape[2:], padded))) for p in (0, m - n)]
+        stretched = F.pad(stretched, pads)
+        offset = stretched if offset is None else offset + stretched
+    albedo = uncrop(network.decode_head(body, kernels, encoded, offset), frame["window"], frame["size"])
+    shape = tuple(frame["grid"].shape)
+    if frame["size"] != shape:
+        albedo = F.interpolate(albedo, size=shape, mode="trilinear", align_corners=False)
+    return albedo[0]
 
 
 def thumbnail_of(style: np.ndarray, side: int = THUMBNAIL_SIDE) -> np.ndarray:
@@ -353,14 +460,13 @@ def fit_look(
     shape) with ``stylizer``'s network (``stylizer.Stylizer``). ``progress(step, steps, loss)`` after
     each step. ``style_names``: what the look calls its style (default: the image files' names)."""
     import torch
-    import torch.nn.functional as F
 
     from .bridge_torch import render_views
     from .colour_match import InvisibleMedium, fit_colour_match
     from .integrators import prepare_density
     from .io import load_style
     from .model.features import square_style
-    from .model.skpn import DEFAULT_CROP_MARGIN, StylizingKernels, occupied_window, uncrop
+    from .model.skpn import StylizingKernels
     from .objective.losses import tv_loss
     from .objective.masks import body_mask
     from .objective.style import SLICED_STYLE_SIZE, SlicedObjective
@@ -409,33 +515,29 @@ def fit_look(
         for site, kernel in initial.sites.items()
     }
     parameters = [value for kernel in free.values() for value in kernel.values() if value.requires_grad] + tuned
-    optimizer = torch.optim.Adam(parameters, lr=settings.lr)
 
-    # Per key frame, what does not change during the fit: the encoder's features, the layer's Ls grid,
-    # the resampled shape and crop window.
-    frames = []
-    for key in keys:
-        grid = densities[key]
-        tensor = torch.from_numpy(grid)[None, None].to(device)
-        if scale_structures != 1.0:
-            size = tuple(max(4, round(n * scale_structures)) for n in grid.shape)
-            tensor = F.interpolate(tensor, size=size, mode="trilinear", align_corners=False)
-        window = occupied_window(tensor, DEFAULT_CROP_MARGIN)
-        part = tensor if window is None else tensor[(..., *window)]
-        with torch.no_grad():
-            encoded = network.encode(part)
-            body = network.decode_body(encoded, StylizingKernels(free)) if settings.head_only else None
-        frames.append((grid, window, tuple(tensor.shape[2:]), encoded, prepare_density(grid, density_scale), body))
+    noise = (settings.noise_channels, settings.seed) if settings.noise_channels else None
+    noise_weight = None
+    if noise is not None:
+        noise_weight = torch.zeros((3, settings.noise_channels), device=device, requires_grad=True)
+        parameters.append(noise_weight)
+    groups = [{"params": parameters, "lr": settings.lr}]
+    texture = None
+    if settings.texture_side:
+        longest = max(densities[keys[0]].shape)
+        texels = tuple(max(1, round(n * settings.texture_side / longest)) for n in densities[keys[0]].shape)
+        texture = torch.zeros((3,) + texels, device=device, requires_grad=True)
+        groups.append({"params": [texture], "lr": settings.texture_lr})
+    optimizer = torch.optim.Adam(groups)
+
+    # Per key frame, what does not change during the fit: the encoder's features (and, tuning only the
+    # head, the decoder's body), the crop, the noise and the layer's Ls grid.
+    body_kernels = StylizingKernels(free) if settings.head_only else None
+    frames = [prepare_frame(network, densities[key], scale_structures, noise, body_kernels) for key in keys]
+    prepared_densities = [prepare_density(densities[key], density_scale) for key in keys]
 
     def albedo_of(frame) -> torch.Tensor:
-        grid, window, size, encoded, _, body = frame
-        kernels = StylizingKernels(free)
-        if body is None:
-            body = network.decode_body(encoded, kernels)
-        albedo = uncrop(network.decode_head(body, kernels, encoded), window, size)
-        if size != grid.shape:
-            albedo = F.interpolate(albedo, size=grid.shape, mode="trilinear", align_corners=False)
-        return albedo[0]
+        return frame_albedo(network, frame, StylizingKernels(free), noise_weight, texture)
 
     def fit_match(albedo):
         first = densities[keys[0]]
@@ -459,7 +561,7 @@ def fit_look(
         with torch.no_grad():
             first = frames[0]
             match = fit_match(albedo_of(first).permute(1, 2, 3, 0).cpu().numpy())
-    insides = [torch.from_numpy(frame[0] > 0).to(device) for frame in frames]
+    insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in frames]
 
     objective = SlicedObjective(rgb_weight=settings.rgb_weight, patch_weight=settings.patch_weight, seed=settings.seed)
     targets = objective.targets(square_style(target, SLICED_STYLE_SIZE).to(device)[None])
@@ -469,9 +571,9 @@ def fit_look(
     for step in range(settings.steps):
         frame = frames[step % len(frames)]
         views = orbit.sample(settings.views_per_step, rng)
-        prepared = frame[4]
+        prepared = prepared_densities[step % len(frames)]
         with torch.no_grad():
-            white = torch.ones((3,) + frame[0].shape, device=device)
+            white = torch.ones((3,) + frame["grid"].shape, device=device)
             masks = body_mask(render_views(white, prepared, views, settings.layer_res, **render))
         albedo = albedo_of(frame)
         if match is not None:
@@ -508,7 +610,12 @@ def fit_look(
         },
         "final_loss": losses[-1] if losses else None,
     }
-    look = Look(kernels, decoder, match, thumbnail, meta, stylizer=stylizer)
+    if noise is not None:
+        meta.update(noise_channels=settings.noise_channels, noise_seed=settings.seed)
+        noise_weight = noise_weight.detach().clone()
+    if texture is not None:
+        texture = texture.detach().half().float()  # as the file keeps it
+    look = Look(kernels, decoder, match, thumbnail, meta, noise_weight, texture, stylizer=stylizer)
     if settings.colour_match == "after":
         look.colour_match = fit_match(look.network_albedo(densities[keys[0]]))
     look.meta["fit_seconds"] = time.perf_counter() - started

@@ -133,6 +133,14 @@ def _default(context, density, style):
     return context.pipeline(**steps).stylize(density, style).albedos[0]
 
 
+def _look(context, density, style):
+    from ..look import LookSettings
+
+    settings = LookSettings(steps=QUICK_STEPS[0]) if context.quick else None
+    pipeline = context.pipeline(refine_steps=0, refine_path_steps=0)
+    return pipeline.fit_look(density, style, look_settings=settings).stylize(density)
+
+
 def _optimised(context, density, style):
     from dataclasses import replace
 
@@ -170,6 +178,13 @@ METHODS = {
             "product",
             "feed-forward (--refine 0): the network, then the colour match",
             _network,
+            uses_network=True,
+        ),
+        Method(
+            "look",
+            "product",
+            "a look fitted on the pair's density (mistyle-render --save-look), applied without refinement",
+            _look,
             uses_network=True,
         ),
         Method(

@@ -120,3 +120,24 @@ def check_training_styles(paths) -> None:
                 f"{path} is the held-out benchmark style {held[file_digest(path)]!r}; training must "
                 f"never see it. Remove it from the training style folder."
             )
+
+
+def held_out_sequence(first: int, count: int, cache: Path | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Frames ``first .. first + count - 1`` (0-based) of the simulation the held-out ``smoke64`` is frame
+    69 of: densities ``(T, Z, Y, X)`` and velocities ``(T, Z, Y, X, 3)`` float32 (each frame's own: frame
+    ``t``'s moves it to ``t + 1``); cached as ``<cache>/smoke64_frames<first>-<last>.npz`` when given."""
+    from .smoke import PlumeConfig, simulate
+
+    path = None if cache is None else Path(cache) / f"smoke64_frames{first}-{first + count - 1}.npz"
+    if path is not None and path.exists():
+        data = np.load(path)
+        return data["densities"].astype(np.float32), data["velocities"].astype(np.float32)
+    spec = next(s for s in HELD_OUT_DENSITIES if s.name == "smoke64")
+    config = PlumeConfig.random((spec.resolution,) * 3, np.random.default_rng([spec.seed, 0]))
+    frames = [(d, v) for t, d, v in simulate(config, first + count, seed=spec.seed) if t >= first]
+    densities = np.stack([d for d, _ in frames]).astype(np.float32)
+    velocities = np.stack([v for _, v in frames]).astype(np.float32)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, densities=densities, velocities=velocities)
+    return densities, velocities

@@ -313,10 +313,17 @@ class SKPN(nn.Module):
         x = self._stylize(F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=False), 2, kernels, encoded)
         return F.relu(self.decoder[1](torch.cat([x, e0], dim=1)), inplace=True)
 
-    def decode_head(self, x: torch.Tensor, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
-        """The last kernel site and convolution on ``decode_body``'s features: albedo ``(B, 3, D, H, W)``."""
+    def decode_head(
+        self, x: torch.Tensor, kernels: StylizingKernels, encoded: EncodedDensity, offset: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """The last kernel site and convolution on ``decode_body``'s features: albedo ``(B, 3, D, H, W)``.
+        ``offset`` (broadcast to ``(B, 3, D', H', W')``, the padded grid) is added before the tanh (a look's
+        noise term)."""
         x = self._stylize(x, 3, kernels, encoded)
-        albedo = 0.5 * (torch.tanh(self.decoder[2](x).float()) + 1.0)
+        logits = self.decoder[2](x).float()
+        if offset is not None:
+            logits = logits + offset
+        albedo = 0.5 * (torch.tanh(logits) + 1.0)
         size = encoded.size
         return albedo[..., : size[0], : size[1], : size[2]]
 

@@ -2,14 +2,15 @@
 
 ``mistyle.stylize(density, style_image) -> albedo``, ``mistyle.render(density, albedo, view=u) ->
 image``, ``mistyle.display(image)`` (the PNGs' tone curve) and ``mistyle.load_density(path)`` (see
-``mistyle.api``), and ``mistyle.Pipeline`` / ``mistyle.PipelineSettings`` (``mistyle.pipeline``: every
-setting and every stage's result); they load torch and Mitsuba on first use, so ``import mistyle``
-stays light.
+``mistyle.api``), ``mistyle.fit_look`` and ``mistyle.Look`` (``mistyle.look``: a style fitted once on
+key frames, applied to every frame), and ``mistyle.Pipeline`` / ``mistyle.PipelineSettings``
+(``mistyle.pipeline``: every setting and every stage's result); they load torch and Mitsuba on first
+use, so ``import mistyle`` stays light.
 """
 
 __version__ = "0.1.0"
 
-_PUBLIC = ("stylize", "render", "display", "load_density", "Pipeline", "PipelineSettings")
+_PUBLIC = ("stylize", "render", "display", "load_density", "fit_look", "Look", "Pipeline", "PipelineSettings")
 
 
 def __getattr__(name):

@@ -9,12 +9,19 @@
 
 ``stylize`` runs the trained SKPN (the bundled checkpoint unless one is named) and the colour match
 on numpy arrays of any ``D, H, W``, single frames ``(Z, Y, X)`` or sequences ``(T, Z, Y, X)``; with
-``refine=True`` it also refines against the style, as ``mistyle-render`` does by default
-(``Pipeline.refinement``). ``strength`` fades the style towards a uniform grey medium and a list of
+``refine=True`` it returns what ``mistyle-render`` path traces by default: for a single frame at
+full strength, a look fitted on the frame and applied (``Pipeline.fits_look``), else the refinement
+``Pipeline.refinement`` gives. ``strength`` fades the style towards a uniform grey medium and a list of
 ``(style, weight)`` pairs mixes styles; both act on the predicted stylizing kernels
 (``Stylizer.kernels``, ``Stylizer.weakened``), not on finished albedos:
 
     albedo = mistyle.stylize(density, [("wave.png", 0.7), ("starry.png", 0.3)], strength=0.5)
+
+A sequence is stylized best from a look, fitted once on its key frames and applied to every frame
+(``mistyle.look``; ``mistyle-render --save-look`` / ``--look``):
+
+    look = mistyle.fit_look(frames, "wave.png")       # frames (T, Z, Y, X), a list, or a folder's path
+    albedos = look.stylize(frames)                     # one albedo per frame, each from its own density
 
 For every setting and the results of each stage (timings, the feed-forward and the refined albedo,
 the final images), use ``mistyle.Pipeline`` with ``mistyle.PipelineSettings``.
@@ -34,14 +41,18 @@ import numpy as np
 from .conventions import DEFAULT_DENSITY_SCALE, HELD_OUT_VIEW, ORBIT_DISTANCE
 from .display import display
 from .io import load_density, load_style
+from .look import Look, LookSettings
 from .pathtrace import path_trace
 from .pipeline import Pipeline, PipelineSettings, Stylizer
 
 __all__ = [
+    "Look",
+    "LookSettings",
     "Pipeline",
     "PipelineSettings",
     "Stylizer",
     "display",
+    "fit_look",
     "load_density",
     "load_style",
     "path_trace",
@@ -81,7 +92,7 @@ def stylize(
         match_colours: False gives the network's albedo as predicted, without the colour match.
         refine: False: feed-forward, no gradient step (``mistyle-render --refine 0``, under a second
             at 64^3). True: the albedo ``mistyle-render`` path traces with its defaults (a single
-            frame at full strength is refined with ``fit.RefineSettings``' schedule, tens of seconds;
+            frame at full strength gets a look fitted on it, tens of seconds, ``Pipeline.fits_look``;
             sequences and weakened styles are not refined, see ``Pipeline.refinement``).
 
     Returns:
@@ -102,6 +113,33 @@ def stylize(
     )
     stylized = Pipeline(settings, stylizer=_stylizer(key, device, vgg_weights)).stylize(density, style_image)
     return np.stack(stylized.albedos) if stylized.frames.sequence else stylized.albedos[0]
+
+
+def fit_look(
+    density,
+    style_image,
+    key_frames=None,
+    checkpoint=None,
+    device: str = "cpu",
+    density_scale: float | None = None,
+    scale_structures: float = 1.0,
+    settings: LookSettings | None = None,
+) -> Look:
+    """A ``Look`` of ``style_image`` fitted on the ``key_frames`` (default: the first, middle and last) of
+    ``density`` (a frame ``(Z, Y, X)``, a sequence ``(T, Z, Y, X)``, a list of frames, or a path), as
+    ``mistyle-render --save-look`` fits it; ``look.stylize(frame)`` applies it, ``look.save(path)``
+    writes it and ``Look.load(path)`` reads it back. ``density_scale``: the scale the frames will be
+    rendered at (default: the checkpoint's)."""
+    if isinstance(density, (str, os.PathLike)):
+        from .io import load_density_frames
+
+        density = load_density_frames(density).densities
+    key = None if checkpoint is None else str(Path(checkpoint).resolve())
+    pipeline_settings = PipelineSettings(
+        checkpoint=key, device=device, density_scale=density_scale, scale_structures=scale_structures
+    )
+    pipeline = Pipeline(pipeline_settings, stylizer=_stylizer(key, device, None))
+    return pipeline.fit_look(density, style_image, key_frames=key_frames, look_settings=settings)
 
 
 def render(

@@ -252,7 +252,7 @@ class Look:
             "noise_weight": None if self.noise_weight is None else self.noise_weight.detach().cpu().float().clone(),
             "texture": None if self.texture is None else self.texture.detach().cpu().half().clone(),
             "thumbnail": torch.from_numpy(np.ascontiguousarray(self.thumbnail, np.uint8)),
-            "meta": self.meta,
+            "meta": {key: value for key, value in self.meta.items() if key != "file_sha256"},
         }
         buffer = io.BytesIO()
         torch.save(record, buffer)
@@ -267,7 +267,9 @@ class Look:
             raise ValueError(f"--save-look {path} is a folder; give a file name such as {path / 'style.look'}.")
         if not path.parent.is_dir():
             raise ValueError(f"The folder of --save-look {path} does not exist; create it or choose another path.")
-        atomic_write_bytes(path, self.to_bytes())
+        data = self.to_bytes()
+        atomic_write_bytes(path, data)
+        self.meta["file_sha256"] = hashlib.sha256(data).hexdigest()
         return path
 
     @classmethod
@@ -285,7 +287,8 @@ class Look:
         if not path.is_file():
             raise ValueError(f"Look {path} does not exist; fit one with mistyle-render ... --save-look {path}.")
         try:
-            record = torch.load(path, map_location="cpu", weights_only=True)
+            data = path.read_bytes()
+            record = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
         except Exception as error:  # torch raises many types for a damaged or foreign file
             reason = str(error).strip().splitlines()[0][:120] if str(error).strip() else type(error).__name__
             raise ValueError(
@@ -322,6 +325,7 @@ class Look:
             raise ValueError(
                 f"{path} is a damaged mistyle look (missing {error}); fit it again with --save-look."
             ) from None
+        meta["file_sha256"] = hashlib.sha256(data).hexdigest()  # which file a render came from
         stylizer = stylizer if stylizer is not None else Stylizer(checkpoint, device)
         digest = checkpoint_digest(stylizer.path)
         if digest != meta["checkpoint_sha256"]:

@@ -88,6 +88,7 @@ class PipelineSettings:
     refine_path_steps: int | None = None
     density_scale: float | None = None
     camera_distance: float | None = None
+    look_steps: int | None = None  # steps of a look's fit (None: look.LookSettings'); see Pipeline.fits_look
     render: RenderSettings = field(default_factory=RenderSettings)
 
     def __post_init__(self):
@@ -95,7 +96,7 @@ class PipelineSettings:
         validate_scale_structures(self.scale_structures)
         if self.device not in DEVICES:
             raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {self.device!r}.")
-        for name in ("refine_steps", "refine_path_steps"):
+        for name in ("refine_steps", "refine_path_steps", "look_steps"):
             steps = getattr(self, name)
             if steps is not None and not 0 <= steps <= 10000:
                 raise ValueError(f"{name} must lie in [0, 10000], got {steps}.")
@@ -134,10 +135,12 @@ class Stylization:
     refinement: object  # the fit.RefineSettings that ran (0 steps: none)
     report: dict  # seconds per stage, temporal flicker of sequences
     notes: list
+    look: object = None  # the look.Look fitted on the frame and applied (Pipeline.fits_look), or None
 
     @property
     def refined(self) -> bool:
-        """Whether ``albedos`` were refined from the feed-forward ``network`` albedos."""
+        """Whether ``albedos`` were refined from the feed-forward ``network`` albedos (by refinement steps,
+        or by a look fitted on the frame)."""
         return self.albedos is not self.network
 
 
@@ -192,17 +195,27 @@ class Pipeline:
         orbit = CameraPath(distance=self.camera_distance)
         return orbit.turntable(render.turntable, offset=render.view) if render.turntable else [orbit.view(render.view)]
 
+    def fits_look(self, frames: int = 1) -> bool:
+        """Whether a single frame is stylized by a look fitted on it (``look.fit_look``, then applied)
+        instead of refined: the default for one frame at full strength with the colour match, when no
+        refinement steps are named. On the held-out split it matches or beats the refinement it
+        replaces at about the same time (``results/benchmark/``: ``look`` against ``default``)."""
+        s = self.settings
+        named = s.refine_steps is not None or s.refine_path_steps is not None
+        return frames == 1 and s.strength == 1.0 and s.colour_match and not named
+
     def refinement(self, frames: int = 1):
         """The refinement schedule (``fit.RefineSettings``) for ``frames`` frames.
 
         Steps the settings name are used as they are. Otherwise a single frame at full strength gets
-        ``default_refinement``'s steps, and sequences and weakened styles get none: even warm-started
+        none when a look is fitted on it instead (``fits_look``: with the colour match), else
+        ``default_refinement``'s steps; sequences and weakened styles get none: even warm-started
         and anchored, refined frames flicker about twice as much as the network's and each frame costs
         the refinement's time, and refining against the style would undo a strength below 1.
         ``refine_steps=0`` also turns the path-traced steps off unless they are named."""
         s = self.settings
         defaults = default_refinement(self.config, self.camera_distance)
-        unrefined = frames > 1 or s.strength < 1.0
+        unrefined = frames > 1 or s.strength < 1.0 or self.fits_look(frames)
         layer = s.refine_steps if s.refine_steps is not None else 0 if unrefined else defaults.layer_steps
         path = (
             s.refine_path_steps
@@ -212,6 +225,12 @@ class Pipeline:
             else defaults.path_steps
         )
         return replace(defaults, layer_steps=layer, path_steps=path)
+
+    def look_refinement(self):
+        """The refinement of frames stylized from a look: only the steps the settings name (a look is
+        fitted not to need any, and each frame must stay independent of the others)."""
+        s = self.settings
+        return replace(self.refinement(1), layer_steps=s.refine_steps or 0, path_steps=s.refine_path_steps or 0)
 
     def frames(self, density, velocities=None, names: list[str] | None = None) -> Frames:
         """``density`` as ``Frames``: one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
@@ -287,13 +306,19 @@ class Pipeline:
             report["temporal_flicker_unwarped"] = float(np.mean(np.abs(np.diff(np.stack(network), axis=0))))
             notes.append("the frames carry no velocity; temporal_flicker_unwarped compares frames without warping")
 
-        albedos = network
-        if refinement.layer_steps or refinement.path_steps:
+        albedos, look = network, None
+        if self.fits_look(len(frames.densities)):
+            started = time.perf_counter()
+            look = self.fit_look(frames, parts if len(parts) > 1 else parts[0][0], notes=notes)
+            albedos = [look.apply(grid) for grid in frames.densities]
+            report["look_seconds"] = time.perf_counter() - started
+            self.log(f"fitted a look on the frame and applied it in {report['look_seconds']:.1f} s")
+        elif refinement.layer_steps or refinement.path_steps:
             albedos, report["refine_seconds"] = self.refine(frames, albedos, target, refinement)
             if frames.sequence and frames.velocities is not None:
                 report["temporal_flicker_refined"] = temporal_flicker(np.stack(albedos), np.stack(frames.velocities))
         check_finite("The corrected albedo of frame", albedos)
-        return Stylization(frames, network, albedos, target, refinement, report, notes)
+        return Stylization(frames, network, albedos, target, refinement, report, notes, look)
 
     def fit_look(
         self,
@@ -308,8 +333,10 @@ class Pipeline:
         """``look.fit_look`` on ``density``'s frames (a frame, a sequence or a list) with this pipeline's
         network, density scale, orbit and structure scale; ``key_frames`` default to the first, middle
         and last frame."""
-        from .look import fit_look
+        from .look import LookSettings, fit_look
 
+        if look_settings is None and self.settings.look_steps is not None:
+            look_settings = LookSettings(steps=self.settings.look_steps)
         frames = self.frames(density)
         return fit_look(
             self.stylizer,
@@ -331,7 +358,6 @@ class Pipeline:
         each frame is refined on its own, from the look's albedo). The target is the look's style."""
         from .objective.metrics import temporal_flicker
 
-        s = self.settings
         notes = [] if notes is None else notes
         frames = self.frames(density, velocities)
         notes.extend(look.notes_for(frames.densities[0].shape, frames.density_scale))
@@ -343,7 +369,7 @@ class Pipeline:
         self.log(f"stylized {len(network)} frame(s) from the look in {report['stylize_seconds']:.2f} s")
         if frames.sequence and frames.velocities is not None:
             report["temporal_flicker"] = temporal_flicker(np.stack(network), np.stack(frames.velocities))
-        refinement = replace(self.refinement(1), layer_steps=s.refine_steps or 0, path_steps=s.refine_path_steps or 0)
+        refinement = self.look_refinement()
         albedos = network
         if refinement.layer_steps or refinement.path_steps:
             # Each frame on its own: a chunk of a sequence must not depend on the frames before it.

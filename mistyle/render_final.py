@@ -34,12 +34,15 @@ One output per (density, style) pair (``mistyle.outputs``): a single pair into `
 ``--strength`` (0: a uniform grey medium, 1: the full style) and ``--mix`` act on the network's
 predicted stylizing kernels (``pipeline.Stylizer.kernels``); a mix is measured and refined against a
 mosaic of its styles with areas in proportion to the weights (``pipeline.style_target``). By default a
-single frame at full strength is refined against the style (``--refine``: fast-layer steps,
-``--refine-path``: path-traced steps; ``Pipeline.refinement``), which is what makes the medium take
-on the style's hues and patterns (``docs/decisions/2026-11-25-style-fidelity-study.md``); ``--refine 0`` renders the
-feed-forward albedo: the network's arrangement with the style's colours (``mistyle.colour_match``,
-no gradient step; ``--no-colour-match`` keeps the network's own colours). Each output is written
-into a hidden staging folder beside it that replaces it only when complete, so a failed or
+single frame at full strength is stylized by a look fitted on it (``Pipeline.fits_look``,
+``mistyle.look``), which is what makes the medium take on the style's hues and patterns; naming
+``--refine`` (fast-layer steps) or ``--refine-path`` (path-traced steps) refines the feed-forward
+albedo against the style instead (``Pipeline.refinement``;
+``docs/decisions/2026-11-25-style-fidelity-study.md``). ``--save-look``/``--look``/``--frames`` fit a
+look once and apply it to every frame of a sequence, in chunks that merge (``docs/looks.md``).
+``--refine 0`` renders the feed-forward albedo: the network's arrangement with the style's colours
+(``mistyle.colour_match``, no gradient step; ``--no-colour-match`` keeps the network's own colours).
+Each output is written into a hidden staging folder beside it that replaces it only when complete, so a failed or
 interrupted run leaves nothing half-written, and a second run into the same output is refused while
 one is in progress. Progress bars (rates, time left) appear on a terminal only; ``--quiet`` keeps
 only errors and the final line.
@@ -129,7 +132,8 @@ def parser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         metavar="STEPS",
-        help="steps of the look's fit (default: mistyle.look.LookSettings.steps)",
+        help="steps of a look's fit, with --save-look or for a single frame's default (default: "
+        "mistyle.look.LookSettings.steps)",
     )
     p.add_argument(
         "--frames",
@@ -183,7 +187,8 @@ def parser() -> argparse.ArgumentParser:
         default=None,
         metavar="STEPS",
         help=f"refine the albedo for STEPS steps against the style through the fast layer "
-        f"(default: {RefineSettings.layer_steps} for a single frame at full strength, else 0)",
+        f"(default: 0; a single frame at full strength gets a look fitted on it instead; {RefineSettings.layer_steps} "
+        "with --no-colour-match)",
     )
     p.add_argument(
         "--refine-path",
@@ -191,7 +196,7 @@ def parser() -> argparse.ArgumentParser:
         default=None,
         metavar="STEPS",
         help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
-        f"{RefineSettings.path_steps} for a single frame at full strength, else 0)",
+        f"0, or {RefineSettings.path_steps} for a single frame at full strength with --no-colour-match)",
     )
     p.add_argument("--fps", type=int, default=12)
     p.add_argument("--device", choices=DEVICES, default="cpu")
@@ -271,6 +276,7 @@ def settings_from(args):
         refine_path_steps=args.refine_path,
         density_scale=args.density_scale,
         camera_distance=args.camera_distance,
+        look_steps=args.look_steps,
         render=render,
     )
 
@@ -366,6 +372,7 @@ def run(args) -> int:
             job = load(args, output, pipeline, styles)
             job.look, job.merged = look, merging
             if merging:
+                check_mergeable(job)
                 with chunk_staging(output.folder) as staging:
                     job.out = staging
                     render_job(job)
@@ -423,8 +430,8 @@ def save_look(args, pipeline, styles: dict):
     parts = [(styles[path][0], weight) for path, weight in _look_style_parts(args)]
     names = [Path(path).name for path, _ in _look_style_parts(args)]
     notes: list[str] = []
-    look_settings = LookSettings() if args.look_steps is None else LookSettings(steps=args.look_steps)
-    with bar(look_settings.steps, "fitting the look") as progress_bar:
+    steps = LookSettings().steps if args.look_steps is None else args.look_steps
+    with bar(steps, "fitting the look") as progress_bar:
 
         def progress(step, steps, loss):
             progress_bar.set_postfix_str(f"loss {loss:.4g}", refresh=False)
@@ -434,7 +441,6 @@ def save_look(args, pipeline, styles: dict):
             frames,
             parts if len(parts) > 1 else parts[0][0],
             key_frames=keys,
-            look_settings=look_settings,
             notes=notes,
             progress=progress,
             style_names=names,
@@ -521,9 +527,8 @@ def check_look_options(args) -> None:
             raise ValueError("A look holds its style at full strength; --save-look does not take --strength.")
     if args.look is not None and args.strength != 1.0:
         raise ValueError("A look holds its style at full strength; --look does not take --strength.")
-    for name, value in (("--key-frames", args.key_frames), ("--look-steps", args.look_steps)):
-        if value is not None and args.save_look is None:
-            raise ValueError(f"{name} is about fitting a look; it needs --save-look.")
+    if args.key_frames is not None and args.save_look is None:
+        raise ValueError("--key-frames chooses the frames a look is fitted on; it needs --save-look.")
     if args.look_steps is not None and not 0 <= args.look_steps <= 10000:
         raise ValueError(f"--look-steps must lie in [0, 10000], got {args.look_steps}.")
     if args.save_look is not None:
@@ -614,16 +619,17 @@ def write_coat_mesh(job: Job) -> None:
 
 def _inputs_record(job: Job) -> dict:
     args, pipeline = job.args, job.pipeline
-    refinement = pipeline.refinement(len(job.frames.densities))
+    refinement = pipeline.look_refinement() if job.look is not None else pipeline.refinement(len(job.frames.densities))
     return {
         "density": str(job.output.density.path),
         "mesh": job.output.density.mesh,
         "grid": args.grid,
-        "style": job.output.style.describe(),
+        "style": job.look.meta.get("style", "a look") if job.look is not None else job.output.style.describe(),
         "strength": args.strength,
         "frames": len(job.frames.densities),
         "shape_zyx": list(job.frames.densities[0].shape),
         "checkpoint": str(pipeline.stylizer.path),
+        "look_sha256": None if job.look is None else job.look.meta.get("file_sha256"),
         "light": args.light,
         "spp": args.spp,
         "max_depth": args.max_depth,
@@ -795,25 +801,59 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
         }
         return
     atomic_write_bytes(job.out / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())
-    seconds = report["stylize_seconds"] + report.get("refine_seconds", 0.0) + report["render_seconds"]
+    seconds = sum(
+        report.get(key, 0.0) for key in ("stylize_seconds", "look_seconds", "refine_seconds", "render_seconds")
+    )
 
     def shown(key, digits):
         return "-" if report[key] is None else f"{report[key]:.{digits}f}"
 
     refinement = stylized.refinement
+    stage = (
+        "a look fitted on the frame"
+        if stylized.look is not None
+        else f"refine {refinement.layer_steps}+{refinement.path_steps} steps"
+    )
     lines = [
         f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
         f"RGB SWD {shown('rgb_swd', 4)}   patch SWD {shown('patch_swd', 4)}   hue coverage {shown('hue_coverage', 2)}",
-        f"strength {job.args.strength:g}, refine {refinement.layer_steps}+{refinement.path_steps} steps, "
-        f"{job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s",
+        f"strength {job.args.strength:g}, {stage}, {job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s",
     ]
     write_sheet(
         job.out / SHEET_FILE,
         [("style", style), ("fast layer (network)", display(layer_images[0])), ("final render", display(images[0]))],
         lines,
     )
-    keys = ("stylize_seconds", "refine_seconds", "render_seconds", "rgb_swd", "patch_swd", "hue_coverage")
+    keys = (
+        "stylize_seconds",
+        "look_seconds",
+        "refine_seconds",
+        "render_seconds",
+        "rgb_swd",
+        "patch_swd",
+        "hue_coverage",
+    )
     print(json.dumps({key: report[key] for key in keys if key in report}))
+
+
+def check_mergeable(job: Job) -> None:
+    """``ValueError`` when ``job``'s folder holds frames of another sequence or look: chunks merge only
+    with chunks of the same density and look (or style)."""
+    from .outputs import REPORT_FILE, is_mistyle_output
+
+    folder = job.output.folder
+    if not is_mistyle_output(folder):
+        return
+    held = json.loads((folder / REPORT_FILE).read_text()).get("inputs", {})
+    ours = _inputs_record(job)
+    for record in (held, ours):  # the same folder of frames, however the command named it
+        record["density"] = str(Path(record.get("density", "")).resolve())
+    for key, what in (("density", "density"), ("look_sha256", "look"), ("style", "style"), ("shape_zyx", "grid size")):
+        if held.get(key) != ours.get(key):
+            raise ValueError(
+                f"{folder} holds frames of another {what} ({held.get(key)}); chunks merge only with chunks of the "
+                "same density and look. Choose another --out, or remove that folder first."
+            )
 
 
 def frame_metrics(image: np.ndarray, style: np.ndarray) -> dict:
@@ -840,8 +880,6 @@ def merge_chunk(job: Job, folder: Path) -> None:
     chunk = job.report
     merge_files(job.out, folder)
     old = json.loads((folder / REPORT_FILE).read_text()) if is_mistyle_output(folder) else {}
-    if old and old.get("inputs", {}).get("shape_zyx") != chunk["inputs"]["shape_zyx"]:
-        job.notes.append("this folder held frames of another grid size; they are kept, but belong to another sequence")
     frames = {**old.get("frames", {}), **chunk["frames"]}
     frames = dict(sorted(frames.items()))
     done = set(chunk["frames"])

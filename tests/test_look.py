@@ -156,17 +156,17 @@ def files_of(folder):
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and p.name != "report.json"}
 
 
-def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpoint, sequence, tmp_path):
+def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpoint, sequence, look, tmp_path, capsys):
     frames, style = sequence / "frames", sequence / "style.png"
-    look = tmp_path / "wave.look"
-    args = ["--density", frames, "--style", style, "--save-look", look, "--key-frames", "0,3", "--look-steps", STEPS]
+    wave = tmp_path / "wave.look"
+    args = ["--density", frames, "--style", style, "--save-look", wave, "--key-frames", "0,3", "--look-steps", STEPS]
     assert render(checkpoint, *args) == 0
-    assert look.is_file() and not (tmp_path / "out").exists()
+    assert wave.is_file() and not (tmp_path / "out").exists()
 
     whole, chunked = tmp_path / "whole", tmp_path / "chunked"
-    assert render(checkpoint, "--density", frames, "--look", look, "--out", whole) == 0
-    assert render(checkpoint, "--density", frames, "--look", look, "--out", chunked, "--frames", "2-3") == 0
-    assert render(checkpoint, "--density", frames, "--look", look, "--out", chunked, "--frames", "0-1") == 0
+    assert render(checkpoint, "--density", frames, "--look", wave, "--out", whole) == 0
+    assert render(checkpoint, "--density", frames, "--look", wave, "--out", chunked, "--frames", "2-3") == 0
+    assert render(checkpoint, "--density", frames, "--look", wave, "--out", chunked, "--frames", "0-1") == 0
     assert files_of(whole) == files_of(chunked)
     assert "sequence_0003.exr" in files_of(whole) and "albedo_frame0000.npy" in files_of(whole)
     one, two = (json.loads((folder / "report.json").read_text()) for folder in (whole, chunked))
@@ -176,8 +176,15 @@ def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpo
 
     # Rendering a chunk again replaces only its frames.
     kept = (chunked / "sequence_0000.exr").stat().st_mtime_ns
-    assert render(checkpoint, "--density", frames, "--look", look, "--out", chunked, "--frames", "3") == 0
+    assert render(checkpoint, "--density", frames, "--look", wave, "--out", chunked, "--frames", "3") == 0
     assert (chunked / "sequence_0000.exr").stat().st_mtime_ns == kept
+    assert files_of(whole) == files_of(chunked)
+
+    # A chunk of another look is refused, and leaves the folder as it was.
+    other = look.save(tmp_path / "other.look")
+    capsys.readouterr()
+    assert render(checkpoint, "--density", frames, "--look", other, "--out", chunked, "--frames", "0") == 2
+    assert "holds frames of another look" in capsys.readouterr().err
     assert files_of(whole) == files_of(chunked)
 
 
@@ -233,3 +240,22 @@ def test_a_two_worker_cluster_renders_what_one_process_renders(tmp_path, blob_de
     argv = ["--local-workers", "2", "--density", str(frames), "--look", str(look), "--out", str(farmed)]
     assert farm_main([*argv, "--chunk", "2", "--", *options]) == 0
     assert files_of(single) == files_of(farmed)
+
+
+def test_a_look_renders_a_single_frame_file_and_the_api_fits_one(checkpoint, sequence, look, tmp_path):
+    import mistyle
+
+    path = look.save(tmp_path / "a.look")
+    out = tmp_path / "single"
+    assert render(checkpoint, "--density", sequence / "frames" / "smoke_001.vol", "--look", path, "--out", out) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert (out / "final.exr").is_file() and report["inputs"]["refine_steps"] == 0
+
+    fitted = mistyle.fit_look(
+        sequence / "frames",
+        sequence / "style.png",
+        key_frames=[1],
+        checkpoint=checkpoint,
+        settings=LookSettings(steps=1),
+    )
+    assert fitted.meta["key_frames"] == [1] and fitted.meta["style"] == "style.png"

@@ -1,6 +1,8 @@
 """The pipeline is the product: ``mistyle.stylize``, ``mistyle.Pipeline`` and ``mistyle-render`` give the
 same albedo for the same inputs, bit for bit."""
 
+import json
+
 import drjit as dr
 import numpy as np
 import pytest
@@ -54,13 +56,17 @@ def test_pipeline_gives_the_commands_refined_albedo_bit_for_bit(mi, tmp_path, de
 def test_stylize_refine_runs_the_commands_default_settings():
     args = parser().parse_args(["--density", "d.vol", "--style", STYLE, "--out", "o"])
     assert settings_from(args) == PipelineSettings()  # the command's defaults are the pipeline's defaults
-    refinement = Pipeline().refinement()
-    assert refinement.layer_steps > 0 and refinement.path_steps > 0  # a single frame is refined by default
+    pipeline = Pipeline()
+    assert pipeline.fits_look(1) and not pipeline.fits_look(2)  # a single frame gets a look fitted on it
+    unmatched = Pipeline(PipelineSettings(colour_match=False), stylizer=pipeline.stylizer)
+    refinement = unmatched.refinement()
+    assert not unmatched.fits_look(1) and refinement.layer_steps > 0 and refinement.path_steps > 0
 
 
-@pytest.mark.slow
 def test_stylize_refine_is_the_commands_default_output(mi, tmp_path, density_file, one_thread):
     out = render_cli(tmp_path, density_file)
+    report = json.loads((out / "report.json").read_text())
+    assert report["look_seconds"] > 0 and report["inputs"]["refine_steps"] == 0
     assert np.array_equal(
         mistyle.stylize(read_vol(density_file), STYLE, refine=True), read_vol(out / "albedo_refined.vol")
     )
@@ -68,7 +74,8 @@ def test_stylize_refine_is_the_commands_default_output(mi, tmp_path, density_fil
 
 def test_refinement_rule():
     pipeline = Pipeline()
-    default = pipeline.refinement(1)
+    default = Pipeline(PipelineSettings(colour_match=False), stylizer=pipeline.stylizer).refinement(1)
+    assert (pipeline.refinement(1).layer_steps, pipeline.refinement(1).path_steps) == (0, 0)  # a look instead
     assert (pipeline.refinement(3).layer_steps, pipeline.refinement(3).path_steps) == (0, 0)  # sequences
     weakened = Pipeline(PipelineSettings(strength=0.5), stylizer=pipeline.stylizer).refinement(1)
     assert (weakened.layer_steps, weakened.path_steps) == (0, 0)

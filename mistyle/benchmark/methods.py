@@ -129,8 +129,16 @@ def _network_unmatched(context, density, style):
 
 
 def _default(context, density, style):
-    steps = dict(zip(("refine_steps", "refine_path_steps"), QUICK_STEPS)) if context.quick else {}
+    steps = {"look_steps": QUICK_STEPS[0]} if context.quick else {}
     return context.pipeline(**steps).stylize(density, style).albedos[0]
+
+
+def _refined(context, density, style):
+    from ..pipeline import default_refinement
+
+    schedule = default_refinement(context.stylizer.config)
+    steps = QUICK_STEPS if context.quick else (schedule.layer_steps, schedule.path_steps)
+    return context.pipeline(refine_steps=steps[0], refine_path_steps=steps[1]).stylize(density, style).albedos[0]
 
 
 def _look(context, density, style):
@@ -169,8 +177,15 @@ METHODS = {
         Method(
             "default",
             "product",
-            "mistyle-render's default output: network, colour match, refinement",
+            "mistyle-render's default output (a single frame: a look fitted on it, Pipeline.fits_look)",
             _default,
+            uses_network=True,
+        ),
+        Method(
+            "refined",
+            "product",
+            "network, colour match, then default_refinement's 120 layer + 16 path-traced steps (the default until #32)",
+            _refined,
             uses_network=True,
         ),
         Method(

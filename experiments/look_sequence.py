@@ -11,9 +11,10 @@ benchmark's smoke64) is stylized over ``--count`` frames from ``--first`` with e
 Per arm and style it records the albedo flicker (``objective.metrics.temporal_flicker``, warped by
 the velocities), and for the look the benchmark's metrics of every frame (``benchmark.study.score``,
 its metric views), split into key frames and the others, with the fit's and the application's
-seconds. The contact sheet shows per style: the style, the look's frames over time, today's default
-output (``mistyle-render``: network, colour match, refinement) of the middle frame, smooth noise with
-the colour match, and the uniform baseline (the benchmark's ``smooth_noise`` and ``uniform``).
+seconds. The contact sheet shows per style: the style, the look's frames over time, ``mistyle-render``'s
+default output of the middle frame (since #32 a look fitted on that frame alone,
+``Pipeline.fits_look``), smooth noise with the colour match, and the uniform baseline (the benchmark's
+``smooth_noise`` and ``uniform``).
 
     python experiments/look_sequence.py                      # 19 frames, 3 styles
     python experiments/look_sequence.py --quick              # 4 frames, 1 style, 3 fit steps

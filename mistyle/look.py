@@ -180,20 +180,9 @@ class Look:
         or a list of frames: the tuned network, then the look's colour match. ``density_scale`` (the
         scale the frames will be rendered at) other than the look's adds a note, as does a frame of a
         very different size from the key frames."""
-        from .stylizer import check_enough_medium
-        from .volume import validate_density
+        from .stylizer import checked_frames
 
-        array = density if isinstance(density, (list, tuple)) else np.asarray(density)
-        sequence = isinstance(array, (list, tuple)) or array.ndim == 4
-        frames = list(array) if sequence else [array]
-        grids = []
-        for index, frame in enumerate(frames):
-            name = f"density frame {index}" if sequence else "density"
-            grid = validate_density(frame, name=name)
-            if not grid.any():
-                raise ValueError(f"The {name} is all zero; there is no medium to stylize.")
-            check_enough_medium(grid, name)
-            grids.append(grid)
+        grids, sequence = checked_frames(density)
         if notes is not None:
             notes.extend(self.notes_for(grids[0].shape, density_scale))
         albedos = [self.apply(grid) for grid in grids]

@@ -41,6 +41,7 @@ from .stylizer import (  # noqa: F401 - also the pipeline's names: callers impor
     Stylizer,
     check_enough_medium,
     check_finite,
+    checked_frames,
     style_parts,
     style_target,
     validate_scale_structures,
@@ -236,25 +237,9 @@ class Pipeline:
         """``density`` as ``Frames``: one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
         frames; ``velocities`` ``(Z, Y, X, 3)`` per frame or None; ``names``: the frames' names in
         messages. ``ValueError`` for a frame that is not a valid density or holds too little medium."""
-        from .volume import validate_density
-
         if isinstance(density, Frames):
             return density
-        array = density if isinstance(density, (list, tuple)) else np.asarray(density)
-        listed = isinstance(array, (list, tuple))
-        items = list(array) if listed else list(array) if array.ndim == 4 and array.shape[-1] != 1 else [array]
-        sequence = len(items) > 1
-        grids = []
-        for index, frame in enumerate(items):
-            if names is not None:
-                name = f"density {names[index]}"
-            else:
-                name = f"density frame {index}" if sequence else "density"
-            grid = validate_density(frame, name=name)
-            if not grid.any():
-                raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
-            check_enough_medium(grid, name)
-            grids.append(grid)
+        grids, _ = checked_frames(density, names)
         if len({grid.shape for grid in grids}) > 1:
             raise ValueError(
                 f"The frames have different shapes {sorted({g.shape for g in grids})}; a sequence needs one grid size."

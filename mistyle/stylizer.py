@@ -283,3 +283,27 @@ def check_enough_medium(grid: np.ndarray, name: str = "density") -> None:
             f"{MIN_MEDIUM_VOXELS}. The network normalises its features over the medium, and so few voxels give "
             "it no spread to measure. Give a volume whose medium spans a few voxels (or resample it larger)."
         )
+
+
+def checked_frames(density, names: list[str] | None = None) -> tuple[list[np.ndarray], bool]:
+    """``(grids, sequence)``: ``density`` (one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
+    frames) as checked float32 frames, and whether it was a sequence; ``names``: the frames' names in
+    messages. ``ValueError`` for a frame that is not a valid density, is all zero or holds too little medium."""
+    from .volume import validate_density
+
+    listed = isinstance(density, (list, tuple))
+    array = density if listed else np.asarray(density)
+    items = list(array) if listed else list(array) if array.ndim == 4 and array.shape[-1] != 1 else [array]
+    sequence = listed or len(items) > 1
+    grids = []
+    for index, frame in enumerate(items):
+        if names is not None:
+            name = f"density {names[index]}"
+        else:
+            name = f"density frame {index}" if len(items) > 1 else "density"
+        grid = validate_density(frame, name=name)
+        if not grid.any():
+            raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
+        check_enough_medium(grid, name)
+        grids.append(grid)
+    return grids, sequence

@@ -21,3 +21,36 @@ def blob_density():
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+def write_tiny_checkpoint(path, seed: int = 0):
+    """An untrained tiny-config SKPN in the training checkpoint format, at ``path``."""
+    import torch
+
+    from mistyle import __version__
+    from mistyle.model.config import config_to_dict, load_config
+    from mistyle.model.features import make_extractor
+    from mistyle.model.skpn import SKPN
+
+    config = load_config("configs/tiny.toml")
+    config.model.style_channels = make_extractor("filterbank").channels
+    torch.manual_seed(seed)
+    torch.save(
+        {
+            "format": 1,
+            "mistyle_version": __version__,
+            "step": 0,
+            "config": config_to_dict(config),
+            "extractor": "filterbank",
+            "density_scale": 20.0,
+            "model": SKPN(config.model).state_dict(),
+        },
+        path,
+    )
+    return path
+
+
+@pytest.fixture(scope="session")
+def tiny_checkpoint_factory():
+    """``write_tiny_checkpoint`` for tests: ``factory(path, seed=0) -> path``."""
+    return write_tiny_checkpoint

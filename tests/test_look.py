@@ -8,43 +8,19 @@ import pytest
 import torch
 from PIL import Image
 
-from mistyle import __version__
 from mistyle.farm import frame_chunks
 from mistyle.farm import main as farm_main
 from mistyle.io import write_vol
 from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, fit_look, parse_key_frames
-from mistyle.model.config import config_to_dict, load_config
-from mistyle.model.features import make_extractor
-from mistyle.model.skpn import SKPN
 from mistyle.pipeline import Stylizer
 from mistyle.render_final import main
 
 STEPS = 3
 
 
-def tiny_checkpoint(path, seed=0):
-    """An untrained tiny-config SKPN in the training checkpoint format."""
-    config = load_config("configs/tiny.toml")
-    config.model.style_channels = make_extractor("filterbank").channels
-    torch.manual_seed(seed)
-    torch.save(
-        {
-            "format": 1,
-            "mistyle_version": __version__,
-            "step": 0,
-            "config": config_to_dict(config),
-            "extractor": "filterbank",
-            "density_scale": 20.0,
-            "model": SKPN(config.model).state_dict(),
-        },
-        path,
-    )
-    return path
-
-
 @pytest.fixture(scope="module")
-def checkpoint(tmp_path_factory):
-    return tiny_checkpoint(tmp_path_factory.mktemp("ckpt") / "tiny.pt")
+def checkpoint(tmp_path_factory, tiny_checkpoint_factory):
+    return tiny_checkpoint_factory(tmp_path_factory.mktemp("ckpt") / "tiny.pt")
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +87,7 @@ def test_other_density_scales_and_sizes_get_a_note(look, blob_density):
     assert any("voxels across" in note for note in notes)
 
 
-def test_damaged_foreign_and_mismatched_looks_are_one_clear_error(look, stylizer, checkpoint, tmp_path):
+def test_damaged_foreign_and_mismatched_looks_are_one_clear_error(look, stylizer, tmp_path, tiny_checkpoint_factory):
     path = look.save(tmp_path / "good.look")
     (tmp_path / "garbage.look").write_bytes(b"\x00\x01 not a look")
     (tmp_path / "truncated.look").write_bytes(path.read_bytes()[:200])
@@ -130,7 +106,7 @@ def test_damaged_foreign_and_mismatched_looks_are_one_clear_error(look, stylizer
         with pytest.raises(ValueError, match=message) as error:
             Look.load(tmp_path / name, stylizer=stylizer)
         assert "\n" not in str(error.value)
-    other = Stylizer(tiny_checkpoint(tmp_path / "other.pt", seed=1))
+    other = Stylizer(tiny_checkpoint_factory(tmp_path / "other.pt", seed=1))
     with pytest.raises(ValueError, match="fitted with the network tiny.pt"):
         Look.load(path, stylizer=other)
 
@@ -220,10 +196,10 @@ def test_frame_chunks_cover_the_range_once():
         frame_chunks(4, 0)
 
 
-def test_a_two_worker_cluster_renders_what_one_process_renders(tmp_path, blob_density):
+def test_a_two_worker_cluster_renders_what_one_process_renders(tmp_path, blob_density, tiny_checkpoint_factory):
     from PIL import Image
 
-    checkpoint = tiny_checkpoint(tmp_path / "tiny.pt")
+    checkpoint = tiny_checkpoint_factory(tmp_path / "tiny.pt")
     frames = tmp_path / "frames"
     frames.mkdir()
     for index, frame in enumerate(moving_frames(blob_density, 5)):

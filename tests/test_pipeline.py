@@ -67,9 +67,10 @@ def test_stylize_refine_is_the_commands_default_output(mi, tmp_path, density_fil
     out = render_cli(tmp_path, density_file)
     report = json.loads((out / "report.json").read_text())
     assert report["look_seconds"] > 0 and report["inputs"]["refine_steps"] == 0
-    assert np.array_equal(
-        mistyle.stylize(read_vol(density_file), STYLE, refine=True), read_vol(out / "albedo_refined.vol")
-    )
+    density = read_vol(density_file)
+    assert np.array_equal(mistyle.stylize(density, STYLE, refine=True), read_vol(out / "albedo_refined.vol"))
+    # ...which is the benchmark's `look`: a look fitted on the frame with its defaults, applied.
+    assert np.array_equal(Pipeline().fit_look(density, STYLE).stylize(density), read_vol(out / "albedo_refined.vol"))
 
 
 def test_refinement_rule():

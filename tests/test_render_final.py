@@ -8,34 +8,14 @@ import torch
 from PIL import Image
 
 import mistyle
-from mistyle import __version__
 from mistyle.io import read_vol, write_vol
-from mistyle.model.config import config_to_dict, load_config
-from mistyle.model.features import make_extractor
-from mistyle.model.skpn import SKPN
 from mistyle.render_final import main
 
 
 @pytest.fixture(scope="module")
-def checkpoint(tmp_path_factory):
+def checkpoint(tmp_path_factory, tiny_checkpoint_factory):
     """An untrained tiny-config SKPN in the training checkpoint format."""
-    config = load_config("configs/tiny.toml")
-    config.model.style_channels = make_extractor("filterbank").channels
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
-    torch.save(
-        {
-            "format": 1,
-            "mistyle_version": __version__,
-            "step": 0,
-            "config": config_to_dict(config),
-            "extractor": "filterbank",
-            "density_scale": 20.0,
-            "model": SKPN(config.model).state_dict(),
-        },
-        path,
-    )
-    return path
+    return tiny_checkpoint_factory(tmp_path_factory.mktemp("ckpt") / "tiny.pt")
 
 
 @pytest.fixture(scope="module")

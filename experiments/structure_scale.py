@@ -111,8 +111,8 @@ def middle_slice(albedo: np.ndarray, density: np.ndarray) -> np.ndarray:
 
 def albedo_correlation_length(albedo: np.ndarray, density: np.ndarray) -> float:
     """``correlation_length`` of the luminance of ``albedo (Z, Y, X, 3)`` where ``density > 0``."""
-    from mistyle.api import LUMA_WEIGHTS
     from mistyle.objective.metrics import correlation_length
+    from mistyle.stylizer import LUMA_WEIGHTS
 
     return correlation_length(np.asarray(albedo, np.float64) @ LUMA_WEIGHTS, density > 0)
 

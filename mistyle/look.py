@@ -2,28 +2,34 @@
 
     from mistyle.look import fit_look, Look
 
-    look = fit_look(pipeline, frames, "wave.png")        # fitted on the first, middle and last frame
+    look = fit_look(stylizer, frames, "wave.png")       # a stylizer.Stylizer; the first, middle, last frame
     look.save("wave.look")
     look = Look.load("wave.look")                        # the bundled network, or checkpoint=...
-    albedo = look.stylize(density)                       # (Z, Y, X, 3): any frame, 1 s at 64^3
+    albedo = look.stylize(density)                       # (Z, Y, X, 3): any frame, about 1 s at 64^3
 
-What a look holds (``LOOK_VERSION`` 1):
+``Pipeline.fit_look`` and ``mistyle.fit_look`` fit with a pipeline's settings; ``mistyle-render
+--save-look``/``--look`` adapt them (``docs/looks.md``).
 
-* **Stylizing kernels**, fine-tuned at test time. They start from the SKPN's prediction for the
-  style and are fitted, with the last decoder convolution (``LookSettings.tune_decoder``), through
-  the fast layer against the sliced objective (RGB and patch sliced Wasserstein, the refinement's) on
-  the key frames' renders. The encoder is not tuned: its features of each key frame are computed
-  once, which is what makes the fit cheap. Everything else of the network is the checkpoint's, so
-  a look is a few hundred kilobytes and names the checkpoint it was fitted with (its SHA-256).
+What a look holds (``LOOK_VERSION`` 1), chosen by measurement (``experiments/look_study.py``,
+``results/look_study/``, ``docs/decisions/2026-12-02-looks.md``):
+
+* **The network's head, fine-tuned at test time.** The last kernel site's stylizing kernel starts
+  from the SKPN's prediction for the style and is fitted with the last decoder convolution
+  (``LookSettings.tune_sites``, ``tune_decoder``) through the fast layer against the sliced objective
+  (RGB and patch sliced Wasserstein, the refinement's) on the key frames' renders. The encoder and
+  the decoder's body are the checkpoint's, computed once per key frame, which is what makes the fit
+  cheap; the look names the checkpoint by its SHA-256.
+* **A coarse texture over the medium's box** (``texture_side`` texels along the longest side), added
+  before the head's tanh: strokes and grain where the density alone has no structure. It is fixed
+  in box coordinates. Optionally (off by default) smooth-noise fields the head weighs.
 * **The colour match's map** (``colour_match.ColourMatch``), fitted on the first key frame's albedo
   after the fit: a function of colour, shared by every frame like a sequence's.
 * The style's thumbnail (``THUMBNAIL_SIDE`` pixels), the density scale, the orbit and the fit's
   settings, so that a render from the look is measured against its style and lit as it was fitted.
 
-Applied to a frame, the look runs the network on that frame's own density with the fitted kernels
-and decoder, then the colour match: colours follow the smoke as it moves, and no frame is refined.
-The choice of what to tune and for how long is measured in ``experiments/look_study.py``
-(``results/look_study/``).
+Applied to a frame, the look runs the network on that frame's own density with the fitted head and
+texture (``prepare_frame``, ``frame_albedo``: the fit's own functions), then the colour match; no
+frame is refined and each frame depends on nothing but the look and its density.
 """
 
 from __future__ import annotations

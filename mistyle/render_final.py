@@ -542,6 +542,11 @@ def check_look_options(args) -> None:
         args.frame_range = parse_frame_range(args.frames)
         if args.mesh:
             raise ValueError("--frames selects frames of a density sequence; a mesh has one frame.")
+        if args.look is None and args.save_look is None:
+            raise ValueError(
+                "--frames renders chunks from a look, so that every chunk matches the others (from a style, a "
+                "chunk's colours would follow its own first frame): add --look FILE, or --save-look FILE to fit one."
+            )
     else:
         args.frame_range = None
 

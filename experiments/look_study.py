@@ -41,6 +41,9 @@ ARMS = {
     "texture64_head60": dict(texture_side=64, steps=60),
     "texture32_head60": dict(texture_side=32, steps=60),
     "texture64_head90_patch0.2": dict(texture_side=64, steps=90, patch_weight=0.2),
+    "texture32_init0.3": dict(texture_init=0.3),
+    "texture32_init1": dict(texture_init=1.0),
+    "texture32_steps150": dict(steps=150),
     "default": dict(),
 }
 

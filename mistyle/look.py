@@ -74,6 +74,7 @@ class LookSettings:
     noise_channels: int = 0  # smooth noise fields (look_noise) the head adds, weighted, before its tanh
     texture_side: int = 32  # > 0: a texture of this many texels along the box's longest side, added before the tanh
     texture_lr: float = 0.05
+    texture_init: float = 0.0  # spread of the texture's random start (0: zeros); colour variation to spread
     seed: int = 0
 
     def __post_init__(self):
@@ -525,7 +526,9 @@ def fit_look(
     if settings.texture_side:
         longest = max(densities[keys[0]].shape)
         texels = tuple(max(1, round(n * settings.texture_side / longest)) for n in densities[keys[0]].shape)
-        texture = torch.zeros((3,) + texels, device=device, requires_grad=True)
+        generator = torch.Generator().manual_seed(settings.seed)
+        start = settings.texture_init * torch.randn((3,) + texels, generator=generator)
+        texture = start.to(device).requires_grad_(True)
         groups.append({"params": [texture], "lr": settings.texture_lr})
     optimizer = torch.optim.Adam(groups)
 

@@ -27,8 +27,9 @@ def blocks() -> dict[str, str]:
     commits = sorted({row.commit for row in rows})
     source = (
         f"From `results/benchmark/rows.jsonl` ({len(rows)} rows, commit(s) {', '.join(commits)}): "
-        'medians over the held-out pairs; "x uniform" is the median of per-pair ratios to the uniform '
-        "baseline; seconds to make the albedo on this project's 2-core CPU.\n\n"
+        'medians over the held-out pairs; "x uniform" and "x noise" are the medians of per-pair ratios to the '
+        'uniform baseline and to smooth noise + colour match; "beats uniform": pairs lower than the uniform '
+        "baseline in both SWDs; seconds to make the albedo on this project's 2-core CPU.\n\n"
     )
     return {"benchmark": source + table(rows)}
 

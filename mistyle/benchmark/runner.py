@@ -178,15 +178,21 @@ def run(
 
 
 # ---------------------------------------------------------------------------- report
+NOISE_BASELINE = "smooth_noise"
+"""The training-free baseline every stylization claim is also measured against (``methods``)."""
+
+
 def summary(rows: list[Row]) -> dict:
     """Per method (in ``METHODS`` order, then others): medians of the metrics and of each SWD's ratio to
-    the uniform baseline on the same pair and settings, and the number of pairs."""
+    the uniform baseline and to ``NOISE_BASELINE`` on the same pair and settings, the number of pairs,
+    and how many of them beat the uniform baseline on both SWDs."""
     from .methods import METHODS
 
-    uniform = {
-        (row.density, row.style, json.dumps(row.settings, sort_keys=True)): row
-        for row in rows
-        if row.method == "uniform"
+    def on_pair(row: Row) -> tuple:
+        return (row.density, row.style, json.dumps(row.settings, sort_keys=True))
+
+    baselines = {
+        name: {on_pair(row): row for row in rows if row.method == name} for name in ("uniform", NOISE_BASELINE)
     }
     order = list(METHODS) + sorted({row.method for row in rows} - set(METHODS))
     result = {}
@@ -198,16 +204,19 @@ def summary(rows: list[Row]) -> dict:
             key: float(np.median([getattr(row, key) for row in mine]))
             for key in ("rgb_swd", "patch_swd", "hue_coverage", "seconds")
         }
-        matched = [
-            (row, uniform.get((row.density, row.style, json.dumps(row.settings, sort_keys=True)))) for row in mine
-        ]
-        matched = [(row, base) for row, base in matched if base is not None]
-        for key in ("rgb_swd", "patch_swd"):
-            entry[f"{key}_x_uniform"] = (
-                float(np.median([getattr(row, key) / getattr(base, key) for row, base in matched]))
-                if matched
-                else float("nan")
-            )
+        for name, suffix in (("uniform", "uniform"), (NOISE_BASELINE, "noise")):
+            matched = [(row, baselines[name].get(on_pair(row))) for row in mine]
+            matched = [(row, base) for row, base in matched if base is not None]
+            for key in ("rgb_swd", "patch_swd"):
+                entry[f"{key}_x_{suffix}"] = (
+                    float(np.median([getattr(row, key) / getattr(base, key) for row, base in matched]))
+                    if matched
+                    else float("nan")
+                )
+            if name == "uniform":
+                entry["beats_uniform"] = sum(
+                    row.rgb_swd < base.rgb_swd and row.patch_swd < base.patch_swd for row, base in matched
+                )
         entry["pairs"] = len(mine)
         result[method] = entry
     return result
@@ -216,13 +225,15 @@ def summary(rows: list[Row]) -> dict:
 def table(rows: list[Row]) -> str:
     """The medians of ``summary`` as a Markdown table."""
     lines = [
-        "| method | RGB SWD | x uniform | patch SWD | x uniform | hue coverage | seconds | pairs |",
-        "|---|---|---|---|---|---|---|---|",
+        "| method | RGB SWD | x uniform | x noise | patch SWD | x uniform | x noise | hue coverage | "
+        "beats uniform | seconds | pairs |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for method, m in summary(rows).items():
         lines.append(
-            f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_x_uniform']:.2f} | {m['patch_swd']:.4f} | "
-            f"{m['patch_swd_x_uniform']:.2f} | {m['hue_coverage']:.2f} | {m['seconds']:.1f} | {m['pairs']} |"
+            f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_x_uniform']:.2f} | {m['rgb_swd_x_noise']:.2f} | "
+            f"{m['patch_swd']:.4f} | {m['patch_swd_x_uniform']:.2f} | {m['patch_swd_x_noise']:.2f} | "
+            f"{m['hue_coverage']:.2f} | {m['beats_uniform']}/{m['pairs']} | {m['seconds']:.1f} | {m['pairs']} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -2,7 +2,9 @@
 PY := .venv/bin/python
 STAMP := .venv/.mistyle-installed
 
-.PHONY: demo test test-all bench-quick lint setup
+BLENDER_STAMP := .venv-blender/.mistyle-installed
+
+.PHONY: demo test test-all test-blender blender-addon bench-quick lint setup
 
 demo: $(STAMP)
 	$(PY) -m mistyle.demo
@@ -17,6 +19,14 @@ lint: $(STAMP)
 test-all: $(STAMP)
 	$(PY) -m pytest -q -m ''
 
+# Blender itself (the bpy wheel in .venv-blender, Python 3.13): README's recipe, the add-on, OpenVDB 10 <-> 13.
+test-blender: $(STAMP) $(BLENDER_STAMP)
+	MISTYLE_BLENDER_PYTHON=.venv-blender/bin/python $(PY) -m pytest -q -s -m blender tests/test_blender.py
+
+# The Blender extension zip: build/mistyle_blender-<version>.zip
+blender-addon: $(STAMP)
+	$(PY) scripts/build_blender_addon.py
+
 bench-quick: $(STAMP)
 	$(PY) -m pytest -q -m benchmark
 
@@ -24,3 +34,6 @@ setup: $(STAMP)
 
 $(STAMP): pyproject.toml scripts/setup.sh
 	bash scripts/setup.sh
+
+$(BLENDER_STAMP): scripts/setup_blender.sh
+	bash scripts/setup_blender.sh

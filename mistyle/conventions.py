@@ -50,6 +50,8 @@ Wasserstein (``objective.style.SlicedObjective``, the fidelity study's choice)."
 LOSS_MASKS = ("foreground", "body")
 """Which pixels the style term compares: any that sees the medium, or the medium's body."""
 LIGHT_KINDS = ("constant", "envmap", "point", "area")
+UP_AXES = ("y", "z")
+"""World up axes of the scenes mistyle's files go to: ``y`` (mistyle, Mitsuba, Houdini), ``z`` (Blender)."""
 DEVICES = ("cpu", "cuda")
 TEMPORAL_GRADIENTS = ("both", "current")
 """Which frames the temporal term's gradient reaches: t and t+1, or t only (frame t+1 as a fixed target,

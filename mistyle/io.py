@@ -345,6 +345,7 @@ class DensityFrames(NamedTuple):
     velocities: list | None  # (Z, Y, X, 3) each, when every frame has one
     names: list  # file stems
     transforms: list | None  # vdb.VdbTransform each: where the grid sits in the file's world
+    up: str | None = None  # .vdb frames: the world up axis they were turned to (``load_density_frames``)
 
 
 def load_density(path, grid: str | None = None) -> np.ndarray:
@@ -364,15 +365,20 @@ def density_frame_files(path) -> list[Path]:
     return files
 
 
-def load_density_frames(path, grid: str | None = None) -> DensityFrames:
+def load_density_frames(path, grid: str | None = None, up: str | None = None) -> DensityFrames:
     """Density frames from a file or a folder of frame files (sorted by name).
 
     ``.npz`` frames of ``python -m mistyle.data`` carry each frame's velocity ``(Z, Y, X, 3)``; the
     velocities are returned only when every frame has one. All frames must share one grid size.
+
+    ``up``: the world up axis of ``.vdb`` frames (``conventions.UP_AXES``; ``z`` for Blender's). Each grid
+    is turned so that the index axis closest to it is the array's Y, which mistyle renders as up, and its
+    transform follows (``vdb.upright``: every voxel stays where it was). None: what a file mistyle wrote
+    says (``mistyle_up_axis``), else ``y``. Other files are in mistyle's own box, whose up is y.
     """
     path = Path(path)
     files = density_frame_files(path)
-    frames = [_read_density_file(file, grid) for file in files]
+    frames = [_read_density_file(file, grid, up) for file in files]
     shapes = {frame["density"].shape for frame in frames}
     if len(shapes) > 1:
         raise ValueError(
@@ -385,10 +391,11 @@ def load_density_frames(path, grid: str | None = None) -> DensityFrames:
         velocities if all(v is not None for v in velocities) else None,
         [file.stem for file in files],
         transforms if all(t is not None for t in transforms) else None,
+        frames[0].get("up"),
     )
 
 
-def _read_density_file(path: Path, grid: str | None = None) -> dict:
+def _read_density_file(path: Path, grid: str | None = None, up: str | None = None) -> dict:
     if not path.exists():
         raise ValueError(f"Density {path} does not exist.")
     if path.is_dir():
@@ -405,10 +412,17 @@ def _read_density_file(path: Path, grid: str | None = None) -> dict:
             "(Z, Y, X) grid or an .npz with a 'density' array."
         )
     if suffix == ".vdb":
-        from .vdb import read_vdb
+        from .vdb import read_vdb_grid, recorded_up_axis, upright
 
-        array, transform, _name = read_vdb(path, grid)  # read_vdb names the file and its grids in its errors
-        return {"density": validate_density(array, name=os.fspath(path)), "velocity": None, "transform": transform}
+        read = read_vdb_grid(path, grid)  # names the file and its grids in its errors
+        up = recorded_up_axis(read.file_metadata) if up is None else up
+        array, transform = upright(read.array, read.transform, up)
+        return {
+            "density": validate_density(array, name=os.fspath(path)),
+            "velocity": None,
+            "transform": transform,
+            "up": up,
+        }
     if suffix == ".vol":
         array, velocity = read_vol(path), None  # read_vol names the file in its own errors
     else:

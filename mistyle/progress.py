@@ -3,14 +3,19 @@ path tracing), with rates and time estimates from ``tqdm``.
 
 Bars are drawn only on a terminal: when stderr is a pipe or a file (CI, ``nohup``, a log) they are
 off, so logs hold the plain status lines alone. ``set_quiet(True)`` (the ``--quiet`` flags) turns
-off both bars and status lines; errors are always printed.
+off both bars and status lines; errors are always printed. ``MISTYLE_PROGRESS=lines`` in the
+environment draws the bars on a pipe too, as plain ASCII lines at most once a second: what a program
+that runs mistyle (the Blender add-on) reads to show progress.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 
 from tqdm import tqdm
+
+PROGRESS_ENV = "MISTYLE_PROGRESS"
 
 _quiet = False
 
@@ -33,6 +38,18 @@ def status(message: str) -> None:
 def bar(total: int, description: str, unit: str = "step", initial: int = 0) -> tqdm:
     """A progress bar on stderr; use as a context manager and ``.update(1)`` per unit done
     (``bar.disable`` is true where it is not drawn)."""
+    if os.environ.get(PROGRESS_ENV) == "lines":
+        return tqdm(
+            total=total,
+            desc=description,
+            unit=unit,
+            initial=initial,
+            file=sys.stderr,
+            ncols=80,
+            ascii=True,
+            mininterval=1.0,
+            disable=_quiet,
+        )
     return tqdm(
         total=total,
         desc=description,

@@ -59,7 +59,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
+from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS, UP_AXES
 
 
 def _coat(text: str) -> float:
@@ -149,6 +149,14 @@ def parser() -> argparse.ArgumentParser:
         "--resume", action="store_true", help="keep the outputs already complete, make only the missing ones"
     )
     p.add_argument("--vdb", action="store_true", help="also write volume.vdb for densities that are not .vdb files")
+    p.add_argument(
+        "--up",
+        choices=UP_AXES,
+        default=None,
+        help="the world up axis of the scene the .vdb files belong to: y (Houdini, Mitsuba) or z (Blender). "
+        "Read .vdb densities are turned so that it is up in mistyle's renders, and volume.vdb is written in that "
+        "world (default: what a mistyle .vdb records, else y)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)")
     p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
     p.add_argument("--vgg-weights", default=None, help="VGG16 weights, for checkpoints trained with VGG16")
@@ -295,6 +303,7 @@ class Job:
     coat_mesh: tuple | None = None  # (vertices, faces) placed in the medium box, for --mesh with --coat
     coat_mesh_path: Path | None = None
     transforms: list | None = None  # per frame, the vdb.VdbTransform of a .vdb density
+    up: str = "y"  # the world up axis volume.vdb is written in (conventions.UP_AXES)
     notes: list[str] = field(default_factory=list)
     out: Path | None = None  # the staging folder of the run (``io.staged_directory``), set in ``run``
     first: int = 0  # the index of the first frame in the whole sequence (``--frames``)
@@ -423,7 +432,7 @@ def save_look(args, pipeline, styles: dict):
         densities = [voxelize(*load_mesh(source), args.mesh_res, supersample=2)]
         names = [Path(source).stem]
     else:
-        loaded = load_density_frames(source, grid=args.grid)
+        loaded = load_density_frames(source, grid=args.grid, up=args.up)
         densities, names = loaded.densities, loaded.names
     frames = pipeline.frames(densities, None, names)
     keys = None if args.key_frames is None else parse_key_frames(args.key_frames, len(frames.densities))
@@ -572,7 +581,7 @@ def load(args, output, pipeline, styles: dict) -> Job:
     notes = [note for path, _ in output.style.parts for note in styles[path][1]]
     parts = [(styles[path][0], weight) for path, weight in output.style.parts]
     pipeline.light()  # a bad --light fails here, before the density is read
-    coat_mesh, transforms = None, None
+    coat_mesh, transforms, up = None, None, args.up or "y"
     if output.density.mesh:
         from .data.mesh import fit_to_box, load_mesh, voxelize
 
@@ -586,8 +595,9 @@ def load(args, output, pipeline, styles: dict) -> Job:
             placed, _ = fit_to_box(np.asarray(vertices, np.float64), args.mesh_res, 0.05)
             coat_mesh = (placed, faces)
     else:
-        loaded = load_density_frames(output.density.path, grid=args.grid)
+        loaded = load_density_frames(output.density.path, grid=args.grid, up=args.up)
         densities, velocities, names, transforms = loaded.densities, loaded.velocities, loaded.names, loaded.transforms
+        up = loaded.up or up
     total, first = len(densities), 0
     if args.frame_range is not None:
         first, last = args.frame_range
@@ -608,6 +618,7 @@ def load(args, output, pipeline, styles: dict) -> Job:
         views=pipeline.views(),
         coat_mesh=coat_mesh,
         transforms=transforms,
+        up=up,
         notes=notes,
         first=first,
         total_frames=total,
@@ -746,22 +757,29 @@ def write_assets(job: Job, stylized) -> list[str]:
         )
         written += [path.name for path in paths.values()]
         if job.transforms is not None or job.args.vdb:
-            from .vdb import ALBEDO_GRID, DENSITY_GRID, VdbTransform, write_vdb
+            from .vdb import ALBEDO_GRID, DENSITY_GRID, VdbTransform, mistyle_metadata, write_vdb
 
             transform = (
-                job.transforms[frame] if job.transforms is not None else VdbTransform.for_medium_box(density.shape)
+                job.transforms[frame]
+                if job.transforms is not None
+                else VdbTransform.for_medium_box(density.shape, job.up)
             )
             # The albedo only where there is medium: elsewhere it is never seen, and zeros stay inactive (small files).
             shown = albedo * (density > 0)[..., None]
-            metadata = {
-                "mistyle_style": job.output.style.describe(),
-                "mistyle_checkpoint": str(job.pipeline.stylizer.path),
-            }
+            metadata = mistyle_metadata(
+                transform,
+                density.shape,
+                density_scale=job.pipeline.density_scale,
+                up=job.up,
+                style=job.output.style.describe(),
+                checkpoint=job.pipeline.stylizer.path.name,
+            )
             path = write_vdb(
                 job.out / f"volume{suffix}.vdb",
                 transform,
                 {DENSITY_GRID: density, ALBEDO_GRID: shown},
                 metadata=metadata,
+                grid_metadata=metadata,
             )
             written.append(path.name)
     return written

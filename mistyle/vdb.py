@@ -1,13 +1,14 @@
 """OpenVDB (``.vdb``) input and output: densities in, densities and albedos out.
 
-The route. The OpenVDB Python binding that Debian and Ubuntu ship, ``python3-openvdb`` (module
-``pyopenvdb``; ``openvdb`` from OpenVDB 11 on), is built for the system interpreter and its numpy 1.x,
-and mistyle's environment has its own Python with numpy 2, so the module cannot load here. mistyle
-therefore runs ``mistyle/vdb_convert.py`` -- a standalone script that imports nothing from mistyle --
-under an interpreter that has the binding, and the two exchange ``.npy`` arrays and a JSON sidecar
-through a temporary folder. ``vdb_interpreter`` finds that interpreter: ``$MISTYLE_VDB_PYTHON`` if set,
-else this Python (then the converter's functions run in-process, no subprocess), else
-``/usr/bin/python3``, else ``python3`` on the PATH. Without one, ``VdbUnavailable`` names the fix.
+The route. OpenVDB's Python bindings 10 (Boost.Python, ``pyopenvdb``) to 13 (nanobind, ``openvdb``) all
+work (``vdb_convert.openvdb_module``), but each is built for one interpreter and its numpy: Debian's
+``python3-openvdb`` for the system Python and numpy 1.x, the one the ``bpy`` wheel bundles for Python
+3.13. mistyle therefore runs ``mistyle/vdb_convert.py`` -- a standalone script that imports nothing
+from mistyle -- under an interpreter that has a binding, and the two exchange ``.npy`` arrays and a JSON
+sidecar through a temporary folder. ``vdb_interpreter`` finds that interpreter, in this order:
+``$MISTYLE_VDB_PYTHON`` if set (the user's choice, always a subprocess); this Python, in-process, when
+a binding (or ``bpy``'s bundled one) loads with its numpy; ``/usr/bin/python3`` (Debian's); ``python3``
+on the PATH. Without one, ``VdbUnavailable`` names the fix.
 
 Conventions:
 
@@ -28,11 +29,16 @@ empty. The matrix is stored as doubles and comes back bit for bit, scale-and-tra
 alike (``vdb_convert.linear_transform`` and ``index_to_world_matrix`` say how; an ulp at worst). Files
 from other tools read as the bounding box of their active voxels.
 
+Up axes: mistyle renders with +y up. ``upright`` turns a grid read from a Z-up world (Blender) so that
+its y axis is that world's up, with the transform that keeps every voxel in place, and
+``VdbTransform.for_medium_box(shape, "z")`` places mistyle's box in such a world; ``mistyle_metadata`` is
+what mistyle's files say of themselves (density scales, up axis, units, albedo, style, version).
+
 Grid names: ``DENSITY_GRID`` ('density', class fog volume) is what Blender, Houdini and most renderers
 look for. The albedo is written only as ``ALBEDO_GRID`` ('Cd', a vec3 grid of linear RGB single-scattering
 albedo in [0, 1]), Houdini's name for colour fields: Houdini's Volume Visualization picks it up as its
-diffuse field; in Blender, type ``Cd`` into the Principled Volume node's Color Attribute (or use an
-Attribute node named ``Cd``).
+diffuse field; in Blender, type ``Cd`` into the Principled Volume node's Color Attribute with its Color
+white (README's recipe; the add-on in ``integrations/blender`` wires it).
 """
 
 from __future__ import annotations
@@ -46,15 +52,17 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
+
+from .conventions import UP_AXES
 
 DENSITY_GRID = "density"
 ALBEDO_GRID = "Cd"
 INTERPRETER_ENV = "MISTYLE_VDB_PYTHON"
 CONVERTER = Path(__file__).with_name("vdb_convert.py")
 
-_PROBE = "import numpy\ntry:\n    import pyopenvdb\nexcept ImportError:\n    import openvdb\n"
 _PROBE_TIMEOUT_S = 120  # a cold import of numpy on a busy machine can take a while
 
 
@@ -128,19 +136,74 @@ class VdbTransform:
         return world.min(axis=0), world.max(axis=0)
 
     @classmethod
-    def for_medium_box(cls, shape_zyx) -> VdbTransform:
+    def for_medium_box(cls, shape_zyx, up: str = "y") -> VdbTransform:
         """The transform that puts a ``(Z, Y, X)`` grid where mistyle renders it (``mistyle.scenes.box``).
 
         The medium box is centred at the origin with its longest side 1 and cubic voxels of side
         ``1 / max(Z, Y, X)``; the centre of ``arr[z, y, x]`` is ``bbox_min + (x + 0.5, y + 0.5, z + 0.5) *
-        voxel_size``. For densities that came from a file without a transform of its own.
+        voxel_size``. For densities that came from a file without a transform of its own. ``up``: the
+        world up axis of the scene the file goes to (``up_axis_matrix``): mistyle's up (+y) becomes it.
         """
         z, y, x = _shape3(shape_zyx)
         voxel = 1.0 / max(z, y, x)
         bbox_min = -0.5 * voxel * np.array([x, y, z], dtype=np.float64)
         matrix = np.diag([voxel, voxel, voxel, 1.0])
         matrix[:3, 3] = bbox_min + 0.5 * voxel
-        return cls(matrix, (0, 0, 0))
+        return cls(up_axis_matrix(up) @ matrix, (0, 0, 0))
+
+
+def up_axis_matrix(up: str) -> np.ndarray:
+    """4x4 (column vectors) from mistyle's world (+y up, the camera orbit's axis) to a world whose up
+    axis is ``up`` (``conventions.UP_AXES``): the identity for ``y``; for ``z`` (Blender) the rotation of
+    +90 degrees about x, ``(x, y, z) -> (x, -z, y)``, so mistyle's front view (from +z) looks along +y in
+    the new world, Blender's front. Entries are 0 and +-1, so it moves a matrix without rounding."""
+    if up == "y":
+        return np.eye(4)
+    if up == "z":
+        return np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    raise ValueError(f"The up axis is one of {', '.join(UP_AXES)}, got {up!r}.")
+
+
+def upright(array: np.ndarray, transform: VdbTransform, up: str) -> tuple[np.ndarray, VdbTransform]:
+    """``array`` (``(Z, Y, X)`` or ``(Z, Y, X, 3)``, as read) turned so that its Y axis, the one mistyle
+    renders as up, is the index axis that points most along the world's ``up`` axis, and the transform
+    that keeps every voxel where it was in the world.
+
+    The turn is a proper rotation of the index axes (the image is not mirrored): the chosen axis becomes
+    j, and of the other two the first in i, j, k order becomes i. Files whose j axis already points up
+    come back unchanged (the same objects). The array is copied, not resampled, so values are exact.
+    """
+    world_up = up_axis_matrix(up)[:3, 1]
+    linear = transform.matrix[:3, :3]
+    alignment = world_up @ linear  # per index axis i, j, k: its world direction's component along up
+    axis = int(np.argmax(np.abs(alignment)))
+    sign = 1 if alignment[axis] > 0 else -1
+    if axis == 1 and sign > 0:
+        return array, transform
+    # Columns: the old index axes that the new i, j, k run along (signed unit vectors).
+    new_to_old = np.zeros((3, 3))
+    new_to_old[axis, 1] = sign
+    first = min(a for a in range(3) if a != axis)
+    new_to_old[first, 0] = 1.0
+    new_to_old[:, 2] = np.cross(new_to_old[:, 0], new_to_old[:, 1])
+    size_ijk = np.array(array.shape[:3][::-1])
+    # Array axes in (i, j, k) order first: element [z, y, x] is index (x, y, z).
+    vector = array.ndim == 4
+    ijk = array.transpose((2, 1, 0, 3) if vector else (2, 1, 0))
+    order = [int(np.flatnonzero(new_to_old[:, n])[0]) for n in range(3)]
+    turned = ijk.transpose(order + ([3] if vector else []))
+    flips = tuple(n for n in range(3) if new_to_old[order[n], n] < 0)
+    if flips:
+        turned = np.flip(turned, axis=flips)
+    turned = np.ascontiguousarray(turned.transpose((2, 1, 0, 3) if vector else (2, 1, 0)))
+    # New local index n maps to old index index_min + new_to_old @ n + offset (offset: the flipped axes' far end).
+    offset = np.zeros(3)
+    for n in flips:
+        offset[order[n]] = size_ijk[order[n]] - 1
+    to_old = np.eye(4)
+    to_old[:3, :3] = new_to_old
+    to_old[:3, 3] = np.asarray(transform.index_min, dtype=np.float64) + offset
+    return turned, VdbTransform(transform.matrix @ to_old, (0, 0, 0))
 
 
 def _shape3(shape_zyx) -> tuple[int, int, int]:
@@ -148,6 +211,41 @@ def _shape3(shape_zyx) -> tuple[int, int, int]:
     if len(shape) != 3 or min(shape) < 1:
         raise ValueError(f"A grid shape is (Z, Y, X) with every size >= 1, got {tuple(shape_zyx)}.")
     return shape
+
+
+# ----------------------------------------------------------------------------- what mistyle's files say
+UP_AXIS_KEY = "mistyle_up_axis"
+
+
+def mistyle_metadata(
+    transform: VdbTransform, shape_zyx, *, density_scale: float, up: str, style: str, checkpoint: str
+) -> dict:
+    """The metadata mistyle writes on ``volume.vdb`` (file and grids): what a Blender or Houdini user
+    needs to render the medium as mistyle did. ``shape_zyx``: the grids' array shape.
+
+    ``mistyle_density_scale`` is mistyle's, per unit of its medium box (longest side 1);
+    ``mistyle_world_density_scale`` is the same extinction per unit of the file's world, what to type into
+    Blender's Principled Volume Density or Houdini's density scale (``sigma_t = it * density``)."""
+    from . import __version__
+
+    voxel = transform.voxel_size
+    longest = float(np.max(np.array(_shape3(shape_zyx)[::-1]) * voxel))
+    return {
+        "mistyle_version": __version__,
+        "mistyle_style": style,
+        "mistyle_checkpoint": checkpoint,
+        "mistyle_density_scale": float(density_scale),
+        "mistyle_world_density_scale": float(density_scale) / longest,
+        "mistyle_albedo": f"'{ALBEDO_GRID}' is the single-scattering albedo, linear RGB in [0, 1]",
+        UP_AXIS_KEY: up,
+        "mistyle_units": f"world units of the transform; the medium's longest side is {longest:.6g} of them",
+    }
+
+
+def recorded_up_axis(file_metadata: dict) -> str:
+    """The up axis a file mistyle wrote records, else ``y`` (OpenVDB's and Houdini's convention)."""
+    up = str(file_metadata.get(UP_AXIS_KEY, "y")).lower()
+    return up if up in UP_AXES else "y"
 
 
 # ----------------------------------------------------------------------------- finding the binding
@@ -167,10 +265,10 @@ def _clean_env() -> dict:
 
 
 def _probe(python: str, env: dict | None) -> str | None:
-    """``None`` if ``python`` imports numpy and OpenVDB's module, else why not (one line)."""
+    """``None`` if ``python`` loads numpy and an OpenVDB binding (``vdb_convert.openvdb_module``), else why not."""
     try:
         result = subprocess.run(
-            [python, "-c", _PROBE],
+            [python, str(CONVERTER), "probe"],
             check=False,
             capture_output=True,
             text=True,
@@ -183,16 +281,15 @@ def _probe(python: str, env: dict | None) -> str | None:
     if result.returncode == 0:
         return None
     lines = result.stderr.strip().splitlines()
-    return lines[-1] if lines else f"exit status {result.returncode}"
+    return lines[-1].removeprefix("error: ") if lines else f"exit status {result.returncode}"
 
 
 def _import_in_process() -> bool:
+    from . import vdb_convert
+
     try:
-        try:
-            import pyopenvdb  # noqa: F401
-        except ImportError:
-            import openvdb  # noqa: F401
-    except Exception:  # an ImportError, or a binding built against another numpy failing at load
+        vdb_convert.openvdb_module()
+    except Exception:  # ConvertError, or a binding built against another numpy failing at load
         return False
     return True
 
@@ -290,7 +387,21 @@ def _existing_file(path) -> Path:
 
 
 # ----------------------------------------------------------------------------- reading
+class VdbGrid(NamedTuple):
+    """``read_vdb_grid``'s result."""
+
+    array: np.ndarray  # (Z, Y, X) or (Z, Y, X, 3) float32
+    transform: VdbTransform
+    name: str
+    file_metadata: dict  # the file's metadata (``write_vdb``'s ``metadata``; mistyle's keys in ``METADATA_KEYS``)
+
+
 def read_vdb(path, grid: str | None = None) -> tuple[np.ndarray, VdbTransform, str]:
+    """``(array, transform, grid_name)`` of ``read_vdb_grid``."""
+    return read_vdb_grid(path, grid)[:3]
+
+
+def read_vdb_grid(path, grid: str | None = None) -> VdbGrid:
     """Read one grid of a ``.vdb`` file as a dense array: ``(array, transform, grid_name)``.
 
     The grid is ``grid`` if given (a float grid reads as ``(Z, Y, X)``, a vec3 grid such as 'Cd' as
@@ -321,7 +432,7 @@ def read_vdb(path, grid: str | None = None) -> tuple[np.ndarray, VdbTransform, s
             f"The OpenVDB converter returned a {array.shape} array for the index box "
             f"{meta['index_min']}..{meta['index_max']}; this is a bug in mistyle.vdb."
         )
-    return np.ascontiguousarray(array, dtype=np.float32), transform, meta["grid"]
+    return VdbGrid(np.ascontiguousarray(array, dtype=np.float32), transform, meta["grid"], meta["file_metadata"])
 
 
 def vdb_info(path) -> dict:
@@ -342,6 +453,19 @@ def vdb_info(path) -> dict:
 
 
 # ----------------------------------------------------------------------------- writing
+def _checked_metadata(metadata: dict | None) -> dict:
+    checked = {}
+    for key, value in (metadata or {}).items():
+        if not isinstance(key, str) or not key:
+            raise ValueError(f"VDB metadata names are non-empty strings, got {key!r}.")
+        if isinstance(value, np.generic):
+            value = value.item()
+        if not isinstance(value, (str, bool, int, float)) or (isinstance(value, float) and not np.isfinite(value)):
+            raise ValueError(f"VDB metadata '{key}' must be a string, a finite number or a bool, got {value!r}.")
+        checked[key] = value
+    return checked
+
+
 def _grid_spec(name, value, shape) -> tuple[str, np.ndarray]:
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"VDB grid names are non-empty strings, got {name!r}.")
@@ -372,14 +496,17 @@ def _grid_spec(name, value, shape) -> tuple[str, np.ndarray]:
     return kind, values
 
 
-def write_vdb(path, transform: VdbTransform, grids: dict, metadata: dict | None = None) -> Path:
+def write_vdb(
+    path, transform: VdbTransform, grids: dict, metadata: dict | None = None, grid_metadata: dict | None = None
+) -> Path:
     """Write named grids that share one voxel box to one ``.vdb`` file, atomically.
 
     ``grids`` maps names to float arrays ``(Z, Y, X)`` (FloatGrid) or ``(Z, Y, X, 3)`` (Vec3SGrid), e.g.
     ``{DENSITY_GRID: density, ALBEDO_GRID: albedo}``; the density grid gets the class fog volume. Values
     are stored as float32, and zeros stay inactive, so empty space costs nothing (mask an albedo with
     ``density > 0`` to keep it sparse too). ``transform`` places the grid (``VdbTransform.for_medium_box``
-    for mistyle's own box). ``metadata``: file-level ``name -> str | int | float | bool``.
+    for mistyle's own box). ``metadata``: file-level ``name -> str | int | float | bool``;
+    ``grid_metadata``: the same kind, set on every grid (Houdini shows a grid's as primitive attributes).
 
     Raises:
         VdbUnavailable: no interpreter has OpenVDB's module (the message names the fix).
@@ -396,15 +523,9 @@ def write_vdb(path, transform: VdbTransform, grids: dict, metadata: dict | None 
         kind, values = _grid_spec(name, value, shape)
         shape = values.shape[:3]
         specs.append({"name": name, "kind": kind, "class": "fog" if name == DENSITY_GRID else None, "array": values})
-    file_metadata = {}
-    for key, value in (metadata or {}).items():
-        if not isinstance(key, str) or not key:
-            raise ValueError(f"VDB metadata names are non-empty strings, got {key!r}.")
-        if isinstance(value, np.generic):
-            value = value.item()
-        if not isinstance(value, (str, bool, int, float)) or (isinstance(value, float) and not np.isfinite(value)):
-            raise ValueError(f"VDB metadata '{key}' must be a string, a finite number or a bool, got {value!r}.")
-        file_metadata[key] = value
+    file_metadata, on_grids = _checked_metadata(metadata), _checked_metadata(grid_metadata)
+    for spec in specs:
+        spec["metadata"] = on_grids
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -420,7 +541,15 @@ def write_vdb(path, transform: VdbTransform, grids: dict, metadata: dict | None 
         for number, spec in enumerate(specs):
             file = f"grid{number}.npy"
             np.save(Path(workdir) / file, spec["array"], allow_pickle=False)
-            sidecar["grids"].append({"name": spec["name"], "file": file, "kind": spec["kind"], "class": spec["class"]})
+            sidecar["grids"].append(
+                {
+                    "name": spec["name"],
+                    "file": file,
+                    "kind": spec["kind"],
+                    "class": spec["class"],
+                    "metadata": spec["metadata"],
+                }
+            )
         with open(Path(workdir) / "meta.json", "w") as handle:
             json.dump(sidecar, handle, allow_nan=False)
         _run_converter(route, "write", os.fspath(path), workdir)

@@ -11,6 +11,11 @@ Commands (arrays in ``.npy`` files and a ``meta.json`` in a work folder)::
     python vdb_convert.py read IN.vdb WORKDIR [--grid NAME]   ->  WORKDIR/grid.npy, WORKDIR/meta.json
     python vdb_convert.py write OUT.vdb WORKDIR               <-  WORKDIR/meta.json and the .npy it names
     python vdb_convert.py info IN.vdb WORKDIR                 ->  WORKDIR/meta.json (no voxel data read)
+    python vdb_convert.py probe                               ->  {"module": ..., "version": [13, 0, 0]} on stdout
+
+Bindings: OpenVDB 10 (Boost.Python, ``pyopenvdb``) to 13 (nanobind, ``openvdb``), including the one the
+``bpy`` wheel bundles (``openvdb_module``). A file written with 11 or later has a newer file format
+version that OpenVDB 10 still reads, with a warning, bit for bit (``make test-blender`` checks both ways).
 
 Conventions:
 
@@ -61,15 +66,55 @@ class ConvertError(Exception):
 
 
 def openvdb_module():
-    """The OpenVDB binding: ``pyopenvdb`` (OpenVDB <= 10), else ``openvdb`` (11 on)."""
+    """The OpenVDB binding, looked for in this order: ``pyopenvdb`` (OpenVDB <= 10, e.g. Debian's
+    ``python3-openvdb``), ``openvdb`` (OpenVDB 11 on), then the ``openvdb`` module that the ``bpy`` wheel
+    (Blender as a Python module, 5.x: OpenVDB 13) bundles in its own site-packages, which loads without
+    importing Blender."""
     try:
         import pyopenvdb as vdb
     except ImportError:
         try:
             import openvdb as vdb
         except ImportError as error:
-            raise ConvertError(f"{sys.executable} has no OpenVDB module (pyopenvdb or openvdb): {error}") from None
+            bundled = _bpy_bundled_site_packages()
+            if bundled is None:
+                raise ConvertError(
+                    f"{sys.executable} has no OpenVDB module (pyopenvdb, openvdb, or bpy's bundled one): {error}"
+                ) from None
+            sys.path.append(bundled)
+            try:
+                import openvdb as vdb
+            except ImportError as bundled_error:
+                raise ConvertError(
+                    f"bpy's bundled OpenVDB module in {bundled} does not load: {bundled_error}"
+                ) from None
     return vdb
+
+
+def _bpy_bundled_site_packages() -> str | None:
+    """The folder of the ``bpy`` wheel's bundled modules (``bpy/<version>/python/lib/python3.X/site-packages``)
+    if ``bpy`` is installed for this interpreter and the folder holds an ``openvdb`` module, else None."""
+    import glob
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("bpy")
+    except (ImportError, ValueError):
+        return None
+    if spec is None or not spec.origin:
+        return None
+    pattern = os.path.join(os.path.dirname(spec.origin), "*", "python", "lib", "python3*", "site-packages")
+    for folder in sorted(glob.glob(pattern)):
+        if glob.glob(os.path.join(folder, "openvdb*")):
+            return folder
+    return None
+
+
+def binding() -> dict:
+    """Which binding ``openvdb_module`` loads: its module file and OpenVDB's library version."""
+    vdb = openvdb_module()
+    version = getattr(vdb, "LIBRARY_VERSION", None)
+    return {"module": getattr(vdb, "__file__", vdb.__name__), "version": list(version) if version else None}
 
 
 # ----------------------------------------------------------------------------- small helpers
@@ -283,6 +328,14 @@ def _check_matrix(matrix) -> np.ndarray:
     return m
 
 
+def _post(transform, operation: str):
+    """``transform``'s method that applies ``operation`` ('Scale', 'Translate') after what it holds: the
+    Boost.Python bindings (OpenVDB 10) call it ``scale``/``translate``, the pybind11/nanobind ones (11 on)
+    ``postScale``/``postTranslate``; the two do the same."""
+    method = getattr(transform, "post" + operation, None)
+    return method if method is not None else getattr(transform, operation.lower())
+
+
 def linear_transform(vdb, matrix: np.ndarray):
     """An OpenVDB transform for the row-vector index-to-world ``matrix``, kept to the last bit.
 
@@ -297,9 +350,9 @@ def linear_transform(vdb, matrix: np.ndarray):
             uniform = scale[0] == scale[1] == scale[2]
             transform = vdb.createLinearTransform(float(scale[0]) if uniform else 1.0)
             if not uniform:
-                transform.scale(tuple(float(v) for v in scale))
+                _post(transform, "Scale")(tuple(float(v) for v in scale))
             if np.any(translation != 0):
-                transform.translate(tuple(float(v) for v in translation))
+                _post(transform, "Translate")(tuple(float(v) for v in translation))
         else:
             transform = vdb.createLinearTransform(matrix.tolist())
     except Exception as error:
@@ -315,7 +368,8 @@ def write_grids(path: str, matrix, index_min, grids: list[dict], metadata: dict 
 
     ``matrix``: index-to-world 4x4, row-vector convention. ``index_min``: ``(i, j, k)`` of element
     ``[0, 0, 0]``. ``grids``: dicts with ``name``, ``array`` (float32 ``(Z, Y, X)`` for ``kind`` 'float',
-    ``(Z, Y, X, 3)`` for 'vec3') and ``class`` ('fog' or None). ``metadata``: file-level name -> value.
+    ``(Z, Y, X, 3)`` for 'vec3'), ``class`` ('fog' or None) and optionally ``metadata`` (name -> value, set
+    on the grid). ``metadata``: file-level name -> value.
     """
     vdb = openvdb_module()
     m = _check_matrix(matrix)
@@ -359,17 +413,21 @@ def write_grids(path: str, matrix, index_min, grids: list[dict], metadata: dict 
         if spec.get("class") == "fog":
             grid.gridClass = vdb.GridClass.FOG_VOLUME
         grid.creator = "mistyle"
+        for key, value in _checked_metadata(spec.get("metadata")).items():
+            grid[key] = value
         # The array's own box, so a read gives back the same shape even with empty margins.
         grid[DENSE_MIN_KEY] = ijk
         grid[DENSE_MAX_KEY] = tuple(lo + n - 1 for lo, n in zip(ijk, array.shape[2::-1]))
         built.append(grid)
-    file_metadata = {}
+    _write_atomically(vdb, path, built, _checked_metadata(metadata))
+    return path
+
+
+def _checked_metadata(metadata: dict | None) -> dict:
     for key, value in (metadata or {}).items():
         if not isinstance(key, str) or not key or not isinstance(value, (str, bool, int, float)):
-            raise ConvertError(f"File metadata must map names to strings or numbers, got {key!r}: {value!r}.")
-        file_metadata[key] = value
-    _write_atomically(vdb, path, built, file_metadata)
-    return path
+            raise ConvertError(f"Metadata must map names to strings or numbers, got {key!r}: {value!r}.")
+    return dict(metadata or {})
 
 
 def _write_atomically(vdb, path: str, grids: list, metadata: dict) -> None:
@@ -417,6 +475,7 @@ def _write_command(path: str, workdir: str) -> None:
                     "name": spec["name"],
                     "kind": spec["kind"],
                     "class": spec.get("class"),
+                    "metadata": spec.get("metadata") or {},
                     "array": np.load(file, allow_pickle=False),
                 }
             )
@@ -438,15 +497,22 @@ def main(argv: list[str] | None = None) -> int:
 
     class Parser(argparse.ArgumentParser):
         def error(self, message):  # one line, like every other error of this script
-            raise ConvertError(f"{message} (usage: vdb_convert.py read|write|info FILE WORKDIR [--grid NAME])")
+            raise ConvertError(
+                f"{message} (usage: vdb_convert.py read|write|info FILE WORKDIR [--grid NAME], or vdb_convert.py probe)"
+            )
 
     parser = Parser(prog="vdb_convert.py", description=__doc__.split("\n\n")[0])
-    parser.add_argument("command", choices=("read", "write", "info"))
-    parser.add_argument("file")
-    parser.add_argument("workdir")
+    parser.add_argument("command", choices=("read", "write", "info", "probe"))
+    parser.add_argument("file", nargs="?")
+    parser.add_argument("workdir", nargs="?")
     parser.add_argument("--grid", default=None, help="grid to read (default: 'density', else the only float grid)")
     try:
         args = parser.parse_args(argv)
+        if args.command == "probe":  # which binding loads here, as one JSON line on stdout
+            print(json.dumps(binding()))
+            return 0
+        if args.file is None or args.workdir is None:
+            parser.error(f"{args.command} needs FILE and WORKDIR")
         if not os.path.isdir(args.workdir):
             raise ConvertError(f"The work folder {args.workdir} does not exist.")
         if args.command == "read":

@@ -1116,3 +1116,41 @@ def test_a_full_disk_says_so_and_leaves_nothing(mi, checkpoint, inputs, full_dis
     error = capsys.readouterr().err
     assert code == 2 and f"The disk under {full_disk} is full" in error and "requested and" not in error
     assert list(full_disk.iterdir()) == []
+
+
+def test_vdb_for_blender_is_z_up_and_says_what_it_holds(mi, checkpoint, inputs, tmp_path, blob_density):
+    """--up z writes the medium box turned so that mistyle's up is world +z, with the metadata a DCC needs
+    (Houdini's view: a fog-volume float 'density' and a vec3 'Cd'); reading it back turns nothing, and
+    the same file read as Y-up is turned back upright for mistyle's renders."""
+    vdb = pytest.importorskip("mistyle.vdb")
+    try:
+        vdb.vdb_interpreter()
+    except vdb.VdbUnavailable as error:
+        pytest.skip(str(error))
+    out = tmp_path / "out"
+    arguments = ["--checkpoint", str(checkpoint), "--style", str(inputs / "style.png"), *FAST]
+    assert main([*arguments, "--density", str(inputs / "blob.vol"), "--vdb", "--up", "z", "--out", str(out)]) == 0
+    info = vdb.vdb_info(out / "volume.vdb")
+    grids = {grid["name"]: grid for grid in info["grids"]}
+    assert (grids["density"]["type"], grids["density"]["class"], grids["Cd"]["type"]) == (
+        "float",
+        "fog volume",
+        "vec3s",
+    )
+    metadata = info["file_metadata"]
+    assert metadata["mistyle_up_axis"] == "z" and metadata["mistyle_density_scale"] == 20.0
+    assert metadata["mistyle_world_density_scale"] == 20.0  # the medium box's longest side is 1
+    assert "single-scattering albedo" in metadata["mistyle_albedo"] and metadata["mistyle_version"]
+    assert grids["density"]["metadata"]["mistyle_up_axis"] == "z"
+    density, transform, _ = vdb.read_vdb(out / "volume.vdb")
+    np.testing.assert_array_equal(density, blob_density)
+    # Array axis y (mistyle's up) runs along world +z.
+    assert np.allclose(transform.matrix[:3, 1] / np.linalg.norm(transform.matrix[:3, 1]), [0, 0, 1])
+    again = tmp_path / "again"
+    assert main([*arguments, "--density", str(out / "volume.vdb"), "--out", str(again)]) == 0
+    assert vdb.vdb_info(again / "volume.vdb")["file_metadata"]["mistyle_up_axis"] == "z"  # what the file said
+    np.testing.assert_array_equal(np.load(again / "albedo.npy"), np.load(out / "albedo.npy"))
+    sideways = tmp_path / "sideways"
+    assert main([*arguments, "--density", str(out / "volume.vdb"), "--up", "y", "--out", str(sideways)]) == 0
+    turned, _, _ = vdb.read_vdb(sideways / "volume.vdb")
+    assert turned.shape == (blob_density.shape[1], blob_density.shape[0], blob_density.shape[2])

@@ -333,3 +333,57 @@ def test_an_interpreter_without_openvdb_names_the_fix(tmp_path, monkeypatch):
         assert vdb.INTERPRETER_ENV in str(caught.value) and "make setup" in str(caught.value)
     assert isinstance(caught.value, ValueError)
     assert not (tmp_path / "a.vdb").exists()
+
+
+@pytest.mark.parametrize("up", ["y", "z"])
+@pytest.mark.parametrize("vector", [False, True])
+def test_upright_keeps_every_voxel_in_place_and_turns_up_to_y(up, vector, rng):
+    """``upright``: the array's Y axis ends up along the world's up axis (a rotation, not a mirror), and
+    each voxel's value stays at its world position, for axis-aligned and rotated, flipped transforms."""
+    shape = (4, 5, 6, 3) if vector else (4, 5, 6)
+    array = rng.random(shape).astype(np.float32)
+    flipped = np.diag([0.1, 0.2, -0.3, 1.0])
+    flipped[:3, 3] = [1.0, 2.0, 3.0]
+    for transform in (VdbTransform(flipped, (2, 3, 4)), _rotated_transform((1, -2, 3))):
+        turned, moved = vdb.upright(array, transform, up)
+        world_up = vdb.up_axis_matrix(up)[:3, 1]
+        axes = moved.matrix[:3, :3] / np.linalg.norm(moved.matrix[:3, :3], axis=0)
+        assert np.argmax(np.abs(world_up @ moved.matrix[:3, :3])) == 1 and world_up @ axes[:, 1] > 0
+        assert np.linalg.det(moved.matrix[:3, :3]) * np.linalg.det(transform.matrix[:3, :3]) > 0
+        before = {
+            tuple(np.round(transform.voxel_centre(x, y, z), 9)): array[z, y, x].tobytes()
+            for z, y, x in np.ndindex(*shape[:3])
+        }
+        after = {
+            tuple(np.round(moved.voxel_centre(x, y, z), 9)): turned[z, y, x].tobytes()
+            for z, y, x in np.ndindex(*turned.shape[:3])
+        }
+        assert before == after
+
+
+def test_upright_leaves_a_y_up_grid_alone_and_the_medium_box_turns_for_blender():
+    array = np.ones((2, 3, 4), np.float32)
+    transform = VdbTransform.for_medium_box(array.shape)
+    assert vdb.upright(array, transform, "y") == (array, transform)
+    blender = VdbTransform.for_medium_box(array.shape, "z")
+    np.testing.assert_array_equal(blender.matrix, vdb.up_axis_matrix("z") @ transform.matrix)
+    assert vdb.upright(array, blender, "z")[1] is blender
+    with pytest.raises(ValueError, match="up axis is one of y, z"):
+        vdb.up_axis_matrix("x")
+
+
+def test_world_density_scale_is_per_world_unit():
+    """A medium 10 world units across at mistyle's scale 20 has extinction 2 per world unit."""
+    transform = VdbTransform(np.diag([10 / 64, 10 / 64, 10 / 64, 1.0]))
+    metadata = vdb.mistyle_metadata(transform, (32, 64, 16), density_scale=20.0, up="y", style="s", checkpoint="c")
+    assert metadata["mistyle_world_density_scale"] == pytest.approx(2.0)
+    assert vdb.recorded_up_axis(metadata) == "y" and vdb.recorded_up_axis({}) == "y"
+    assert vdb.recorded_up_axis({"mistyle_up_axis": "Z"}) == "z"
+
+
+def test_the_converter_names_its_binding(subprocess_route):
+    result = subprocess.run([VDB_PYTHON, str(vdb.CONVERTER), "probe"], capture_output=True, text=True, check=True)
+    import json
+
+    found = json.loads(result.stdout)
+    assert found["version"][0] >= 10 and "openvdb" in found["module"].lower()

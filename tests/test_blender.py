@@ -183,6 +183,35 @@ def test_addon_adds_a_wired_upright_volume(rendered, tmp_path):
     assert answer["after_bad_input"] == 2  # the source and the one stylized volume: nothing more
 
 
+def test_addon_stylizes_a_vdb_sequence_over_the_frame_range(rendered, tmp_path):
+    import shutil
+
+    build = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "build_blender_addon.py"), "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    frames = [cache / f"fluid_data_{number:04d}.vdb" for number in (1, 2)]
+    for frame in frames:
+        shutil.copy(rendered / "volume.vdb", frame)
+    job = {
+        "addon_zip": build.stdout.strip(),
+        "addon_module": "bl_ext.user_default.mistyle",
+        "command": str(Path(sys.executable).with_name("mistyle-render")),
+        "addon_out": str(tmp_path / "addon_out") + os.sep,
+        "frames": [str(frame) for frame in frames],
+        "style": str(STYLE),
+    }
+    answer = in_blender("addon_sequence", job, tmp_path)
+    print("add-on, sequence:", json.dumps(answer))
+    assert answer["operator"] == ["FINISHED"] and len(answer["added"]) == 1
+    assert answer["is_sequence"] and answer["frame_duration"] == 2
+    assert answer["files"] == ["volume_frame0000.vdb", "volume_frame0001.vdb"]
+
+
 DEBIAN_PYTHON = "/usr/bin/python3"
 
 

@@ -2,6 +2,7 @@
 
     python blender_side.py recipe JOB.json     # README's recipe by hand, then a Cycles render
     python blender_side.py addon JOB.json      # install and enable the add-on, run its operator, render
+    python blender_side.py addon_sequence JOB.json   # the add-on on a two-frame VDB sequence
     python blender_side.py profile JOB.json    # the density's mass along each world axis, read with OpenVDB 13
 
 ``JOB.json`` holds the inputs (paths, camera, sizes); the answers go to ``JOB["result"]`` as JSON. The
@@ -158,6 +159,32 @@ def addon(job: dict) -> dict:
     return answer
 
 
+def addon_sequence(job: dict) -> dict:
+    """The add-on on a VDB sequence (``job["frames"]``, numbered from 1 as Blender's caches are) over the
+    scene's frame range: one mistyle run, one new volume object that plays the stylized frames."""
+    install_addon(job)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, len(job["frames"])
+    source = bpy.data.objects.new("fluid", bpy.data.volumes.new("fluid"))
+    source.data.filepath = job["frames"][0]
+    source.data.is_sequence = True
+    source.data.frame_duration = len(job["frames"])
+    scene.collection.objects.link(source)
+    bpy.context.view_layer.objects.active = source
+    source.mistyle.style = job["style"]
+    result = bpy.ops.mistyle.stylize()
+    added = [obj for obj in scene.objects if obj.type == "VOLUME" and obj is not source]
+    answer = {"operator": sorted(result), "added": [obj.name for obj in added]}
+    if len(added) == 1:
+        volume = added[0].data
+        answer.update(is_sequence=volume.is_sequence, frame_duration=volume.frame_duration, files=[])
+        for frame in range(scene.frame_start, scene.frame_end + 1):
+            scene.frame_set(frame)
+            volume.grids.load()
+            answer["files"].append(os.path.basename(volume.grids.frame_filepath))
+    return answer
+
+
 def profile(job: dict) -> dict:
     """Density mass per world-axis coordinate of ``job["vdb"]``'s density grid (read with the OpenVDB
     module the bpy wheel bundles): for each axis a histogram over the voxels' world positions."""
@@ -189,6 +216,6 @@ if __name__ == "__main__":
     command, job_path = sys.argv[1], sys.argv[2]
     with open(job_path) as handle:
         job = json.load(handle)
-    answer = {"recipe": recipe, "addon": addon, "profile": profile}[command](job)
+    answer = {"recipe": recipe, "addon": addon, "addon_sequence": addon_sequence, "profile": profile}[command](job)
     with open(job["result"], "w") as handle:
         json.dump(answer, handle)

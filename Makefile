@@ -4,7 +4,7 @@ STAMP := .venv/.mistyle-installed
 
 BLENDER_STAMP := .venv-blender/.mistyle-installed
 
-.PHONY: demo test test-all test-blender blender-addon bench-quick lint setup
+.PHONY: demo test test-all test-blender test-browser blender-addon bench-quick lint setup
 
 demo: $(STAMP)
 	$(PY) -m mistyle.demo
@@ -22,6 +22,11 @@ test-all: $(STAMP)
 # Blender itself (the bpy wheel in .venv-blender, Python 3.13): README's recipe, the add-on, OpenVDB 10 <-> 13.
 test-blender: $(STAMP) $(BLENDER_STAMP)
 	MISTYLE_BLENDER_PYTHON=.venv-blender/bin/python $(PY) -m pytest -q -s -m blender tests/test_blender.py
+
+# mistyle-preview in headless Chromium (Debian's, driven by Playwright).
+test-browser: $(STAMP)
+	bash scripts/setup_browser.sh
+	$(PY) -m pytest -q -s -m browser tests/test_preview_browser.py
 
 # The Blender extension zip: build/mistyle_blender-<version>.zip
 blender-addon: $(STAMP)

@@ -22,10 +22,10 @@ LAYERS = [
     {"pipeline"},
     {"api", "benchmark"},
     {"render_final", "train"},
-    {"demo", "farm"},
+    {"demo", "farm", "preview"},
 ]
 RANK = {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
-INFERENCE = ("stylizer", "look", "pipeline", "api", "benchmark", "render_final", "demo", "farm")
+INFERENCE = ("stylizer", "look", "pipeline", "api", "benchmark", "render_final", "demo", "farm", "preview")
 
 
 def unit_of(module: str) -> str:

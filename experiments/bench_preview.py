@@ -1,0 +1,175 @@
+"""mistyle-preview's frame rate and latencies, measured in the browser (headless Chromium, Playwright).
+
+    make test-browser          # once: Debian's chromium and Playwright
+    python experiments/bench_preview.py [--seconds 10] [--res 256]
+
+It starts ``mistyle-preview`` on the bundled smoke (64^3) with two held-out styles, opens the page,
+and measures, in the page's own clock (``performance.now``):
+
+* **orbit frame rate**: fast-layer frames received and drawn per second while the mouse drags the
+  view continuously (a move every 16 ms) for ``--seconds``;
+* **style change**: from the click on a thumbnail to the first frame drawn of the new style (network,
+  colour match, fast layer), median of several;
+* **slider move**: from a strength slider step (keyboard) to the first frame drawn (network at the new
+  strength, the colour match moved that far, fast layer), median of several.
+
+Browser and server share this machine's cores, as a user's would. Rows: ``results/preview/bench.json``
+and ``results/preview/bench.md`` (machine, load average before the run); ``screenshot.png``, README's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]  # fmt: skip
+STYLES = ("hokusai_great_wave.jpg", "van_gogh_starry_night.jpg", "texture_onyx_banded.jpg")
+
+
+def cpu_model() -> str:
+    for line in Path("/proc/cpuinfo").read_text().splitlines():
+        if line.startswith("model name"):
+            return line.split(":", 1)[1].strip()
+    return platform.processor()
+
+
+def latency(page, act) -> float:
+    """Milliseconds from ``act`` (done inside the page, timestamped there) to the next fast frame drawn."""
+    before = page.evaluate("window.mistyle.lastFast.at")
+    started = act()
+    page.wait_for_function(f"window.mistyle.lastFast.at > {before}", timeout=60_000)
+    page.wait_for_timeout(800)  # let the path tracer start, so the next action interrupts it as a user's would
+    return page.evaluate(f"window.mistyle.firstFastAfter({started})")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--res", type=int, default=256)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--out", type=Path, default=ROOT / "results" / "preview")
+    parser.add_argument("--chromium", default="/usr/bin/chromium")
+    args = parser.parse_args()
+    from playwright.sync_api import sync_playwright
+
+    load_before = os.getloadavg()
+    folder = Path(tempfile.mkdtemp(prefix="mistyle-bench-preview-"))
+    for name in STYLES:
+        shutil.copy(ROOT / "mistyle" / "data" / "heldout_styles" / name, folder / name)
+    server = subprocess.Popen(
+        [sys.executable, "-m", "mistyle.preview", "--density", str(ROOT / "examples" / "smoke_64.vol"),
+         "--styles", str(folder), "--port", "0", "--res", str(args.res), "--out", str(folder / "out")],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    url = re.search(r"http://[\d.]+:\d+/", server.stdout.readline()).group(0)
+    try:
+        with sync_playwright() as driver:
+            browser = driver.chromium.launch(executable_path=args.chromium, args=CHROMIUM_ARGS)
+            page = browser.new_page(viewport={"width": 1100, "height": 900})
+            page.goto(url)
+            page.wait_for_function("window.mistyle.lastFast !== undefined", timeout=120_000)
+            # Every fast frame's time, to find the first one after an action.
+            page.evaluate(
+                """() => {
+                  const times = [];
+                  const stats = window.mistyle.stats;
+                  let seen = stats.fast;
+                  const record = () => {
+                    if (stats.fast !== seen) { seen = stats.fast; times.push(window.mistyle.lastFast.at); }
+                    requestAnimationFrame(record);
+                  };
+                  requestAnimationFrame(record);
+                  window.mistyle.fastTimes = times;
+                  window.mistyle.firstFastAfter = (t) => times.find((at) => at > t) - t;
+                }"""
+            )
+            box = page.locator("canvas").bounding_box()
+            x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+            page.mouse.move(x, y)
+            page.mouse.down()
+            fast_before = page.evaluate("window.mistyle.stats.fast")
+            started = page.evaluate("performance.now()")
+            step, deadline = 0, time.monotonic() + args.seconds
+            while time.monotonic() < deadline:
+                step += 1
+                page.mouse.move(x + 120 * math.sin(step / 20), y + 30 * math.sin(step / 33))
+                page.wait_for_timeout(16)
+            ended = page.evaluate("performance.now()")
+            fast_after = page.evaluate("window.mistyle.stats.fast")
+            page.mouse.up()
+            orbit_fps = (fast_after - fast_before) / ((ended - started) / 1000)
+            page.wait_for_timeout(1500)
+
+            style_ms, slider_ms = [], []
+            for repeat in range(args.repeats):
+                index = (repeat + 1) % len(STYLES)
+                style_ms.append(
+                    latency(
+                        page,
+                        lambda index=index: page.evaluate(
+                            f"() => {{ const t = performance.now(); document.querySelectorAll('#styles img')[{index}].click(); return t; }}"  # noqa: E501
+                        ),
+                    )
+                )
+            for repeat in range(args.repeats):
+                key = "ArrowLeft" if repeat % 2 == 0 else "ArrowRight"
+                page.locator("#strength").focus()
+
+                def press(key=key):
+                    started = page.evaluate("performance.now()")
+                    page.keyboard.press(key)
+                    return started
+
+                slider_ms.append(latency(page, press))
+            layer_ms = float(re.search(r"layer ([\d.]+) ms", page.locator("#info").inner_text()).group(1))
+            page.wait_for_function("window.mistyle.stats.pathTraced > 0", timeout=60_000)
+            page.wait_for_timeout(4000)  # a few path-traced passes: README's screenshot
+            args.out.mkdir(parents=True, exist_ok=True)
+            page.screenshot(path=args.out / "screenshot.png")
+            browser.close()
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+        shutil.rmtree(folder, ignore_errors=True)
+    result = {
+        "res": args.res,
+        "orbit_fps": orbit_fps,
+        "orbit_seconds": args.seconds,
+        "style_change_ms": statistics.median(style_ms),
+        "style_change_ms_all": style_ms,
+        "slider_move_ms": statistics.median(slider_ms),
+        "slider_move_ms_all": slider_ms,
+        "last_layer_ms": layer_ms,
+        "machine": f"{cpu_model()}, {os.cpu_count()} cores",
+        "load_average_before": [round(v, 2) for v in load_before],
+        "command": "python experiments/bench_preview.py " + " ".join(sys.argv[1:]),
+    }
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "bench.json").write_text(json.dumps(result, indent=1) + "\n")
+    (args.out / "bench.md").write_text(
+        "| measure | value |\n|---|---|\n"
+        f"| frames drawn per second while orbiting ({args.res}^2, {args.seconds:g} s) | {orbit_fps:.1f} |\n"
+        f"| style change to first frame (median of {args.repeats}) | {result['style_change_ms']:.0f} ms |\n"
+        f"| strength slider step to first frame (median of {args.repeats}) | {result['slider_move_ms']:.0f} ms |\n"
+        f"| fast layer, last frame | {layer_ms:.0f} ms |\n\n"
+        f"Machine: {result['machine']}; load average before the run {result['load_average_before']}. "
+        f"Browser (headless Chromium) and server on the same cores. `{result['command'].strip()}`.\n"
+    )
+    print(json.dumps(result, indent=1))
+
+
+if __name__ == "__main__":
+    main()

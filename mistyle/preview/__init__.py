@@ -1,0 +1,130 @@
+"""``mistyle-preview``: stylize a density live in the browser.
+
+    mistyle-preview --density examples/smoke_64.vol                       # the bundled held-out styles
+    mistyle-preview --density sim/ --styles paintings/ --look wave.look --port 8100
+
+It serves one page on 127.0.0.1 (``--host`` to listen elsewhere) and prints its URL. The page shows
+the styles' thumbnails and takes uploads (the decoder and limits of ``--style``), strength and mix
+sliders, a frame slider for sequences, orbit by dragging and zoom by scrolling: the fast layer's
+image while you interact, refining into a progressive path-traced image when the view is still.
+*Render final output* and *Save look* run ``mistyle-render`` for the current settings and write
+under ``--out``. ``session`` holds what is shown; ``server`` the web side and why it is built so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import socket
+import sys
+from pathlib import Path
+
+from ..conventions import UP_AXES
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="mistyle-preview", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument(
+        "--density", type=Path, required=True, help=".vol, .vdb, .npy or .npz density, or a folder of frames"
+    )
+    p.add_argument("--grid", default=None, help="the float grid of .vdb densities (default: 'density')")
+    p.add_argument("--up", choices=UP_AXES, default=None, help="the up axis of .vdb densities (see mistyle-render)")
+    p.add_argument(
+        "--styles", type=Path, default=None, help="a folder of style pictures (default: the bundled held-out styles)"
+    )
+    p.add_argument("--look", type=Path, default=None, help="a look file (mistyle-render --save-look) to start with")
+    p.add_argument("--host", default="127.0.0.1", help="the address to listen on (default: this machine only)")
+    p.add_argument("--port", type=int, default=8090, help="the port (0: any free one)")
+    p.add_argument("--res", type=int, default=256, help="the preview's image side in pixels")
+    p.add_argument("--out", type=Path, default=Path("out/preview"), help="where the page's renders and looks go")
+    p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
+    p.add_argument(
+        "--render-options",
+        default="",
+        help='more mistyle-render options for the page\'s final renders and looks, e.g. "--res 1024 --spp 256"',
+    )
+    return p
+
+
+def default_styles_folder() -> Path:
+    from importlib import resources
+
+    return Path(str(resources.files("mistyle.data").joinpath("heldout_styles")))
+
+
+def load(args) -> tuple:
+    """The session and what the server needs, from the command line; ``ValueError`` for bad input."""
+    from ..io import load_density_frames, load_style
+    from ..look import Look
+    from ..outputs import style_files
+    from ..stylizer import Stylizer, checked_frames
+    from .session import PreviewSession, Style, thumbnail_jpeg
+
+    if not 64 <= args.res <= 1024:
+        raise ValueError(f"--res takes 64 to 1024 pixels, got {args.res}.")
+    if not 0 <= args.port <= 65535:
+        raise ValueError(f"--port takes 0 to 65535, got {args.port}.")
+    loaded = load_density_frames(args.density, grid=args.grid, up=args.up)
+    frames, _ = checked_frames(loaded.densities, loaded.names)
+    stylizer = Stylizer(args.checkpoint)
+    paths = style_files(args.styles if args.styles is not None else default_styles_folder())
+    styles = []
+    for path in paths:
+        image = load_style(path)
+        styles.append(Style(path.name, image, thumbnail_jpeg(image)))
+    look = Look.load(args.look, stylizer) if args.look is not None else None
+    session = PreviewSession(stylizer, frames, styles, look=look, res=args.res)
+    return session, list(paths)
+
+
+def render_options(args) -> list[str]:
+    """``--render-options`` split as a shell would, checked against ``mistyle-render``'s parser."""
+    import shlex
+
+    from ..render_final import parser as render_parser
+
+    try:
+        options = shlex.split(args.render_options)
+    except ValueError as error:
+        raise ValueError(f"--render-options cannot be split: {error}.") from None
+    known = {string for action in render_parser()._actions for string in action.option_strings}
+    unknown = [option for option in options if option.startswith("-") and option.split("=")[0] not in known]
+    if unknown:
+        raise ValueError(f"--render-options: mistyle-render has no option {unknown[0]}.")
+    return options
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        from aiohttp import web
+
+        from .server import build_app
+
+        session, style_paths = load(args)
+        listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            listener.bind((args.host, args.port))
+        except OSError as error:
+            raise ValueError(
+                f"Cannot listen on {args.host}:{args.port} ({error.strerror}); choose another --port (0: any free one)."
+            ) from None
+        app = build_app(
+            session,
+            style_paths=style_paths,
+            density=args.density,
+            out=args.out,
+            look=args.look,
+            render_options=render_options(args),
+        )
+        port = listener.getsockname()[1]
+        print(f"mistyle preview: http://{args.host}:{port}/  (Ctrl-C to stop)", flush=True)
+        web.run_app(app, sock=listener, print=None, handle_signals=True)
+    except ValueError as error:
+        print(f"mistyle-preview: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    return 0

@@ -1,0 +1,306 @@
+"""What the live preview shows, without the web: a density (or sequence), a set of styles, the
+controls' state, and the images of that state.
+
+``PreviewSession`` owns the chain an artist tweaks interactively: the network's kernels for the chosen
+style (or a mix of two), weakened to the chosen strength, the colour match fitted on the first frame,
+the fast layer's image from the orbiting camera while the user interacts, and path-traced passes
+that refine into a progressive image when the view is still. Everything it computes is cached by the
+part of the state it depends on, so a camera move only renders, a frame change only runs the
+network on that frame, and a style change runs the network and the colour match once.
+
+It is not thread-safe: the server (``mistyle.preview.server``) calls it from one worker thread, the
+one that owns Mitsuba and torch.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import tempfile
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..conventions import DEFAULT_ENV_RADIANCE, HELD_OUT_VIEW, MIN_CAMERA_DISTANCE
+
+THUMBNAIL_SIDE = 96
+MAX_UPLOAD_BYTES = 64 * 1024 * 1024
+"""An upload larger than this is refused before decoding (the decoder's own limits apply after)."""
+LAYER_STEPS = 48
+"""Ray-marching segments of the interactive image: the look fit's count, enough at 256^2 for a preview."""
+PASS_SPP = 4
+"""Samples per pixel of each path-traced pass of the progressive image."""
+MAX_PATH_SPP = 256
+MAX_CAMERA_DISTANCE = 8.0
+JPEG_QUALITY = 85
+
+
+@dataclass(frozen=True)
+class Camera:
+    """An orbit camera around the medium box's centre (+y up): azimuth and elevation in radians."""
+
+    azimuth: float = 2.0 * math.pi * HELD_OUT_VIEW
+    elevation: float = math.radians(10.0)
+    distance: float = 1.7
+
+    def clamped(self) -> Camera:
+        return Camera(
+            float(self.azimuth) % (2.0 * math.pi),
+            float(np.clip(self.elevation, -1.45, 1.45)),
+            float(np.clip(self.distance, MIN_CAMERA_DISTANCE + 0.05, MAX_CAMERA_DISTANCE)),
+        )
+
+    def view(self):
+        from ..scenes import View
+
+        c = math.cos(self.elevation)
+        origin = self.distance * np.array(
+            [c * math.sin(self.azimuth), math.sin(self.elevation), c * math.cos(self.azimuth)]
+        )
+        return View(origin=tuple(origin))
+
+
+@dataclass(frozen=True)
+class Controls:
+    """The state an artist sets: ``style`` and ``mix_with`` index ``PreviewSession.styles``; ``mix`` is the
+    second style's share; ``look`` applies the session's look instead of the styles."""
+
+    style: int = 0
+    mix_with: int | None = None
+    mix: float = 0.5
+    strength: float = 1.0
+    frame: int = 0
+    look: bool = False
+    camera: Camera = Camera()
+
+    @property
+    def style_key(self) -> tuple:
+        """What the albedo depends on besides the frame."""
+        if self.look:
+            return ("look",)
+        mix = self.mix if self.mix_with is not None else 0.0
+        return (self.style, self.mix_with if mix > 0 else None, round(mix, 4), round(self.strength, 4))
+
+
+@dataclass
+class Style:
+    name: str
+    image: np.ndarray  # (H, W, 3) float32 display RGB, decoded by io.load_style
+    thumbnail: bytes  # JPEG
+
+
+def thumbnail_jpeg(image: np.ndarray, side: int = THUMBNAIL_SIDE) -> bytes:
+    from PIL import Image
+
+    picture = Image.fromarray((np.clip(image, 0, 1) * 255 + 0.5).astype(np.uint8))
+    picture.thumbnail((side, side), Image.LANCZOS)
+    buffer = io.BytesIO()
+    picture.save(buffer, format="JPEG", quality=JPEG_QUALITY)
+    return buffer.getvalue()
+
+
+def jpeg(image: np.ndarray) -> bytes:
+    """A linear ``(H, W, 3)`` radiance image on the renders' display curve, as JPEG bytes."""
+    from PIL import Image
+
+    from ..display import display
+
+    buffer = io.BytesIO()
+    Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8)).save(buffer, format="JPEG", quality=JPEG_QUALITY)
+    return buffer.getvalue()
+
+
+def decode_upload(name: str, data: bytes) -> Style:
+    """An uploaded picture through the decoder and limits of ``--style`` (``io.load_style``).
+
+    Raises:
+        ValueError: too large, or not a picture the decoder takes (its message says why)."""
+    from ..io import load_style
+
+    if len(data) > MAX_UPLOAD_BYTES:
+        raise ValueError(f"{name} is {len(data) / 2**20:.0f} MB; uploads are limited to {MAX_UPLOAD_BYTES >> 20} MB.")
+    suffix = Path(name).suffix.lower() or ".png"
+    with tempfile.TemporaryDirectory(prefix="mistyle-upload-") as folder:
+        path = Path(folder) / f"upload{suffix}"
+        path.write_bytes(data)
+        try:
+            image = load_style(path)
+        except ValueError as error:
+            raise ValueError(str(error).replace(str(path), name)) from None
+    return Style(Path(name).name, image, thumbnail_jpeg(image))
+
+
+class PreviewSession:
+    """A density's frames, the styles, and the images of ``Controls`` (module docstring)."""
+
+    def __init__(self, stylizer, frames: list[np.ndarray], styles: list[Style], *, look=None, res: int = 256):
+        if not styles and look is None:
+            raise ValueError("The preview needs at least one style picture (--styles) or a look (--look).")
+        self.stylizer = stylizer
+        self.frames = frames
+        self.styles = list(styles)
+        self.look = look
+        self.res = int(res)
+        self.density_scale = look.density_scale if look is not None else stylizer.density_scale
+        self.radiance = stylizer.config.render.radiance if stylizer is not None else DEFAULT_ENV_RADIANCE
+        self.timings: dict[str, float] = {}
+        self.stylized = 0  # how many albedos were computed (not found in the cache)
+        self._prepared: OrderedDict = OrderedDict()
+        self._albedos: OrderedDict = OrderedDict()
+        self._kernels: dict = {}
+        self._matches: dict = {}
+
+    def initial_controls(self) -> Controls:
+        return Controls(
+            look=self.look is not None,
+            camera=Camera(distance=self.stylizer.config.render.camera_distance).clamped(),
+        )
+
+    def checked(self, controls: Controls) -> Controls:
+        """``controls`` with indices and values in range (a stale client cannot point past the lists)."""
+        last = len(self.styles) - 1
+        style = int(np.clip(controls.style, 0, max(last, 0)))
+        mix_with = controls.mix_with
+        if mix_with is not None and not 0 <= mix_with <= last:
+            mix_with = None
+        return replace(
+            controls,
+            style=style,
+            mix_with=mix_with,
+            mix=float(np.clip(controls.mix, 0.0, 1.0)),
+            strength=float(np.clip(controls.strength, 0.0, 1.0)),
+            frame=int(np.clip(controls.frame, 0, len(self.frames) - 1)),
+            look=bool(controls.look and self.look is not None),
+            camera=controls.camera.clamped(),
+        )
+
+    # ------------------------------------------------------------------ albedo
+    def _parts(self, controls: Controls) -> list[tuple[np.ndarray, float]]:
+        first = self.styles[controls.style].image
+        key = controls.style_key
+        if key[1] is None:
+            return [(first, 1.0)]
+        return [(first, 1.0 - key[2]), (self.styles[key[1]].image, key[2])]
+
+    def _kernels_for(self, controls: Controls):
+        key = controls.style_key
+        if key not in self._kernels:
+            kernels = self.stylizer.kernels(self._parts(controls))
+            self._kernels[key] = self.stylizer.weakened(kernels, self.frames[0], controls.strength)
+        return self._kernels[key]
+
+    def _match_for(self, controls: Controls):
+        """The colour match of the style (fitted on the first frame, shared by every frame, as a sequence's)."""
+        from ..colour_match import InvisibleMedium, fit_colour_match
+        from ..stylizer import style_target
+
+        key = controls.style_key
+        if key not in self._matches:
+            parts = self._parts(controls)
+            target = style_target([image for image, _ in parts], [weight for _, weight in parts])
+            first = self.stylizer.network_albedo(self.frames[0], self._kernels_for(controls))
+            try:
+                self._matches[key] = fit_colour_match(
+                    first,
+                    self.frames[0],
+                    target,
+                    density_scale=self.density_scale,
+                    radiance=self.radiance,
+                    camera_distance=self.stylizer.config.render.camera_distance,
+                )
+            except InvisibleMedium:
+                self._matches[key] = None
+        return self._matches[key]
+
+    def albedo(self, controls: Controls) -> np.ndarray:
+        """The albedo ``(Z, Y, X, 3)`` of ``controls``' frame: the look's, or the network's with the colour
+        match at the strength (what ``mistyle-render --refine 0`` makes)."""
+        key = (controls.style_key, controls.frame)
+        if key in self._albedos:
+            self._albedos.move_to_end(key)
+            return self._albedos[key]
+        started = time.perf_counter()
+        grid = self.frames[controls.frame]
+        if controls.look:
+            albedo = self.look.apply(grid)
+        else:
+            albedo = self.stylizer.network_albedo(grid, self._kernels_for(controls))
+            match = self._match_for(controls) if controls.strength > 0 else None
+            if match is not None:
+                albedo = match.apply(albedo, grid, controls.strength)
+        self.timings["stylize_seconds"] = time.perf_counter() - started
+        self.stylized += 1
+        self._albedos[key] = albedo
+        while len(self._albedos) > 8:
+            self._albedos.popitem(last=False)
+        return albedo
+
+    # ------------------------------------------------------------------ images
+    def _prepared_density(self, frame: int):
+        from ..integrators import prepare_density
+
+        if frame not in self._prepared:
+            self._prepared[frame] = prepare_density(self.frames[frame], self.density_scale)
+            while len(self._prepared) > 4:
+                self._prepared.popitem(last=False)
+        self._prepared.move_to_end(frame)
+        return self._prepared[frame]
+
+    def layer_image(self, controls: Controls) -> np.ndarray:
+        """The fast layer's linear ``(res, res, 3)`` image of ``controls`` (single scattering, Ls on a grid)."""
+        import torch
+
+        from ..bridge_torch import render_views
+
+        albedo = torch.from_numpy(np.ascontiguousarray(self.albedo(controls).transpose(3, 0, 1, 2)))
+        started = time.perf_counter()
+        with torch.no_grad():
+            image = render_views(
+                albedo,
+                self._prepared_density(controls.frame),
+                [controls.camera.view()],
+                self.res,
+                steps=LAYER_STEPS,
+                radiance=self.radiance,
+            )[0]
+        self.timings["layer_seconds"] = time.perf_counter() - started
+        return image.permute(1, 2, 0).numpy()
+
+    def path_traced_passes(self, controls: Controls, max_spp: int = MAX_PATH_SPP):
+        """Progressive path-traced images of ``controls`` (full multiple scattering, Mitsuba's volpath):
+        yields ``(image, spp)``, the running mean after each pass of ``PASS_SPP`` samples."""
+        from ..backend import use_variant
+        from ..scenes import pathtraced_scene
+        from ..scenes.bricks import DEFAULT_BRICK
+
+        mi = use_variant("cpu")
+        scene = mi.load_dict(
+            pathtraced_scene(
+                self.frames[controls.frame],
+                self.albedo(controls),
+                [controls.camera.view()],
+                res=self.res,
+                density_scale=self.density_scale,
+                spp=PASS_SPP,
+                bricks=DEFAULT_BRICK,
+            )
+        )
+        total = np.zeros((self.res, self.res, 3), np.float64)
+        for number in range(max_spp // PASS_SPP):
+            total += np.array(mi.render(scene, sensor=0, spp=PASS_SPP, seed=number), dtype=np.float64)
+            yield (total / (number + 1)).astype(np.float32), (number + 1) * PASS_SPP
+
+    # ------------------------------------------------------------------ outputs
+    def style_arguments(self, controls: Controls, style_paths: list[Path]) -> list[str]:
+        """``mistyle-render``'s style options for ``controls`` (``style_paths``: each style's file)."""
+        key = controls.style_key
+        if key[1] is None:
+            arguments = ["--style", str(style_paths[controls.style])]
+        else:
+            arguments = ["--mix", f"{style_paths[controls.style]}:{1 - key[2]:g}", f"{style_paths[key[1]]}:{key[2]:g}"]
+        if controls.strength < 1.0:
+            arguments += ["--strength", f"{controls.strength:g}"]
+        return arguments

@@ -151,15 +151,17 @@ class Stylizer:
                 ]
             )
 
-    def weakened(self, kernels, grid: np.ndarray, strength: float):
+    def weakened(self, kernels, grid: np.ndarray, strength: float, neutral=None):
         """``kernels`` at ``strength``: blended with ``SKPN.neutral_kernels`` whose grey is the luma of the
         full-strength albedo's density-weighted mean on ``grid``, so that fading the style out keeps
-        the medium's brightness and removes its hues and patterns (0: uniform grey, 1: ``kernels``)."""
+        the medium's brightness and removes its hues and patterns (0: uniform grey, 1: ``kernels``).
+        ``neutral``: ``self.neutral(kernels, grid)`` when the caller has it already (a slider's steps)."""
         from .model.skpn import StylizingKernels
 
         if validate_strength(strength) == 1.0:
             return kernels
-        return StylizingKernels.blend([(kernels, strength), (self.neutral(kernels, grid), 1.0 - strength)])
+        neutral = self.neutral(kernels, grid) if neutral is None else neutral
+        return StylizingKernels.blend([(kernels, strength), (neutral, 1.0 - strength)])
 
     def neutral(self, kernels, grid: np.ndarray):
         """``SKPN.neutral_kernels`` of ``kernels`` whose grey is the luma of the density-weighted mean of

@@ -31,8 +31,9 @@ MAX_UPLOAD_BYTES = 64 * 1024 * 1024
 """An upload larger than this is refused before decoding (the decoder's own limits apply after)."""
 LAYER_STEPS = 48
 """Ray-marching segments of the interactive image: the look fit's count, enough at 256^2 for a preview."""
-PASS_SPP = 4
-"""Samples per pixel of each path-traced pass of the progressive image."""
+PASS_SPP = 2
+"""Samples per pixel of each path-traced pass of the progressive image: a pass (about 0.2 s at 256^2 here) is
+what a control change may wait for."""
 MAX_PATH_SPP = 256
 MAX_CAMERA_DISTANCE = 8.0
 JPEG_QUALITY = 85
@@ -151,6 +152,7 @@ class PreviewSession:
         self._prepared: OrderedDict = OrderedDict()
         self._albedos: OrderedDict = OrderedDict()
         self._kernels: dict = {}
+        self._full: dict = {}
         self._matches: dict = {}
 
     def initial_controls(self) -> Controls:
@@ -186,10 +188,16 @@ class PreviewSession:
         return [(first, 1.0 - key[2]), (self.styles[key[1]].image, key[2])]
 
     def _kernels_for(self, controls: Controls):
+        """The kernels at the controls' strength; the full-strength kernels and their neutral (what the
+        strength fades towards) are kept per style, so a slider step runs the network once."""
         key = controls.style_key
         if key not in self._kernels:
-            kernels = self.stylizer.kernels(self._parts(controls))
-            self._kernels[key] = self.stylizer.weakened(kernels, self.frames[0], controls.strength)
+            style = key[:3]
+            if style not in self._full:
+                full = self.stylizer.kernels(self._parts(controls))
+                self._full[style] = (full, self.stylizer.neutral(full, self.frames[0]))
+            full, neutral = self._full[style]
+            self._kernels[key] = self.stylizer.weakened(full, self.frames[0], controls.strength, neutral)
         return self._kernels[key]
 
     def _match_for(self, controls: Controls):

@@ -14,7 +14,15 @@ import pytest
 from PIL import Image
 
 from mistyle.preview.server import build_app, controls_from
-from mistyle.preview.session import Camera, Controls, PreviewSession, Style, decode_upload, thumbnail_jpeg
+from mistyle.preview.session import (
+    PASS_SPP,
+    Camera,
+    Controls,
+    PreviewSession,
+    Style,
+    decode_upload,
+    thumbnail_jpeg,
+)
 from mistyle.stylizer import Stylizer
 
 
@@ -41,8 +49,8 @@ def test_images_follow_the_controls(mi, session):
     assert np.abs(session.layer_image(blue) - first).mean() > 1e-3 and session.stylized == stylized + 1
     other_frame = Controls(style=1, frame=1, camera=controls.camera)
     assert not np.array_equal(session.albedo(other_frame), session.albedo(blue))
-    image, samples = next(session.path_traced_passes(blue, max_spp=4))
-    assert samples == 4 and image.shape == (64, 64, 3) and image.max() > 0.01
+    image, samples = next(session.path_traced_passes(blue))
+    assert samples == PASS_SPP and image.shape == (64, 64, 3) and image.max() > 0.01
 
 
 def test_controls_are_clamped_to_what_the_session_has(session):

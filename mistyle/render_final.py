@@ -786,7 +786,7 @@ def write_assets(job: Job, stylized) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- stage 5: report
-METRIC_KEYS = ("rgb_swd", "patch_swd", "hue_coverage", "swd_final", "hist_final", "swd_layer")
+METRIC_KEYS = ("rgb_swd", "patch_swd", "hue_coverage", "structure", "swd_final", "hist_final", "swd_layer")
 
 
 def write_report(job: Job, stylized, images, layer_images, report: dict) -> None:
@@ -884,12 +884,12 @@ def frame_metrics(image: np.ndarray, style: np.ndarray) -> dict:
     from .objective.metrics import foreground_mask, style_fidelity
 
     if not foreground_mask(image).any():
-        return dict.fromkeys(("rgb_swd", "patch_swd", "hue_coverage"))
+        return dict.fromkeys(FRAME_METRICS)
     metrics = style_fidelity([image], style)
     return {key: (float(value) if value is not None and np.isfinite(value) else None) for key, value in metrics.items()}
 
 
-FRAME_METRICS = ("rgb_swd", "patch_swd", "hue_coverage")
+FRAME_METRICS = ("rgb_swd", "patch_swd", "hue_coverage", "structure")
 
 
 def merge_chunk(job: Job, folder: Path) -> None:

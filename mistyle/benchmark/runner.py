@@ -37,6 +37,7 @@ class Row:
     checkpoint: str  # the network's file name and the first 12 hex digits of its SHA-256
     commit: str  # the code's git commit ("+changes" when the tree had uncommitted changes)
     split: str = ""
+    structure: float | None = None  # objective.structure (lower is closer); None in rows made before it
 
     def key(self) -> tuple:
         return self.method, self.density, self.style, json.dumps(self.settings, sort_keys=True)
@@ -59,6 +60,10 @@ def score(density, albedo, style, views, *, res: int, spp: int, density_scale: f
         density, albedo, views, res=res, spp=spp, density_scale=density_scale, light=f"constant:{radiance}"
     )
     return style_fidelity(images, style), images
+
+
+def _finite(value) -> float | None:
+    return float(value) if value is not None and np.isfinite(value) else None
 
 
 def checkpoint_id(path) -> str:
@@ -165,13 +170,14 @@ def run(
                     metrics["hue_coverage"],
                     seconds,
                     **common,
+                    structure=_finite(metrics["structure"]),
                 )
                 rows = [old for old in rows if old.key() != row.key()] + [row]
                 write_rows(rows_path, rows)
                 save_tile(tiles, row, images[0])
                 log(
                     f"{name:18s} {spec.name:14s} {style_name:34s} RGB {row.rgb_swd:.4f} patch {row.patch_swd:.4f} "
-                    f"hue {row.hue_coverage:.2f} {seconds:6.1f} s"
+                    f"hue {row.hue_coverage:.2f} structure {row.structure or float('nan'):.3f} {seconds:6.1f} s"
                 )
     report(out)
     return rows
@@ -217,6 +223,12 @@ def summary(rows: list[Row]) -> dict:
                 entry["beats_uniform"] = sum(
                     row.rgb_swd < base.rgb_swd and row.patch_swd < base.patch_swd for row, base in matched
                 )
+        measured = [row for row in mine if row.structure is not None]
+        entry["structure"] = float(np.median([row.structure for row in measured])) if measured else float("nan")
+        against = [(row, baselines[NOISE_BASELINE].get(on_pair(row))) for row in measured]
+        against = [(row, base) for row, base in against if base is not None and base.structure is not None]
+        entry["structure_pairs"] = len(against)
+        entry["structure_beats_noise"] = sum(row.structure < base.structure for row, base in against)
         entry["pairs"] = len(mine)
         result[method] = entry
     return result
@@ -225,15 +237,18 @@ def summary(rows: list[Row]) -> dict:
 def table(rows: list[Row]) -> str:
     """The medians of ``summary`` as a Markdown table."""
     lines = [
-        "| method | RGB SWD | x uniform | x noise | patch SWD | x uniform | x noise | hue coverage | "
-        "beats uniform | seconds | pairs |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| method | RGB SWD | x uniform | x noise | patch SWD | x uniform | x noise | hue coverage | structure | "
+        "structure < noise | beats uniform | seconds | pairs |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for method, m in summary(rows).items():
+        structure = "n/a" if np.isnan(m["structure"]) else f"{m['structure']:.3f}"
+        beats_noise = f"{m['structure_beats_noise']}/{m['structure_pairs']}" if m["structure_pairs"] else "n/a"
         lines.append(
             f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_x_uniform']:.2f} | {m['rgb_swd_x_noise']:.2f} | "
             f"{m['patch_swd']:.4f} | {m['patch_swd_x_uniform']:.2f} | {m['patch_swd_x_noise']:.2f} | "
-            f"{m['hue_coverage']:.2f} | {m['beats_uniform']}/{m['pairs']} | {m['seconds']:.1f} | {m['pairs']} |"
+            f"{m['hue_coverage']:.2f} | {structure} | {beats_noise} | {m['beats_uniform']}/{m['pairs']} | "
+            f"{m['seconds']:.1f} | {m['pairs']} |"
         )
     return "\n".join(lines) + "\n"
 

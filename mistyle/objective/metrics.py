@@ -218,8 +218,11 @@ def hue_coverage(pixels: np.ndarray, style: np.ndarray, clusters: int = HUE_CLUS
 def style_fidelity(renders: list[np.ndarray], style: np.ndarray) -> dict:
     """The benchmark's metrics of linear ``renders`` (views of one volume, ``(H, W, 3)`` each) against a
     display-space ``style (H, W, 3)``: ``rgb_swd`` (sliced W1 of foreground pixel colours),
-    ``patch_swd`` (sliced W1 of 5x5 foreground patches at scales 1, 1/2, 1/4, averaged) and
-    ``hue_coverage``. Pixels of all views are pooled."""
+    ``patch_swd`` (sliced W1 of 5x5 foreground patches at scales 1, 1/2, 1/4, averaged),
+    ``hue_coverage`` and ``structure`` (oriented multi-scale gradient statistics inside the foreground,
+    ``objective.structure``; lower is closer). Pixels of all views are pooled."""
+    from .structure import structure_distance
+
     masks = [foreground_mask(render) for render in renders]
     if not any(mask.any() for mask in masks):
         raise ValueError("style_fidelity: no render sees the medium (every pixel is background).")
@@ -230,6 +233,7 @@ def style_fidelity(renders: list[np.ndarray], style: np.ndarray) -> dict:
         "rgb_swd": sliced_wasserstein(pixels, style.reshape(-1, 3), order=1),
         "patch_swd": patch_swd(shown, masks, style),
         "hue_coverage": hue_coverage(pixels, style),
+        "structure": structure_distance(shown, masks, style),
     }
 
 

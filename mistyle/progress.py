@@ -38,25 +38,7 @@ def status(message: str) -> None:
 def bar(total: int, description: str, unit: str = "step", initial: int = 0) -> tqdm:
     """A progress bar on stderr; use as a context manager and ``.update(1)`` per unit done
     (``bar.disable`` is true where it is not drawn)."""
+    common = dict(total=total, desc=description, unit=unit, initial=initial, file=sys.stderr)
     if os.environ.get(PROGRESS_ENV) == "lines":
-        return tqdm(
-            total=total,
-            desc=description,
-            unit=unit,
-            initial=initial,
-            file=sys.stderr,
-            ncols=80,
-            ascii=True,
-            mininterval=1.0,
-            disable=_quiet,
-        )
-    return tqdm(
-        total=total,
-        desc=description,
-        unit=unit,
-        initial=initial,
-        file=sys.stderr,
-        dynamic_ncols=True,
-        leave=False,
-        disable=True if _quiet else None,
-    )  # None: only on a terminal
+        return tqdm(**common, ncols=80, ascii=True, mininterval=1.0, disable=_quiet)
+    return tqdm(**common, dynamic_ncols=True, leave=False, disable=True if _quiet else None)  # None: on a terminal

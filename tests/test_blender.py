@@ -146,21 +146,28 @@ def test_plume_is_upright_in_blender(rendered, tmp_path):
         assert len(profile) != len(blender_z) or not np.allclose(profile, blender_z, rtol=1e-2)
 
 
-def test_addon_adds_a_wired_upright_volume(rendered, tmp_path):
-    from mistyle.vdb import read_vdb
-
+def addon_job(tmp: Path) -> dict:
+    """The add-on built into ``tmp``, and what ``blender_side.install_addon`` needs to install it."""
     build = subprocess.run(
-        [sys.executable, str(ROOT / "scripts" / "build_blender_addon.py"), "--out", str(tmp_path)],
+        [sys.executable, str(ROOT / "scripts" / "build_blender_addon.py"), "--out", str(tmp)],
         capture_output=True,
         text=True,
         check=True,
     )
+    return {
+        "addon_zip": build.stdout.strip(),
+        "addon_module": "bl_ext.user_default.mistyle",
+        "command": str(Path(sys.executable).with_name("mistyle-render")),
+        "addon_out": str(tmp / "addon_out") + os.sep,
+    }
+
+
+def test_addon_adds_a_wired_upright_volume(rendered, tmp_path):
+    from mistyle.vdb import read_vdb
+
     job = dict(
         render_job(rendered, tmp_path, "addon.exr"),
-        addon_zip=build.stdout.strip(),
-        addon_module="bl_ext.user_default.mistyle",
-        command=str(Path(sys.executable).with_name("mistyle-render")),
-        addon_out=str(tmp_path / "addon_out") + os.sep,
+        **addon_job(tmp_path),
         input_vdb=str(rendered / "volume.vdb"),
         style=str(STYLE),
         missing_style=str(tmp_path / "no_such_style.png"),
@@ -186,25 +193,12 @@ def test_addon_adds_a_wired_upright_volume(rendered, tmp_path):
 def test_addon_stylizes_a_vdb_sequence_over_the_frame_range(rendered, tmp_path):
     import shutil
 
-    build = subprocess.run(
-        [sys.executable, str(ROOT / "scripts" / "build_blender_addon.py"), "--out", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
     cache = tmp_path / "cache"
     cache.mkdir()
     frames = [cache / f"fluid_data_{number:04d}.vdb" for number in (1, 2)]
     for frame in frames:
         shutil.copy(rendered / "volume.vdb", frame)
-    job = {
-        "addon_zip": build.stdout.strip(),
-        "addon_module": "bl_ext.user_default.mistyle",
-        "command": str(Path(sys.executable).with_name("mistyle-render")),
-        "addon_out": str(tmp_path / "addon_out") + os.sep,
-        "frames": [str(frame) for frame in frames],
-        "style": str(STYLE),
-    }
+    job = dict(addon_job(tmp_path), frames=[str(frame) for frame in frames], style=str(STYLE))
     answer = in_blender("addon_sequence", job, tmp_path)
     print("add-on, sequence:", json.dumps(answer))
     assert answer["operator"] == ["FINISHED"] and len(answer["added"]) == 1

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import DEFAULT_ENV_RADIANCE, HELD_OUT_VIEW, MIN_CAMERA_DISTANCE
+from ..conventions import HELD_OUT_VIEW, MIN_CAMERA_DISTANCE, ORBIT_DISTANCE
 
 THUMBNAIL_SIDE = 96
 MAX_UPLOAD_BYTES = 64 * 1024 * 1024
@@ -45,7 +45,7 @@ class Camera:
 
     azimuth: float = 2.0 * math.pi * HELD_OUT_VIEW
     elevation: float = math.radians(10.0)
-    distance: float = 1.7
+    distance: float = ORBIT_DISTANCE  # the session starts at its checkpoint's orbit (initial_controls)
 
     def clamped(self) -> Camera:
         return Camera(
@@ -146,7 +146,7 @@ class PreviewSession:
         self.look = look
         self.res = int(res)
         self.density_scale = look.density_scale if look is not None else stylizer.density_scale
-        self.radiance = stylizer.config.render.radiance if stylizer is not None else DEFAULT_ENV_RADIANCE
+        self.radiance = stylizer.config.render.radiance
         self.timings: dict[str, float] = {}
         self.stylized = 0  # how many albedos were computed (not found in the cache)
         self._prepared: OrderedDict = OrderedDict()
@@ -281,7 +281,7 @@ class PreviewSession:
         """Progressive path-traced images of ``controls`` (full multiple scattering, Mitsuba's volpath):
         yields ``(image, spp)``, the running mean after each pass of ``PASS_SPP`` samples."""
         from ..backend import use_variant
-        from ..scenes import pathtraced_scene
+        from ..scenes import LightSpec, pathtraced_scene
         from ..scenes.bricks import DEFAULT_BRICK
 
         mi = use_variant("cpu")
@@ -293,6 +293,7 @@ class PreviewSession:
                 res=self.res,
                 density_scale=self.density_scale,
                 spp=PASS_SPP,
+                light=LightSpec.parse(f"constant:{self.radiance}"),  # the fast layer's light
                 bricks=DEFAULT_BRICK,
             )
         )

@@ -41,6 +41,11 @@ IDLE_BEFORE_PATH_TRACING_S = 0.35
 FAST, PATH_TRACED = 0, 1
 
 
+def safe_name(name: str) -> str:
+    """``name`` with anything but letters, digits, ``_``, ``.`` and ``-`` replaced: a file name of the server's."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
+
+
 def frame_message(kind: int, samples: int, image) -> bytes:
     return struct.pack("<B3xI", kind, samples) + jpeg(image)
 
@@ -118,7 +123,7 @@ class Jobs:
             name = f"look_{self.look.stem}"
             command += ["--look", str(self.look)]
         else:
-            name = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(style_paths[controls.style].name).stem)
+            name = safe_name(Path(style_paths[controls.style].name).stem)
             command += session.style_arguments(controls, style_paths)
         if kind == "look":
             if controls.look:
@@ -197,7 +202,7 @@ def build_app(
         return web.Response(body=session.styles[index].thumbnail, content_type="image/jpeg")
 
     async def upload(request):
-        from .session import MAX_UPLOAD_BYTES, decode_upload
+        from .session import decode_upload
 
         try:
             reader = await request.multipart()
@@ -206,15 +211,13 @@ def build_app(
                 raise ValueError("The upload holds no picture (a form field named 'style').")
             name = part.filename or "upload.png"
             data = await part.read(decode=False)
-            if len(data) > MAX_UPLOAD_BYTES:
-                raise ValueError(f"{name} is larger than {MAX_UPLOAD_BYTES >> 20} MB.")
             style = await asyncio.get_running_loop().run_in_executor(None, decode_upload, name, bytes(data))
         except ValueError as error:
             return web.json_response({"error": str(error)}, status=400)
         except Exception as error:  # a malformed request: the page says so, the server goes on
             return web.json_response({"error": f"The upload could not be read ({error})."}, status=400)
         index = len(session.styles)
-        path = uploads / f"{index:03d}_{re.sub(r'[^A-Za-z0-9_.-]+', '_', style.name)}"
+        path = uploads / f"{index:03d}_{safe_name(style.name)}"
         path.write_bytes(bytes(data))
         style_paths.append(path)
         session.styles.append(style)

@@ -194,14 +194,23 @@ class ColourMatch:
         return result.permute(3, 0, 1, 2)
 
 
+MAX_SLOPE = 1e3
+"""``interpolate`` passes no gradient through a segment steeper than this: the response's nearly equal levels
+(a saturated medium; ``grey_response`` keeps them 1e-9 apart) would otherwise give gradients of 1e9 and more."""
+
+
 def interpolate(x, xp, fp):
-    """``np.interp`` in torch (``xp`` increasing, ties allowed; constant beyond its ends), differentiable in ``x``."""
+    """``np.interp`` in torch (``xp`` increasing, ties allowed; constant beyond its ends), differentiable in ``x``
+    except on segments steeper than ``MAX_SLOPE`` (there the value is exact and the gradient zero)."""
     import torch
 
     index = torch.searchsorted(xp, x.detach().contiguous()).clamp(1, len(xp) - 1)
     left, right = xp[index - 1], xp[index]
     span = right - left
-    weight = torch.where(span > 0, (x - left) / torch.where(span > 0, span, torch.ones_like(span)), 1.0)
+    safe = torch.where(span > 0, span, torch.ones_like(span))
+    steep = (fp[index] - fp[index - 1]).abs() > MAX_SLOPE * span
+    x = torch.where(steep, x.detach(), x)
+    weight = torch.where(span > 0, (x - left) / safe, 1.0)
     value = fp[index - 1] + weight.clamp(0.0, 1.0) * (fp[index] - fp[index - 1])
     return torch.where(x <= xp[0], fp[0], torch.where(x >= xp[-1], fp[-1], value))
 
@@ -222,6 +231,29 @@ def distinct_colours(colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ordered[starts], index
 
 
+def grey_response(density: np.ndarray, *, density_scale: float, radiance: float, camera_distance: float) -> np.ndarray:
+    """Step 1 of the module docstring: the display value ``f(a)`` the medium shows at each of
+    ``RESPONSE_LEVELS``, strictly increasing (so that it inverts). ``InvisibleMedium`` when no pixel
+    of the response render sees the medium."""
+    from .response import uniform_display_response
+    from .scenes import CameraPath
+
+    try:
+        shown_levels = uniform_display_response(
+            np.asarray(density, dtype=np.float32),
+            density_scale,
+            radiance,
+            [CameraPath(distance=camera_distance).view(RESPONSE_VIEW)],
+            RESPONSE_LEVELS,
+            res=32,
+            spp=4,
+            pack_channels=True,
+        )
+    except ValueError as error:  # no pixel sees the medium
+        raise InvisibleMedium(f"{error} The colour match needs a visible medium.") from None
+    return shown_levels + np.arange(len(shown_levels)) * 1e-9
+
+
 def fit_colour_match(
     albedo: np.ndarray,
     density: np.ndarray,
@@ -232,16 +264,19 @@ def fit_colour_match(
     camera_distance: float,
     seed: int = 0,
     feedback: bool = True,
+    response: np.ndarray | None = None,
 ) -> ColourMatch:
     """The ``ColourMatch`` carrying the colours ``albedo (Z, Y, X, 3)`` shows on ``density (Z, Y, X)``
-    onto ``style (H, W, 3)``'s (module docstring); ``feedback=False`` leaves out step 4.
+    onto ``style (H, W, 3)``'s (module docstring); ``feedback=False`` leaves out step 4. ``response``:
+    ``grey_response``'s values for this density and light when the caller has them (they do not
+    depend on the albedo or the style).
 
     Raises:
         ValueError: an albedo of another shape than the density's.
         InvisibleMedium: a medium no pixel of the response render sees, even at albedo 1."""
     from .conventions import FOREGROUND_THRESHOLD
     from .display import display
-    from .response import albedo_renders, uniform_display_response
+    from .response import albedo_renders
     from .scenes import CameraPath
 
     density = np.asarray(density, dtype=np.float32)
@@ -252,20 +287,11 @@ def fit_colour_match(
         )
     pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
     orbit = CameraPath(distance=camera_distance)
-    try:
-        shown_levels = uniform_display_response(
-            density,
-            density_scale,
-            radiance,
-            [orbit.view(RESPONSE_VIEW)],
-            RESPONSE_LEVELS,
-            res=32,
-            spp=4,
-            pack_channels=True,
+    if response is None:
+        response = grey_response(
+            density, density_scale=density_scale, radiance=radiance, camera_distance=camera_distance
         )
-    except ValueError as error:  # no pixel sees the medium
-        raise InvisibleMedium(f"{error} The colour match needs a visible medium.") from None
-    shown_levels = shown_levels + np.arange(len(shown_levels)) * 1e-9  # strictly increasing, so that it inverts
+    shown_levels = np.asarray(response, dtype=np.float64)
     weight = visible_weight(density, density_scale).ravel()
     rng = np.random.default_rng(seed)
     voxels = rng.choice(weight.size, TRANSPORT_SAMPLES, p=weight / weight.sum())

@@ -276,7 +276,7 @@ class Look:
         import torch
 
         from .colour_match import ColourMatch
-        from .model.skpn import StylizingKernels
+        from .model.skpn import StylizingKernels, site_key
         from .stylizer import Stylizer
 
         path = Path(path)
@@ -301,7 +301,7 @@ class Look:
             meta = dict(record["meta"])
             kernels = StylizingKernels(
                 {
-                    int(site): {key: value.float() for key, value in parts.items()}
+                    site_key(site): {key: value.float() for key, value in parts.items()}
                     for site, parts in record["kernels"].items()
                 }
             )
@@ -387,7 +387,7 @@ def prepare_frame(network, grid: np.ndarray, scale_structures: float = 1.0, nois
     window = occupied_window(tensor, DEFAULT_CROP_MARGIN)
     part = tensor if window is None else tensor[(..., *window)]
     with torch.no_grad():
-        encoded = network.encode(part)
+        encoded = network.encode(part, network.noise_fields(size, window))
         body = None if body_kernels is None else network.decode_body(encoded, body_kernels)
     fields = None
     if noise is not None:

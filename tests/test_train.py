@@ -355,6 +355,13 @@ def test_recipes_name_package_configs_and_refuse_unknown_names():
         recipe("nope")
     with pytest.raises(ValueError, match="select must be one of"):
         Stage("x", "tiny.toml", select="best")
+    with pytest.raises(ValueError, match="init must be"):
+        Stage("x", "tiny.toml", init="somewhere.pt")
+    from mistyle.train.recipes import product_path
+
+    assert product_path("skpn_cpu") == (REPO / shipped.product).resolve()  # what "recipe:skpn_cpu" starts from
+    with pytest.raises(ValueError, match="ships no checkpoint"):
+        product_path("tiny")
 
 
 def test_validation_selection_scores_kept_checkpoints_and_picks_the_lowest(mi, tmp_path, tiny_smoke, blob_density):
@@ -384,6 +391,15 @@ def test_validation_selection_scores_kept_checkpoints_and_picks_the_lowest(mi, t
     )
     assert set(chosen.scores) == {str(p) for p in kept} and all(np.isfinite(list(chosen.scores.values())))
     assert chosen.chosen == min(chosen.scores, key=chosen.scores.get)
+    against_noise = recipes.select(
+        recipes.Stage("s", "tiny.toml", select="validation:noise"),
+        tmp_path / "run",
+        paintings=1,
+        res=48,  # patches to compare
+        spp=1,
+        densities=[blob_density],
+    )
+    assert "smooth noise" in against_noise.reason and all(np.isfinite(list(against_noise.scores.values())))
     with pytest.raises(ValueError, match="no kept checkpoint of step 5"):
         recipes.select(recipes.Stage("s", "tiny.toml", select="step:5"), tmp_path / "run")
 

@@ -98,6 +98,10 @@ class LossConfig:
     temporal_gradient: str = (
         "both"  # "both" frames of the temporal term | "current": frame t only (t+1 is a fixed target)
     )
+    # The product's colour match in the loop: each predicted albedo is given its style's colours by a
+    # colour_match.ColourMatch fitted on it (no gradient through the fit; the map is piecewise linear) before
+    # it is rendered, so the network learns what the match will make of its output.
+    colour_match: bool = False
 
 
 @dataclass
@@ -109,6 +113,7 @@ class OptimConfig:
     lr_decay: float = 0.8
     decay_every_epochs: float = 50.0  # an epoch is one pass over the training frame pairs
     clip_grad: float = 0.0  # clip the gradient's global norm to this; 0: no clipping
+    tune: tuple[str, ...] = ()  # train only the parameters whose names start with one of these; (): all
 
 
 @dataclass

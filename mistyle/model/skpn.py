@@ -15,6 +15,13 @@ Style code: with ``style_code="moments"`` (the paper's) each predictor reads its
 only; with ``"quantiles"`` also the style's quantile code (``model.style_code``), the same vector for
 every site. ``SKPN.encode_style`` turns style images into what ``forward`` takes (``StyleInputs``).
 
+Noise site (``model.noise_scales``; not in the paper): smooth noise fields fixed in the grid's box
+(``model.noise``) are added before the decoder's tanh, weighted per albedo channel by a fifth
+predictor from the shallowest style level and the code (``NoiseWeightPredictor``; its kernel is
+``StylizingKernels.sites[NOISE_SITE]``). The density decides where the other sites' features vary;
+the noise lets colour vary where it does not, at the scales each style weighs
+(``docs/decisions/2026-12-02-noise-site.md``).
+
 Mixing and strength: ``SKPN.predict_kernels`` returns the SKP's output (``StylizingKernels``) and
 ``forward`` also takes it, so styles are combined where the model combines them: a convex
 combination of predicted kernels (``StylizingKernels.blend``) is again a kernel set, and moves the
@@ -35,6 +42,7 @@ import torch.nn.functional as F
 
 from ..conventions import PRECISIONS
 from .dain import dain, density_mask
+from .noise import noise_fields, validate_noise_scales
 from .style_code import CODE_SIZE, style_code
 
 DEFAULT_CROP_MARGIN = 8
@@ -52,6 +60,9 @@ class SKPNConfig:
     norm: str = "dain"  # or "in"
     stylize: str = "kernel"  # or "adain"
     style_code: str = "moments"  # or "quantiles": feature moments plus the style's quantile code
+    noise_scales: tuple[float, ...] = ()  # the noise site's field scales (fractions of the longest side); (): none
+    noise_per_scale: int = 2  # fields at each scale
+    noise_seed: int = 0
 
     def __post_init__(self):
         if self.kernels not in (1, 2, 4):
@@ -62,10 +73,17 @@ class SKPNConfig:
             raise ValueError(f"norm must be dain|in and stylize kernel|adain, got {self.norm}, {self.stylize}.")
         if self.style_code not in ("moments", "quantiles"):
             raise ValueError(f"style_code must be moments or quantiles, got {self.style_code}.")
+        self.noise_scales = validate_noise_scales(self.noise_scales)
+        if self.noise_per_scale < 1:
+            raise ValueError(f"noise_per_scale must be >= 1, got {self.noise_per_scale}.")
 
     @property
     def code_size(self) -> int:
         return CODE_SIZE if self.style_code == "quantiles" else 0
+
+    @property
+    def noise_channels(self) -> int:
+        return len(self.noise_scales) * self.noise_per_scale
 
 
 class StyleInputs(NamedTuple):
@@ -109,11 +127,47 @@ class StylizingKernels(NamedTuple):
 
 class EncodedDensity(NamedTuple):
     """``SKPN.encode``'s output: the unpadded ``size (D, H, W)``, the encoder's three feature maps (full,
-    1/2, 1/4 resolution of the grid padded to a multiple of 4) and DAIN's density masks by resolution."""
+    1/2, 1/4 resolution of the grid padded to a multiple of 4), DAIN's density masks by resolution and
+    the noise site's fields on the padded grid ``(1, C, D', H', W')`` (None without a noise site)."""
 
     size: tuple
     features: tuple
     masks: dict
+    noise: torch.Tensor | None = None
+
+
+NOISE_SITE = "noise"
+"""The key of the noise site's kernel in ``StylizingKernels.sites``: ``{"weight": (B, 3, C)}``, how much of
+each noise field each albedo channel's pre-tanh value gets."""
+
+
+def site_key(text: str) -> int | str:
+    """A kernel site's key from its name as a file stores it: a kernel site's number, or ``NOISE_SITE``."""
+    return int(text) if str(text).isdigit() else str(text)
+
+
+class NoiseWeightPredictor(nn.Module):
+    """The noise site's predictor: three FC layers from the shallowest style level's (mean, std) and the
+    style code to the ``(3, C)`` weights of the noise fields. The last layer starts at zero, so a network
+    given a noise site computes exactly what it computed without one until training moves it."""
+
+    def __init__(self, style_channels: int, channels: int, hidden: int, code_size: int = 0):
+        super().__init__()
+        self.channels = channels
+        self.mlp = nn.Sequential(
+            nn.Linear(2 * style_channels + code_size, hidden),
+            nn.LeakyReLU(0.2),
+            nn.Linear(hidden, hidden),
+            nn.LeakyReLU(0.2),
+            nn.Linear(hidden, 3 * channels),
+        )
+        nn.init.zeros_(self.mlp[-1].weight)
+        nn.init.zeros_(self.mlp[-1].bias)
+
+    def forward(self, style_level: torch.Tensor, code: torch.Tensor | None = None) -> dict:
+        flat = style_level.flatten(2)
+        statistics = [flat.mean(2), flat.std(2, unbiased=False)] + ([] if code is None else [code])
+        return {"weight": self.mlp(torch.cat(statistics, dim=1)).view(-1, 3, self.channels)}
 
 
 class StylizingKernelPredictor(nn.Module):
@@ -220,6 +274,10 @@ class SKPN(nn.Module):
             }
         )
         self.style_for_site = style_for_site
+        if config.noise_channels:
+            self.noise_predictor = NoiseWeightPredictor(
+                config.style_channels[0], config.noise_channels, config.style_hidden, config.code_size
+            )
 
     @torch.no_grad()
     def encode_style(self, images: torch.Tensor, extractor: nn.Module) -> StyleInputs:
@@ -236,12 +294,12 @@ class SKPN(nn.Module):
             raise ValueError(
                 f"this SKPN has style_code={self.config.style_code!r}; build its style input with encode_style."
             )
-        return StylizingKernels(
-            {
-                site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code)
-                for site in self.sites
-            }
-        )
+        sites = {
+            site: self.predictors[str(site)](style.levels[self.style_for_site[site]], style.code) for site in self.sites
+        }
+        if self.config.noise_channels:
+            sites[NOISE_SITE] = self.noise_predictor(style.levels[0], style.code)
+        return StylizingKernels(sites)
 
     @torch.no_grad()
     def neutral_kernels(self, kernels: StylizingKernels, grey: float) -> StylizingKernels:
@@ -267,30 +325,59 @@ class SKPN(nn.Module):
         site = dict(kernels.sites[last])
         site["gamma"] = torch.zeros_like(site["gamma"])
         site["beta"] = beta.to(site["beta"]).expand_as(site["beta"]).clone()
-        return StylizingKernels({**kernels.sites, last: site})
+        sites = {**kernels.sites, last: site}
+        if NOISE_SITE in sites:  # grey everywhere: no noise either
+            sites[NOISE_SITE] = {"weight": torch.zeros_like(sites[NOISE_SITE]["weight"])}
+        return StylizingKernels(sites)
 
     def forward(
-        self, density: torch.Tensor, style: StyleInputs | StylizingKernels | list[torch.Tensor]
+        self,
+        density: torch.Tensor,
+        style: StyleInputs | StylizingKernels | list[torch.Tensor],
+        noise: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Albedo ``(B, 3, D, H, W)`` of ``density (B, 1, D, H, W)``; ``style``: ``encode_style``'s output
-        (or, for ``style_code="moments"``, the bare list of levels), or kernels from ``predict_kernels``."""
+        (or, for ``style_code="moments"``, the bare list of levels), or kernels from ``predict_kernels``.
+        ``noise``: the noise site's fields over this grid (``encode``)."""
         kernels = style if isinstance(style, StylizingKernels) else self.predict_kernels(style)
-        return self.decode(self.encode(density), kernels)
+        return self.decode(self.encode(density, noise), kernels)
 
-    def encode(self, density: torch.Tensor) -> EncodedDensity:
+    def noise_fields(self, size: tuple, window: tuple[slice, slice, slice] | None = None) -> torch.Tensor | None:
+        """The noise site's fields ``(1, C, D, H, W)`` of a grid of ``size (D, H, W)``, on the network's
+        device, cut to ``window`` (``occupied_window``) when given; None without a noise site."""
+        config = self.config
+        if not config.noise_channels:
+            return None
+        fields = noise_fields(size, config.noise_scales, config.noise_per_scale, config.noise_seed)
+        if window is not None:
+            fields = fields[(slice(None), *window)]
+        return fields[None].to(next(self.parameters()).device)
+
+    def encode(self, density: torch.Tensor, noise: torch.Tensor | None = None) -> EncodedDensity:
         """The encoder's half of ``forward``: what ``decode`` needs of ``density (B, 1, D, H, W)``, which
-        does not depend on the style (so a look's fit computes it once per key frame)."""
+        does not depend on the style (so a look's fit computes it once per key frame). ``noise``: the
+        noise site's fields ``(1, C, D, H, W)`` for this grid (a crop passes its part of the whole grid's,
+        ``noise_fields``); default: the fields of a grid of the density's size."""
         if density.dim() != 5 or density.shape[1] != 1:
             raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
         size = tuple(density.shape[2:])
-        padded = F.pad(density, [p for n in reversed(size) for p in (0, (-n) % 4)])
+        pads = [p for n in reversed(size) for p in (0, (-n) % 4)]
+        padded = F.pad(density, pads)
         e0 = self.encoder[0](padded)
         e1 = self.encoder[1](e0)
         e2 = self.encoder[2](e1)
         masks = {}
         if self.config.norm == "dain":
             masks = {tuple(e.shape[2:]): density_mask(padded, e.shape[2:]) for e in (e0, e1, e2)}
-        return EncodedDensity(size, (e0, e1, e2), masks)
+        if self.config.noise_channels:
+            noise = self.noise_fields(size) if noise is None else noise
+            if tuple(noise.shape[2:]) != size or noise.shape[1] != self.config.noise_channels:
+                expected = (1, self.config.noise_channels, *size)
+                raise ValueError(f"noise must be {expected} for this density, got {tuple(noise.shape)}.")
+            noise = F.pad(noise.float(), pads)
+        else:
+            noise = None
+        return EncodedDensity(size, (e0, e1, e2), masks, noise)
 
     def decode(self, encoded: EncodedDensity, kernels: StylizingKernels) -> torch.Tensor:
         """The stylized decoder's half of ``forward``: albedo ``(B, 3, D, H, W)``."""
@@ -323,6 +410,10 @@ class SKPN(nn.Module):
         logits = self.decoder[2](x).float()
         if offset is not None:
             logits = logits + offset
+        if NOISE_SITE in kernels.sites and encoded.noise is not None:
+            weight = kernels.sites[NOISE_SITE]["weight"].float()
+            noise = encoded.noise.expand(weight.shape[0], *encoded.noise.shape[1:])
+            logits = logits + torch.einsum("boc,bcdhw->bodhw", weight, noise)
         albedo = 0.5 * (torch.tanh(logits) + 1.0)
         size = encoded.size
         return albedo[..., : size[0], : size[1], : size[2]]
@@ -351,8 +442,9 @@ class SKPN(nn.Module):
         window = occupied_window(density, crop_margin) if crop_margin is not None else None
         part = density if window is None else density[(..., *window)]
         kernels = style if isinstance(style, StylizingKernels) else self.predict_kernels(style)  # float32: cheap
+        noise = self.noise_fields(tuple(density.shape[2:]), window)  # the whole grid's fields, cut as the density
         with torch.autocast(density.device.type, dtype=torch.bfloat16, enabled=precision == "bf16"):
-            albedo = self(part, kernels).float()
+            albedo = self(part, kernels, noise).float()
         return uncrop(albedo, window, density.shape[2:])
 
 

@@ -5,8 +5,9 @@
     mistyle-train --recipe tiny --out runs/tiny             # the same machinery in seconds (tests)
 
 A recipe is stages run in order. Each stage trains one of the package's configs (``mistyle/configs/``)
-with its overrides, starts from the previous stage's chosen weights (``init="previous"``) or from
-scratch, and ends by choosing one of its kept checkpoints (``select``):
+with its overrides, starts from the previous stage's chosen weights (``init="previous"``), from another
+recipe's shipped checkpoint (``init="recipe:NAME"``, checked by its SHA-256) or from scratch, and ends
+by choosing one of its kept checkpoints (``select``):
 
 * ``"last"``: the stage's final weights;
 * ``"step:N"``: the weights of step N (a run that was stopped there, e.g. before it diverged);
@@ -14,6 +15,9 @@ scratch, and ends by choosing one of its kept checkpoints (``select``):
   baseline of the same pair, on the validation split (``VALIDATION_DENSITIES`` x the validation
   paintings, path traced and scored as the benchmark scores: ``mistyle.benchmark.study``). Never the
   benchmark's held-out split.
+* ``"validation:noise"``: the same split, the lowest mean of the median RGB SWD and median patch SWD
+  ratios to the smooth-noise baseline with the colour match (``benchmark.methods``): for a network
+  whose job is to beat that baseline.
 
 Every checkpoint a recipe writes carries ``recipe`` (its name, the stage, and the whole recipe), and
 ``<out>/recipe.json`` records what each stage chose. The shipped checkpoint
@@ -30,7 +34,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
-SELECTIONS = ("last", "step:N", "validation")
+SELECTIONS = ("last", "step:N", "validation", "validation:noise")
 VALIDATION_RES, VALIDATION_SPP = 128, 16
 
 
@@ -39,13 +43,15 @@ class Stage:
     name: str
     config: str  # a file name in mistyle/configs/
     overrides: tuple = ()  # --set values, e.g. ("optim.lr=1e-3",)
-    init: str | None = None  # "previous": the previous stage's chosen weights; None: from scratch
+    init: str | None = None  # "previous": the previous stage's weights; "recipe:NAME": its product; None: scratch
     select: str = "last"  # see the module docstring
     chose: str = ""  # what the stage chose when it made the shipped checkpoint (a record, not an input)
 
     def __post_init__(self):
-        if not (self.select in ("last", "validation") or self.select.startswith("step:")):
+        if not (self.select in ("last", "validation", "validation:noise") or self.select.startswith("step:")):
             raise ValueError(f"Stage {self.name}: select must be one of {', '.join(SELECTIONS)}, got {self.select!r}.")
+        if self.init not in (None, "previous") and not str(self.init).startswith("recipe:"):
+            raise ValueError(f"Stage {self.name}: init must be None, 'previous' or 'recipe:NAME', got {self.init!r}.")
 
 
 @dataclass(frozen=True)
@@ -95,6 +101,12 @@ RECIPES = {
             product_sha256="007e2df1cf7f1b17b6381db84c2b10e4f1fbae14991591d4993dd71fb0080078",
         ),
         Recipe(
+            "skpn_noise",
+            "skpn_cpu's network with a noise site (smooth noise fields weighted per style), only the site trained, "
+            "the colour match in the loop",
+            (Stage("noise", "cpu_noise.toml", init="recipe:skpn_cpu", select="validation:noise"),),
+        ),
+        Recipe(
             "tiny",
             "two short stages on the tiny dataset: the recipe machinery in seconds",
             (
@@ -110,6 +122,19 @@ RECIPES = {
         ),
     )
 }
+
+
+def product_path(name: str) -> Path:
+    """The shipped checkpoint recipe ``name`` made, checked against its SHA-256 (``Stage.init = "recipe:NAME"``)."""
+    import hashlib
+
+    made = recipe(name)
+    if not made.product:
+        raise ValueError(f"Recipe {name!r} ships no checkpoint to start from.")
+    path = Path(__file__).resolve().parents[2] / made.product
+    if not path.is_file() or hashlib.sha256(path.read_bytes()).hexdigest() != made.product_sha256:
+        raise ValueError(f"{path} is not the checkpoint recipe {name!r} made (SHA-256 {made.product_sha256[:12]}).")
+    return path
 
 
 def recipe(name: str) -> Recipe:
@@ -146,7 +171,11 @@ def run_recipe(chosen: Recipe, out: Path, overrides: list[str] | None = None, lo
             keep = ["run.keep_checkpoints=true"]
             config = load_config(CONFIG_DIR / stage.config, [*stage.overrides, *keep, *(overrides or [])])
             resume = (folder / "last.pt").exists()
-            init = previous if stage.init == "previous" and not resume else None
+            init = None
+            if stage.init == "previous" and not resume:
+                init = previous
+            elif stage.init and stage.init.startswith("recipe:") and not resume:
+                init = product_path(stage.init.partition(":")[2])
             log(f"recipe {chosen.name}: stage {number}/{len(chosen.stages)} {stage.name} ({stage.config})")
             stamp = {"name": chosen.name, "stage": stage.name, "recipe": chosen.as_dict()}
             Trainer(config, folder, resume=resume, init=init, recipe=stamp).run()
@@ -180,11 +209,17 @@ def select(stage: Stage, folder: Path, log=print, **validation) -> StageResult:
             found = ", ".join(p.name for p in kept_checkpoints(folder)) or "none"
             raise ValueError(f"Stage {stage.name}: no kept checkpoint of step {step} in {folder} (kept: {found}).")
         return StageResult(stage.name, str(folder), str(path), f"step {step}")
-    scores = validation_scores(kept_checkpoints(folder), log=log, **validation)
+    against = "smooth_noise" if stage.select == "validation:noise" else "uniform"
+    scores = validation_scores(kept_checkpoints(folder), log=log, against=against, **validation)
     if not scores:
         raise ValueError(f"Stage {stage.name}: {folder / 'steps'} holds no kept checkpoint to choose from.")
     best = min(scores, key=scores.get)
-    return StageResult(stage.name, str(folder), best, "lowest median validation RGB SWD x uniform", scores)
+    reason = (
+        "lowest mean of the median validation RGB and patch SWD x smooth noise"
+        if against == "smooth_noise"
+        else "lowest median validation RGB SWD x uniform"
+    )
+    return StageResult(stage.name, str(folder), best, reason, scores)
 
 
 def validation_scores(
@@ -195,13 +230,16 @@ def validation_scores(
     densities: list | None = None,
     cache=Path("data") / "heldout",
     log=print,
+    against: str = "uniform",
 ) -> dict[str, float]:
     """``checkpoint -> median RGB SWD x uniform`` on the validation split, each network's feed-forward
     output scored as ``mistyle-bench`` scores ``network``. ``paintings``: only that many validation
     paintings (0: all); ``densities``: other ``(Z, Y, X)`` grids than ``VALIDATION_DENSITIES`` (made
-    once and cached in ``cache``)."""
+    once and cached in ``cache``). ``against="smooth_noise"``: the mean of the median RGB and patch
+    SWD ratios to the smooth-noise baseline with the colour match instead."""
     import numpy as np
 
+    from ..benchmark.methods import smooth_noise
     from ..benchmark.study import metric_views, score, uniform_baseline
     from ..data.heldout import VALIDATION_DENSITIES, held_out_density
     from ..io import load_style
@@ -221,12 +259,22 @@ def validation_scores(
         for d, density in enumerate(densities):
             for s, style in enumerate(styles):
                 if (d, s) not in baselines:
-                    uniform = uniform_baseline(
-                        density, style, views, density_scale=pipeline.density_scale, radiance=pipeline.radiance
-                    )
-                    baselines[d, s] = score(density, uniform, style, views, **options)[0]["rgb_swd"]
+                    if against == "smooth_noise":  # the benchmark's smooth_noise method
+                        field = smooth_noise(density.shape)
+                        baseline = pipeline.stylizer.match_colours([field], [density], style)[0]
+                    else:
+                        baseline = uniform_baseline(
+                            density, style, views, density_scale=pipeline.density_scale, radiance=pipeline.radiance
+                        )
+                    baselines[d, s] = score(density, baseline, style, views, **options)[0]
                 albedo = pipeline.stylize(density, style).albedos[0]
-                ratios.append(score(density, albedo, style, views, **options)[0]["rgb_swd"] / baselines[d, s])
-        scores[str(path)] = float(np.median(ratios))
-        log(f"validation: {path.name}: median RGB SWD x uniform {scores[str(path)]:.3f}")
+                metrics = score(density, albedo, style, views, **options)[0]
+                ratios.append([metrics[key] / baselines[d, s][key] for key in ("rgb_swd", "patch_swd")])
+        ratios = np.asarray(ratios)
+        if against == "smooth_noise":
+            scores[str(path)] = float(np.mean(np.median(ratios, axis=0)))
+            log(f"validation: {path.name}: mean of median RGB and patch SWD x smooth noise {scores[str(path)]:.3f}")
+        else:
+            scores[str(path)] = float(np.median(ratios[:, 0]))
+            log(f"validation: {path.name}: median RGB SWD x uniform {scores[str(path)]:.3f}")
     return scores

@@ -132,7 +132,7 @@ class Trainer:
         self.network = self.model
         if self.world > 1:
             self.network = torch.nn.parallel.DistributedDataParallel(self.model)
-        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.optim.lr, betas=config.optim.betas)
+        self.optimizer = torch.optim.Adam(self.trained_parameters(), lr=config.optim.lr, betas=config.optim.betas)
         steps_per_epoch = max(1, len(self.data.train) // config.optim.batch)
         self.scheduler = torch.optim.lr_scheduler.StepLR(
             self.optimizer,
@@ -140,6 +140,7 @@ class Trainer:
             gamma=config.optim.lr_decay,
         )
         self.objective = make_objective(config.loss, self.extractor)
+        self._responses = {}  # loss.colour_match: the grey response of each training frame seen
         self.path = CameraPath(distance=config.render.camera_distance)
         self.rng = np.random.default_rng([config.run.seed, self.rank])
         self.step, self.seconds = 0, 0.0
@@ -155,6 +156,20 @@ class Trainer:
             f"({self.data.shape} voxels), {len(self.styles.train)} training styles; "
             f"{len(self.data.val)} validation pairs, {len(self.styles.val)} validation styles"
         )
+
+    def trained_parameters(self) -> list:
+        """The parameters ``optim.tune`` names (by prefix; all when empty); the others are frozen, so the
+        backward pass stops where the trained ones end."""
+        prefixes = tuple(self.config.optim.tune)
+        named = list(self.model.named_parameters())
+        trained = [parameter for name, parameter in named if not prefixes or name.startswith(prefixes)]
+        if not trained:
+            names = sorted({name.split(".")[0] for name, _ in named})
+            raise ValueError(f"optim.tune = {list(prefixes)} names no parameter; the model's parts are {names}.")
+        chosen = {id(parameter) for parameter in trained}
+        for _, parameter in named:
+            parameter.requires_grad_(id(parameter) in chosen)
+        return trained
 
     # ------------------------------------------------------------------ one update
     def sample_batch(self) -> dict:
@@ -184,6 +199,8 @@ class Trainer:
                 density = torch.cat([stack("density0"), stack("density1")])[:, None]
                 albedo = self.network(density, style.repeat(2)).float()
                 current, following = albedo[: len(frames)], albedo[len(frames) :]
+        if config.loss.colour_match:
+            current, following = self._colour_matched(current, following, frames, batch["styles"])
         prepared = [prepare_density(f["density0"], self.data.density_scale, ls=f["ls0"]) for f in frames]
         images = self._render(current, prepared, batch["views"])
         loss_hist = self.objective.loss(
@@ -200,6 +217,44 @@ class Trainer:
         )
         terms = {"loss": loss, "loss_hist": loss_hist, "loss_tv": loss_tv, "loss_temp": loss_temp}
         return terms, images
+
+    def _colour_matched(self, current, following, frames, styles) -> tuple[torch.Tensor, torch.Tensor]:
+        """``current`` and ``following`` ``(B, 3, D, H, W)`` with each item's colour match (``loss.colour_match``):
+        fitted on the item's frame-t albedo as the product fits it, applied to both frames (the sequence
+        rule: one map per style), differentiable in the albedo."""
+        from ..colour_match import InvisibleMedium, fit_colour_match, grey_response
+
+        config = self.config
+        light = dict(
+            density_scale=self.data.density_scale,
+            radiance=config.render.radiance,
+            camera_distance=config.render.camera_distance,
+        )
+        matched_current, matched_following = [], []
+        for item, frame in enumerate(frames):
+            inside = torch.from_numpy(frame["density0"] > 0).to(self.device)
+            inside_next = torch.from_numpy(frame["density1"] > 0).to(self.device)
+            try:
+                key = frame["density0"].tobytes()  # the grey response depends on the density only: once per frame
+                if key not in self._responses:
+                    self._responses[key] = grey_response(frame["density0"], **light)
+                # Without the feedback render (step 4 of colour_match): a quarter of the cost, a small correction.
+                match = fit_colour_match(
+                    current[item].detach().permute(1, 2, 3, 0).cpu().numpy(),
+                    frame["density0"],
+                    styles[item].permute(1, 2, 0).cpu().numpy(),
+                    **light,
+                    seed=int(self.rng.integers(2**31)),
+                    feedback=False,
+                    response=self._responses[key],
+                )
+            except InvisibleMedium:  # nothing to match on this item: it trains unmatched
+                matched_current.append(current[item])
+                matched_following.append(following[item])
+                continue
+            matched_current.append(match.apply_torch(current[item], inside))
+            matched_following.append(match.apply_torch(following[item], inside_next))
+        return torch.stack(matched_current), torch.stack(matched_following)
 
     def _body_masks(self, prepared, views) -> torch.Tensor:
         """``(B*V, 1, H, W)``: the medium's body in each view (a white albedo rendered, no gradient)."""
@@ -338,11 +393,18 @@ class Trainer:
         # A palette-head network (the head was removed): ConfigError naming the commit that still has it.
         drop_retired_model_keys(checkpoint.get("config", {}).get("model", {}), f"--init {path}")
         try:
-            self.model.load_state_dict(checkpoint["model"])
+            missing, unexpected = self.model.load_state_dict(checkpoint["model"], strict=False)
         except RuntimeError as error:
             raise ValueError(
                 f"--init {path} does not fit this run's [model] config ({str(error).splitlines()[0]})."
             ) from None
+        # A noise site added to a network without one starts at zero: the network computes what it did.
+        missing = [key for key in missing if not key.startswith("noise_predictor.")]
+        if missing or unexpected:
+            raise ValueError(
+                f"--init {path} does not fit this run's [model] config (missing {missing[:3]}, unexpected "
+                f"{unexpected[:3]})."
+            )
         self.log(f"initialised from the weights of {path} (step {checkpoint.get('step', '?')} of its run)")
 
     def _on_signal(self, signum, frame):
@@ -386,6 +448,8 @@ class Trainer:
             for index in style_ids:
                 style = self.styles.val[index : index + 1].to(self.device)
                 albedo = self.model(density, self._style_inputs(style))
+                if config.loss.colour_match:  # what the product shows of it
+                    albedo = self._colour_matched(albedo, albedo, [frame], style)[0]
                 images = self._render(albedo, [prepared], views)[0]
                 style_np = style[0].permute(1, 2, 0).cpu().numpy()
                 renders = [image.permute(1, 2, 0).cpu().numpy() for image in images]

@@ -1,0 +1,179 @@
+"""The SKPN's noise site: its fields, a zero start, crops, strength, blending, training only it, looks."""
+
+import numpy as np
+import pytest
+import torch
+
+from mistyle.model.noise import noise_fields
+from mistyle.model.skpn import NOISE_SITE, SKPN, SKPNConfig, StylizingKernels
+
+GEN = torch.Generator().manual_seed(0)
+TINY = dict(widths=(4, 8, 8), style_channels=(3, 4, 5, 6), style_hidden=16)
+NOISY = dict(TINY, noise_scales=(0.05, 0.2), noise_per_scale=2)
+
+
+def style_levels(batch=1, seed=0):
+    generator = torch.Generator().manual_seed(seed)
+    return [
+        torch.rand(batch, c, 8 // 2**i, 8 // 2**i, generator=generator) for i, c in enumerate(TINY["style_channels"])
+    ]
+
+
+def with_noise_weights(model: SKPN, scale: float = 1.0) -> SKPN:
+    """``model`` with its noise predictor's last layer set to give non-zero weights."""
+    last = model.noise_predictor.mlp[-1]
+    with torch.no_grad():
+        last.bias.copy_(scale * torch.randn(last.bias.shape, generator=GEN))
+        last.weight.copy_(scale * torch.randn(last.weight.shape, generator=GEN))
+    return model
+
+
+def test_fields_are_seeded_normalised_and_smoother_at_larger_scales():
+    fields = noise_fields((12, 16, 20), (0.05, 0.25), 2, seed=3)
+    assert fields.shape == (4, 12, 16, 20) and fields.dtype == torch.float32
+    assert torch.equal(fields, noise_fields((12, 16, 20), (0.05, 0.25), 2, seed=3))
+    assert not torch.equal(fields, noise_fields((12, 16, 20), (0.05, 0.25), 2, seed=4))
+    flat = fields.flatten(1)
+    assert torch.allclose(flat.mean(1), torch.zeros(4), atol=1e-5)
+    assert torch.allclose(flat.std(1), torch.ones(4), atol=1e-4)
+    roughness = (fields[:, :, :, 1:] - fields[:, :, :, :-1]).abs().mean(dim=(1, 2, 3))
+    assert float(roughness[2:].max()) < 0.6 * float(roughness[:2].min())
+    fields.zero_()  # the cached fields are not the caller's to change
+    assert noise_fields((12, 16, 20), (0.05, 0.25), 2, seed=3).abs().sum() > 0
+
+
+@pytest.mark.parametrize("scales", [(0.0,), (1.5,), (-0.1, 0.2)])
+def test_scales_outside_the_box_are_refused(scales):
+    with pytest.raises(ValueError, match="noise scales must lie in"):
+        SKPNConfig(**dict(TINY, noise_scales=scales))
+
+
+def test_a_noise_site_added_to_a_trained_network_starts_where_it_was():
+    """Loading a network without a noise site into one with it leaves only the site's predictor missing,
+    and the site starts at zero: the same albedo."""
+    torch.manual_seed(1)
+    plain = SKPN(SKPNConfig(**TINY))
+    noisy = SKPN(SKPNConfig(**NOISY))
+    missing, unexpected = noisy.load_state_dict(plain.state_dict(), strict=False)
+    assert unexpected == [] and missing and all(key.startswith("noise_predictor.") for key in missing)
+    density = torch.rand(1, 1, 10, 12, 9, generator=GEN)
+    with torch.no_grad():
+        assert torch.equal(plain(density, style_levels()), noisy(density, style_levels()))
+    kernels = noisy.predict_kernels(style_levels())
+    assert kernels.sites[NOISE_SITE]["weight"].shape == (1, 3, 4)
+
+
+def test_the_site_adds_style_weighted_fields_before_the_tanh():
+    """Against the same network without the site: the pre-tanh values differ by exactly the predicted weights
+    times the fields, which vary where the density does not (a block of constant density)."""
+    density = torch.zeros(1, 1, 16, 16, 16)
+    density[..., 2:14, 2:14, 2:14] = 1.0
+    model = with_noise_weights(SKPN(SKPNConfig(**NOISY)), scale=0.3)
+    plain = SKPN(SKPNConfig(**TINY))
+    plain.load_state_dict(model.state_dict(), strict=False)
+    with torch.no_grad():
+        difference = torch.atanh(2 * model(density, style_levels()).double() - 1) - torch.atanh(
+            2 * plain(density, style_levels()).double() - 1
+        )
+        weight = model.predict_kernels(style_levels()).sites[NOISE_SITE]["weight"][0]
+        other = model.predict_kernels(style_levels(seed=5)).sites[NOISE_SITE]["weight"][0]
+    expected = torch.einsum("oc,cdhw->odhw", weight.double(), model.noise_fields((16, 16, 16))[0].double())
+    assert float((difference[0] - expected).abs().max()) < 1e-3
+    assert float(expected[:, 5:11, 5:11, 5:11].std()) > 0.1
+    assert float((weight - other).abs().max()) > 1e-3  # another style, other weights
+
+
+def test_inference_on_a_crop_uses_the_whole_grids_fields():
+    """``infer`` crops to the occupied box; the noise it sees there is the whole grid's, cut the same way."""
+    model = with_noise_weights(SKPN(SKPNConfig(**NOISY)), scale=2.0).eval()
+    density = torch.zeros(1, 1, 24, 20, 28)
+    density[..., 8:18, 6:14, 10:22] = torch.rand(1, 1, 10, 8, 12, generator=GEN) + 0.5
+    with torch.no_grad():
+        whole = model(density, style_levels())
+        cropped = model.infer(density, style_levels(), precision="fp32")
+    occupied = density[0, 0] > 0
+    assert float((whole - cropped)[0][:, occupied].abs().max()) < 0.05
+    assert float((whole - cropped)[0][:, occupied].abs().mean()) < 0.01
+
+
+def test_strength_zero_and_blends_carry_the_noise_site():
+    model = with_noise_weights(SKPN(SKPNConfig(**NOISY, kernels=4)))
+    kernels = model.predict_kernels(style_levels())
+    neutral = model.neutral_kernels(kernels, grey=0.5)
+    assert float(neutral.sites[NOISE_SITE]["weight"].abs().max()) == 0.0
+    other = model.predict_kernels(style_levels(seed=2))
+    half = StylizingKernels.blend([(kernels, 1.0), (other, 1.0)])
+    expected = 0.5 * (kernels.sites[NOISE_SITE]["weight"] + other.sites[NOISE_SITE]["weight"])
+    assert torch.allclose(half.sites[NOISE_SITE]["weight"], expected)
+    density = torch.zeros(1, 1, 12, 12, 12)
+    density[..., 2:10, 2:10, 2:10] = 1.0
+    with torch.no_grad():
+        grey = model(density, neutral)[0][:, 4:8, 4:8, 4:8]
+    assert float((grey - 0.5).abs().max()) < 1e-3
+
+
+def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_path):
+    """``optim.tune`` freezes everything else; ``loss.colour_match`` fits the product's match per item."""
+    from mistyle.data.generate import generate_smoke
+    from mistyle.model.config import load_config
+    from mistyle.train.dataset import DATASET_SPECS
+    from mistyle.train.trainer import Trainer
+
+    smoke = tmp_path / "smoke"
+    generate_smoke(DATASET_SPECS["tiny"], smoke, log=lambda *a: None)
+    config = load_config(
+        "configs/tiny.toml",
+        [
+            f'data.smoke="{smoke}"',
+            "optim.steps=3",
+            "run.eval_every=100",
+            "model.noise_scales=[0.1, 0.25]",
+            "model.noise_per_scale=1",
+            "loss.colour_match=true",
+            'optim.tune=["noise_predictor"]',
+            "optim.lr=1e-2",
+        ],
+    )
+    trainer = Trainer(config, tmp_path / "run", log=lambda *a: None)
+    before = {name: value.detach().clone() for name, value in trainer.model.state_dict().items()}
+    trainer.run()
+    after = trainer.model.state_dict()
+    changed = sorted(name for name in before if not torch.equal(before[name], after[name]))
+    assert changed and all(name.startswith("noise_predictor.") for name in changed)
+    assert "noise_predictor.mlp.4.bias" in changed  # the zero start moved
+    bad = load_config("configs/tiny.toml", [f'data.smoke="{smoke}"', 'optim.tune=["nothing_here"]'])
+    with pytest.raises(ValueError, match="names no parameter"):
+        Trainer(bad, tmp_path / "bad", log=lambda *a: None)
+
+
+def test_a_look_of_a_noise_site_network_saves_and_loads(mi, tmp_path, blob_density):
+    """Look files store the noise site's kernel under its name; the loaded look gives the same albedo."""
+    from mistyle import __version__
+    from mistyle.look import Look, LookSettings, fit_look
+    from mistyle.model.config import config_to_dict, load_config
+    from mistyle.model.features import make_extractor
+    from mistyle.stylizer import Stylizer
+
+    config = load_config("configs/tiny.toml", ["model.noise_scales=[0.1]", "model.noise_per_scale=2"])
+    config.model.style_channels = make_extractor("filterbank").channels
+    model = with_noise_weights(SKPN(config.model))
+    path = tmp_path / "noisy.pt"
+    torch.save(
+        {
+            "format": 1,
+            "mistyle_version": __version__,
+            "step": 0,
+            "config": config_to_dict(config),
+            "extractor": "filterbank",
+            "density_scale": 20.0,
+            "model": model.state_dict(),
+        },
+        path,
+    )
+    stylizer = Stylizer(path)
+    style = np.random.default_rng(0).random((32, 32, 3))
+    look = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=2, layer_res=24))
+    assert NOISE_SITE in look.kernels.sites
+    look.save(tmp_path / "a.look")
+    again = Look.load(tmp_path / "a.look", stylizer=stylizer)
+    assert np.array_equal(look.stylize(blob_density), again.stylize(blob_density))

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
+from .denoise import DENOISERS
 from .io import load_style
 from .stylizer import (  # noqa: F401 - also the pipeline's names: callers import them from here
     DEFAULT_CHECKPOINT,
@@ -70,6 +71,7 @@ class RenderSettings:
     bricks: int | None = None  # voxels per majorant brick; None: scenes.bricks.DEFAULT_BRICK (0 under a coat)
     view: float = HELD_OUT_VIEW  # the camera's position on the orbit, in [0, 1)
     turntable: int = 0  # > 0: this many views evenly around the orbit from ``view``
+    denoise: str = "oidn"  # mistyle.denoise.DENOISERS: Intel Open Image Denoise on the path-traced images, or "none"
 
 
 @dataclass
@@ -95,6 +97,8 @@ class PipelineSettings:
     def __post_init__(self):
         validate_strength(self.strength)
         validate_scale_structures(self.scale_structures)
+        if self.render.denoise not in DENOISERS:
+            raise ValueError(f"denoise must be one of {', '.join(DENOISERS)}, got {self.render.denoise!r}.")
         if self.device not in DEVICES:
             raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {self.device!r}.")
         for name in ("refine_steps", "refine_path_steps", "look_steps"):
@@ -422,8 +426,10 @@ class Pipeline:
         of a single frame, or for a sequence frame ``i`` from view ``i mod len(views)``. Returns
         ``(images (res, res, 3) linear RGB, seconds per image)``; ``progress(done, count, seconds)``
         after each image."""
+        from .denoise import denoise
         from .pathtrace import path_trace
 
+        render = self.settings.render
         images, seconds = [], []
         for frame, frame_views in self.render_plan(frames, views, first):
             frame_images, took = path_trace(
@@ -434,6 +440,10 @@ class Pipeline:
                 progress=progress,
                 **self.trace_options(),
             )
+            if render.denoise == "oidn":
+                started = time.perf_counter()
+                frame_images = [denoise(image) for image in frame_images]
+                took = [t + (time.perf_counter() - started) / len(took) for t in took]
             images += frame_images
             seconds += took
         check_finite("The path-traced image", images)

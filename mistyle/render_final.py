@@ -60,6 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS, UP_AXES
+from .denoise import DENOISERS, oidn_missing
 
 
 def _coat(text: str) -> float:
@@ -168,6 +169,13 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--max-depth", type=int, default=-1, help="-1: full multiple scattering; 2: single scattering")
+    p.add_argument(
+        "--denoise",
+        choices=DENOISERS,
+        default=DENOISERS[0],
+        help="oidn: denoise the path-traced images with Intel Open Image Denoise, guided by the albedo the "
+        "camera sees (default); none: the path tracer's images as they are",
+    )
     p.add_argument("--res", type=int, default=256)
     p.add_argument(
         "--density-scale", type=float, default=None, help="extinction per unit density (default: training's)"
@@ -287,6 +295,7 @@ def settings_from(args):
         bricks=args.bricks,
         view=args.view,
         turntable=args.turntable,
+        denoise=args.denoise,
     )
     return PipelineSettings(
         checkpoint=args.checkpoint,
@@ -422,7 +431,9 @@ def render_job(job: Job) -> None:
     write_coat_mesh(job)
     stylized = stylize_frames(job, report)
     images, layer_images = render_frames(job, stylized, report)
+    started = time.perf_counter()
     report["files"] = write_assets(job, stylized)
+    report["assets_seconds"] = time.perf_counter() - started
     write_report(job, stylized, images, layer_images, report)
 
 
@@ -526,6 +537,7 @@ def check_options(args) -> None:
             not (args.bricks and args.coat is not None),
             "--bricks needs one medium under --coat (the coat is an optical boundary on the box); drop --bricks",
         ),
+        (args.denoise != "oidn" or oidn_missing() is None, oidn_missing() or ""),
     ]
     for ok, message in checks:
         if not ok:
@@ -663,6 +675,7 @@ def _inputs_record(job: Job) -> dict:
         "look_sha256": None if job.look is None else job.look.meta.get("file_sha256"),
         "light": args.light,
         "spp": args.spp,
+        "denoise": args.denoise,
         "max_depth": args.max_depth,
         "res": args.res,
         "density_scale": pipeline.density_scale,
@@ -816,6 +829,7 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     from .pages import SHEET_FILE, write_sheet
 
     style = stylized.target
+    started = time.perf_counter()
     if any(foreground_mask(image).any() for image in images):
         final = [style_distance(image, style) for image in images]
         report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
@@ -833,6 +847,7 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
         if report.get(key) is not None and not np.isfinite(report[key]):
             report[key] = None
             job.notes.append(f"{key} left out: too few pixels see the medium to measure it")
+    report["metrics_seconds"] = time.perf_counter() - started
     if job.merged:  # the folder's report, sheet and index describe all its frames: merge_chunk
         report["frames"] = {
             f"{job.first + index:04d}": frame_metrics(image, style) for index, image in enumerate(images)

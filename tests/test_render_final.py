@@ -634,6 +634,8 @@ def test_the_written_scene_reproduces_the_final_render(mi, checkpoint, inputs, t
                 "constant:5",
                 "--bricks",
                 "0",
+                "--denoise",
+                "none",  # scene.xml reproduces the path tracer's image; denoising comes after it
             ]
         )
         == 0

@@ -497,7 +497,9 @@ def fit_look(
         name if len(parts) == 1 else f"{weight / sum(weights):.2f} x {name}"
         for name, weight in zip(style_names, weights)
     )
-    initial = stylizer.kernels(parts)
+    # A look's own texture does what the network's noise site does, fitted to the style: started with the
+    # site's noise, looks came out worse (docs/decisions/2026-12-02-noise-site.md), so a look starts without it.
+    initial = stylizer.kernels(parts).without_noise()
 
     network = copy.deepcopy(stylizer.trained.model).float().eval()
     for parameter in network.parameters():

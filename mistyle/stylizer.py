@@ -14,7 +14,8 @@ import numpy as np
 from .io import load_style
 
 PACKAGE = Path(__file__).resolve().parent
-DEFAULT_CHECKPOINT = PACKAGE / "checkpoints" / "skpn_cpu.pt"
+DEFAULT_CHECKPOINT = PACKAGE / "checkpoints" / "skpn_noise.pt"
+"""The bundled network: recipe ``skpn_noise`` (``mistyle.train.recipes``), ``skpn_cpu.pt`` with a noise site."""
 SCALE_STRUCTURES_RANGE = (0.125, 8.0)
 # Rec. 709 luma of display RGB: the brightness a neutral (strength 0) medium keeps from the style.
 LUMA_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])

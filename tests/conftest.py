@@ -18,6 +18,17 @@ def blob_density():
     return pyroclastic_sphere((16, 18, 20), radius=0.34, falloff=0.08, seed=3)
 
 
+@pytest.fixture(scope="session")
+def tiny_smoke(tmp_path_factory):
+    """The tiny training dataset (``DATASET_SPECS["tiny"]``), generated once per session."""
+    from mistyle.data.generate import generate_smoke
+    from mistyle.train.dataset import DATASET_SPECS
+
+    out = tmp_path_factory.mktemp("data") / "smoke"
+    generate_smoke(DATASET_SPECS["tiny"], out, log=lambda *a: None)
+    return out
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)

@@ -79,7 +79,7 @@ def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
     stored = read_rows(tmp_path / "rows.jsonl")
     assert [row.method for row in stored] == methods
     row = stored[0]
-    assert row.density == "pyroclastic16" and row.settings["res"] == 16 and row.checkpoint.startswith("skpn_cpu.pt:")
+    assert row.density == "pyroclastic16" and row.settings["res"] == 16 and row.checkpoint.startswith("skpn_noise.pt:")
     assert np.isfinite([row.rgb_swd, row.patch_swd, row.hue_coverage]).all() and row.commit
     assert summary(stored)["uniform"]["rgb_swd_x_uniform"] == 1.0
     table = (tmp_path / "table.md").read_text()

@@ -112,19 +112,15 @@ def test_strength_zero_and_blends_carry_the_noise_site():
     assert float((grey - 0.5).abs().max()) < 1e-3
 
 
-def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_path):
+def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_path, tiny_smoke):
     """``optim.tune`` freezes everything else; ``loss.colour_match`` fits the product's match per item."""
-    from mistyle.data.generate import generate_smoke
     from mistyle.model.config import load_config
-    from mistyle.train.dataset import DATASET_SPECS
     from mistyle.train.trainer import Trainer
 
-    smoke = tmp_path / "smoke"
-    generate_smoke(DATASET_SPECS["tiny"], smoke, log=lambda *a: None)
     config = load_config(
         "configs/tiny.toml",
         [
-            f'data.smoke="{smoke}"',
+            f'data.smoke="{tiny_smoke}"',
             "optim.steps=3",
             "run.eval_every=100",
             "model.noise_scales=[0.1, 0.25]",
@@ -141,39 +137,48 @@ def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_
     changed = sorted(name for name in before if not torch.equal(before[name], after[name]))
     assert changed and all(name.startswith("noise_predictor.") for name in changed)
     assert "noise_predictor.mlp.4.bias" in changed  # the zero start moved
-    bad = load_config("configs/tiny.toml", [f'data.smoke="{smoke}"', 'optim.tune=["nothing_here"]'])
+    bad = load_config("configs/tiny.toml", [f'data.smoke="{tiny_smoke}"', 'optim.tune=["nothing_here"]'])
     with pytest.raises(ValueError, match="names no parameter"):
         Trainer(bad, tmp_path / "bad", log=lambda *a: None)
 
 
-def test_a_look_of_a_noise_site_network_saves_and_loads(mi, tmp_path, blob_density):
-    """Look files store the noise site's kernel under its name; the loaded look gives the same albedo."""
+def noisy_tiny_checkpoint(path, noise: bool = True):
+    """A tiny SKPN checkpoint with a noise site whose weights are not zero (``noise=False``: the same
+    network without the site)."""
     from mistyle import __version__
-    from mistyle.look import Look, LookSettings, fit_look
     from mistyle.model.config import config_to_dict, load_config
     from mistyle.model.features import make_extractor
-    from mistyle.stylizer import Stylizer
 
     config = load_config("configs/tiny.toml", ["model.noise_scales=[0.1]", "model.noise_per_scale=2"])
     config.model.style_channels = make_extractor("filterbank").channels
+    torch.manual_seed(3)
     model = with_noise_weights(SKPN(config.model))
-    path = tmp_path / "noisy.pt"
-    torch.save(
-        {
-            "format": 1,
-            "mistyle_version": __version__,
-            "step": 0,
-            "config": config_to_dict(config),
-            "extractor": "filterbank",
-            "density_scale": 20.0,
-            "model": model.state_dict(),
-        },
-        path,
-    )
-    stylizer = Stylizer(path)
+    state = model.state_dict()
+    if not noise:
+        config.model.noise_scales = ()
+        state = {key: value for key, value in state.items() if not key.startswith("noise_predictor.")}
+    record = {"format": 1, "mistyle_version": __version__, "step": 0, "config": config_to_dict(config)}
+    torch.save({**record, "extractor": "filterbank", "density_scale": 20.0, "model": state}, path)
+    return path
+
+
+def test_a_look_of_a_noise_site_network_saves_and_loads_and_starts_without_the_noise(mi, tmp_path, blob_density):
+    """Look files store the noise site's kernel under its name; the loaded look gives the same albedo. A look
+    starts from the network without its noise (its own texture takes that part): the same look as the
+    network without the site fits."""
+    from mistyle.look import Look, LookSettings, fit_look
+    from mistyle.stylizer import Stylizer
+
+    stylizer = Stylizer(noisy_tiny_checkpoint(tmp_path / "noisy.pt"))
     style = np.random.default_rng(0).random((32, 32, 3))
-    look = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=2, layer_res=24))
-    assert NOISE_SITE in look.kernels.sites
+    settings = LookSettings(steps=2, layer_res=24)
+    look = fit_look(stylizer, [blob_density], style, settings=settings)
+    assert float(look.kernels.sites[NOISE_SITE]["weight"].abs().max()) == 0.0
     look.save(tmp_path / "a.look")
     again = Look.load(tmp_path / "a.look", stylizer=stylizer)
-    assert np.array_equal(look.stylize(blob_density), again.stylize(blob_density))
+    albedo = look.stylize(blob_density)
+    assert np.array_equal(albedo, again.stylize(blob_density))
+    plain = fit_look(
+        Stylizer(noisy_tiny_checkpoint(tmp_path / "plain.pt", noise=False)), [blob_density], style, settings=settings
+    )
+    assert np.allclose(albedo, plain.stylize(blob_density), atol=1e-3)

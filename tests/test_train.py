@@ -17,16 +17,6 @@ REPO = Path(__file__).resolve().parents[1]
 TINY = str(REPO / "configs" / "tiny.toml")
 
 
-@pytest.fixture(scope="module")
-def tiny_smoke(tmp_path_factory):
-    from mistyle.data.generate import generate_smoke
-    from mistyle.train.dataset import DATASET_SPECS
-
-    out = tmp_path_factory.mktemp("data") / "smoke"
-    generate_smoke(DATASET_SPECS["tiny"], out, log=lambda *a: None)
-    return out
-
-
 def command(out, smoke, *extra, launcher=(sys.executable, "-m")):
     return [*launcher, "mistyle.train", "--config", TINY, "--out", str(out), "--set", f'data.smoke="{smoke}"', *extra]
 
@@ -349,8 +339,13 @@ def test_recipes_name_package_configs_and_refuse_unknown_names():
         assert all((CONFIG_DIR / stage.config).is_file() for stage in chosen.stages), chosen.name
     import hashlib
 
+    for name in ("skpn_cpu", "skpn_noise"):  # each names exactly one file
+        made = RECIPES[name]
+        assert hashlib.sha256((REPO / made.product).read_bytes()).hexdigest() == made.product_sha256
+    from mistyle.stylizer import DEFAULT_CHECKPOINT
+
+    assert DEFAULT_CHECKPOINT.resolve() == (REPO / RECIPES["skpn_noise"].product).resolve()
     shipped = RECIPES["skpn_cpu"]
-    assert hashlib.sha256((REPO / shipped.product).read_bytes()).hexdigest() == shipped.product_sha256
     with pytest.raises(ValueError, match="Unknown recipe"):
         recipe("nope")
     with pytest.raises(ValueError, match="select must be one of"):

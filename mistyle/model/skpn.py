@@ -107,6 +107,13 @@ class StylizingKernels(NamedTuple):
 
     sites: dict
 
+    def without_noise(self) -> StylizingKernels:
+        """These kernels with the noise site's weights at zero (``NOISE_SITE``; unchanged without one)."""
+        if NOISE_SITE not in self.sites:
+            return self
+        weight = self.sites[NOISE_SITE]["weight"]
+        return StylizingKernels({**self.sites, NOISE_SITE: {"weight": torch.zeros_like(weight)}})
+
     @staticmethod
     def blend(parts: list[tuple[StylizingKernels, float]]) -> StylizingKernels:
         """``sum_i w_i K_i`` over ``parts = [(K_i, w_i)]``, the weights normalised to sum 1 (each >= 0)."""
@@ -325,10 +332,7 @@ class SKPN(nn.Module):
         site = dict(kernels.sites[last])
         site["gamma"] = torch.zeros_like(site["gamma"])
         site["beta"] = beta.to(site["beta"]).expand_as(site["beta"]).clone()
-        sites = {**kernels.sites, last: site}
-        if NOISE_SITE in sites:  # grey everywhere: no noise either
-            sites[NOISE_SITE] = {"weight": torch.zeros_like(sites[NOISE_SITE]["weight"])}
-        return StylizingKernels(sites)
+        return StylizingKernels({**kernels.sites, last: site}).without_noise()  # grey everywhere: no noise either
 
     def forward(
         self,

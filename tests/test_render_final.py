@@ -923,7 +923,15 @@ def test_a_signal_during_refinement_exits_in_one_line_and_leaves_nothing(
         "10000",
         "--quiet",
     ]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # A test run started in the background (``pytest &``) has SIGINT ignored, and a child inherits that,
+    # so Python would never see the Ctrl-C; a terminal's foreground process has the default action.
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     deadline = time.time() + 120
     while not list(tmp_path.glob(".out.partial-*")) and time.time() < deadline:
         time.sleep(0.2)

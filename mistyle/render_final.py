@@ -521,6 +521,7 @@ def check_options(args) -> None:
     validate_scale_structures(args.scale_structures, "--scale-structures")
     validate_coat_ior(args.coat, "--coat dielectric:<ior>")
     validate_strength(args.strength, "--strength")
+    missing_denoiser = oidn_missing() if args.denoise == "oidn" else None
     checks = [
         (1 <= args.spp <= 1 << 16, f"--spp must lie in [1, 65536], got {args.spp}"),
         (8 <= args.res <= 8192, f"--res must lie in [8, 8192], got {args.res}"),
@@ -537,7 +538,7 @@ def check_options(args) -> None:
             not (args.bricks and args.coat is not None),
             "--bricks needs one medium under --coat (the coat is an optical boundary on the box); drop --bricks",
         ),
-        (args.denoise != "oidn" or oidn_missing() is None, oidn_missing() or ""),
+        (args.denoise != "oidn" or missing_denoiser is None, missing_denoiser or ""),
     ]
     for ok, message in checks:
         if not ok:

@@ -30,6 +30,7 @@ MIN_CAMERA_DISTANCE = 0.9  # cameras stay outside the medium box (half-diagonal 
 MAX_DENSITY = 1e6  # above this, float32 statistics of the network (DAIN variances) overflow
 MAX_DENSITY_SCALE = 1e6  # extinction per unit density; beyond it a voxel is opaque many times over
 HELD_OUT_VIEW = 0.0625
+REFINE_LAYER_STEPS, REFINE_PATH_STEPS = 120, 16  # fit.RefineSettings' steps (here: --help needs no torch)
 FOREGROUND_THRESHOLD = 1e-3
 LS_DIRECTIONS = 128
 

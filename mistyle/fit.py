@@ -29,7 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from .conventions import DEFAULT_ENV_RADIANCE, ORBIT_DISTANCE
+from .adam import Adam
+from .conventions import DEFAULT_ENV_RADIANCE, ORBIT_DISTANCE, REFINE_LAYER_STEPS, REFINE_PATH_STEPS
 from .objective.losses import tv_loss
 from .objective.masks import body_mask
 from .scenes import CameraPath, View
@@ -105,7 +106,7 @@ def fit_albedo(
     """
     settings = FitSettings() if settings is None else settings
     variable = _Albedo(initial, settings.parametrisation)
-    optimizer = torch.optim.Adam([variable.free], lr=settings.lr)
+    optimizer = Adam([variable.free], lr=settings.lr)
     targets = objective.targets(style[None])
     orbit, rng = CameraPath(distance=settings.camera_distance), np.random.default_rng(settings.seed)
     losses = []
@@ -171,8 +172,8 @@ class RefineSettings:
     steps find the style's hues and patterns, the path-traced steps then absorb what multiple scattering changes.
     """
 
-    layer_steps: int = 120
-    path_steps: int = 16
+    layer_steps: int = REFINE_LAYER_STEPS
+    path_steps: int = REFINE_PATH_STEPS
     layer_res: int = 64
     path_res: int = 64
     spp: int = 8

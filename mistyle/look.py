@@ -84,15 +84,26 @@ class LookSettings:
             raise ValueError(f"tune_decoder takes decoder convolutions 0, 1, 2; got {self.tune_decoder}.")
         if self.colour_match not in COLOUR_MATCH_MODES:
             raise ValueError(f"colour_match must be one of {', '.join(COLOUR_MATCH_MODES)}, got {self.colour_match!r}.")
-        if not set(self.tune_sites) <= {0, 1, 2, 3} or not self.tune_sites:
-            raise ValueError(f"tune_sites takes kernel sites 0-3 (at least one); got {self.tune_sites}.")
+        if not set(self.tune_sites) <= {0, 1, 2, 3}:
+            raise ValueError(f"tune_sites takes kernel sites 0-3; got {self.tune_sites}.")
+        if not (self.tune_sites or self.tune_decoder or self.texture_side or self.noise_channels):
+            raise ValueError("A look must fit something: kernel sites, decoder convolutions, a texture or noise.")
         self.tune_decoder = tuple(sorted(set(int(i) for i in self.tune_decoder)))
         self.tune_sites = tuple(sorted(set(int(i) for i in self.tune_sites)))
 
     @property
-    def head_only(self) -> bool:
-        """Only the last site and convolution are tuned: the decoder's body is computed once per key frame."""
-        return self.tune_sites == (3,) and set(self.tune_decoder) <= {2}
+    def fixed_stage(self) -> str | None:
+        """How far into the decoder nothing is tuned, so that each key frame's values up to there are
+        computed once: ``"logits"`` (no part of the network: only a texture or noise weights), ``"site"``
+        (the last convolution only: the last kernel site's output), ``"body"`` (the head only: the
+        decoder's body), or None."""
+        if not self.tune_sites and not self.tune_decoder:
+            return "logits"
+        if not self.tune_sites and set(self.tune_decoder) <= {2}:
+            return "site"
+        if set(self.tune_sites) <= {3} and set(self.tune_decoder) <= {2}:
+            return "body"
+        return None
 
 
 def default_key_frames(count: int) -> list[int]:
@@ -369,10 +380,18 @@ def look_noise(shape: tuple, channels: int, seed: int):
     return torch.stack(out)
 
 
-def prepare_frame(network, grid: np.ndarray, scale_structures: float = 1.0, noise=None, body_kernels=None) -> dict:
+def prepare_frame(
+    network,
+    grid: np.ndarray,
+    scale_structures: float = 1.0,
+    noise=None,
+    fixed_kernels=None,
+    fixed_stage: str | None = None,
+) -> dict:
     """What a look's network computes of one frame before its tuned parts: the (resampled, cropped)
     density's encoder features, its crop window, the noise fields on the padded crop (``noise``:
-    ``(channels, seed)``), and with ``body_kernels`` the decoder's body (a head-only fit reuses it)."""
+    ``(channels, seed)``) and, with ``fixed_kernels``, the decoder up to ``fixed_stage``
+    (``LookSettings.fixed_stage``: the values a fit that tunes only what follows reuses)."""
     import torch
     import torch.nn.functional as F
 
@@ -386,9 +405,17 @@ def prepare_frame(network, grid: np.ndarray, scale_structures: float = 1.0, nois
     size = tuple(tensor.shape[2:])
     window = occupied_window(tensor, DEFAULT_CROP_MARGIN)
     part = tensor if window is None else tensor[(..., *window)]
+    fixed = {"body": None, "site": None, "logits": None}
+    stages = ("body", "site", "logits")
+    reached = stages.index(fixed_stage) + 1 if fixed_kernels is not None and fixed_stage is not None else 0
     with torch.no_grad():
         encoded = network.encode(part, network.noise_fields(size, window))
-        body = None if body_kernels is None else network.decode_body(encoded, body_kernels)
+        if reached >= 1:
+            fixed["body"] = network.decode_body(encoded, fixed_kernels)
+        if reached >= 2:
+            fixed["site"] = network.head_site(fixed["body"], fixed_kernels, encoded)
+        if reached >= 3:
+            fixed["logits"] = network.head_logits(fixed["site"], fixed_kernels, encoded)
     fields = None
     if noise is not None:
         fields = look_noise(size, *noise).to(device)
@@ -396,7 +423,7 @@ def prepare_frame(network, grid: np.ndarray, scale_structures: float = 1.0, nois
             fields = fields[(slice(None), *window)]
         padded = encoded.features[0].shape[2:]
         fields = F.pad(fields, [p for n, m in reversed(list(zip(fields.shape[1:], padded))) for p in (0, m - n)])[None]
-    return {"grid": grid, "size": size, "window": window, "encoded": encoded, "body": body, "noise": fields}
+    return {"grid": grid, "size": size, "window": window, "encoded": encoded, "noise": fields, **fixed}
 
 
 def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None):
@@ -406,10 +433,16 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
     import torch
     import torch.nn.functional as F
 
-    from .model.skpn import uncrop
+    from .model.skpn import head_albedo, uncrop
 
     encoded = frame["encoded"]
-    body = frame["body"] if frame["body"] is not None else network.decode_body(encoded, kernels)
+    logits = frame["logits"]
+    if logits is None:
+        site = frame["site"]
+        if site is None:
+            body = frame["body"] if frame["body"] is not None else network.decode_body(encoded, kernels)
+            site = network.head_site(body, kernels, encoded)
+        logits = network.head_logits(site, kernels, encoded)
     offset = None
     if noise_weight is not None and frame["noise"] is not None:
         offset = torch.einsum("oc,bcdhw->bodhw", noise_weight, frame["noise"])
@@ -421,7 +454,8 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
         pads = [p for n, m in reversed(list(zip(stretched.shape[2:], padded))) for p in (0, m - n)]
         stretched = F.pad(stretched, pads)
         offset = stretched if offset is None else offset + stretched
-    albedo = uncrop(network.decode_head(body, kernels, encoded, offset), frame["window"], frame["size"])
+    albedo = head_albedo(logits if offset is None else logits + offset, encoded.size)
+    albedo = uncrop(albedo, frame["window"], frame["size"])
     shape = tuple(frame["grid"].shape)
     if frame["size"] != shape:
         albedo = F.interpolate(albedo, size=shape, mode="trilinear", align_corners=False)
@@ -454,13 +488,17 @@ def fit_look(
     notes: list | None = None,
     progress: Callable[[int, int, float], None] | None = None,
     style_names: list[str] | None = None,
+    prepared: Callable[[int], object] | None = None,
 ) -> Look:
     """Fit a ``Look`` of ``style`` (an image or path, or a mix ``[(style, weight)]``) on the
     ``key_frames`` (default ``default_key_frames``) of ``densities`` (checked ``(Z, Y, X)`` frames of one
     shape) with ``stylizer``'s network (``stylizer.Stylizer``). ``progress(step, steps, loss)`` after
-    each step. ``style_names``: what the look calls its style (default: the image files' names)."""
+    each step. ``style_names``: what the look calls its style (default: the image files' names).
+    ``prepared(index)``: frame ``index`` prepared for the fast layer at ``density_scale``, when the
+    caller keeps them (``pipeline.Frames.prepared``); else each key frame is prepared here."""
     import torch
 
+    from .adam import Adam
     from .bridge_torch import render_views
     from .colour_match import InvisibleMedium, fit_colour_match
     from .integrators import prepare_density
@@ -532,13 +570,19 @@ def fit_look(
         start = settings.texture_init * torch.randn((3,) + texels, generator=generator)
         texture = start.to(device).requires_grad_(True)
         groups.append({"params": [texture], "lr": settings.texture_lr})
-    optimizer = torch.optim.Adam(groups)
+    optimizer = Adam(groups)
 
-    # Per key frame, what does not change during the fit: the encoder's features (and, tuning only the
-    # head, the decoder's body), the crop, the noise and the layer's Ls grid.
-    body_kernels = StylizingKernels(free) if settings.head_only else None
-    frames = [prepare_frame(network, densities[key], scale_structures, noise, body_kernels) for key in keys]
-    prepared_densities = [prepare_density(densities[key], density_scale) for key in keys]
+    # Per key frame, what does not change during the fit: the encoder's features (and the decoder as far
+    # as nothing in it is tuned, LookSettings.fixed_stage), the crop, the noise and the layer's Ls grid.
+    fixed_kernels = StylizingKernels(free) if settings.fixed_stage is not None else None
+    frames = [
+        prepare_frame(network, densities[key], scale_structures, noise, fixed_kernels, settings.fixed_stage)
+        for key in keys
+    ]
+    if prepared is None:
+        prepared_densities = [prepare_density(densities[key], density_scale) for key in keys]
+    else:
+        prepared_densities = [prepared(key) for key in keys]
 
     def albedo_of(frame) -> torch.Tensor:
         return frame_albedo(network, frame, StylizingKernels(free), noise_weight, texture)

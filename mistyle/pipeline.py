@@ -339,6 +339,7 @@ class Pipeline:
             notes=notes,
             progress=progress,
             style_names=style_names,
+            prepared=frames.prepared,
         )
 
     def look_stylization(self, density, look, velocities=None, notes: list | None = None) -> Stylization:

@@ -59,7 +59,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS, UP_AXES
+from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS, REFINE_LAYER_STEPS, REFINE_PATH_STEPS, UP_AXES
 from .denoise import DENOISERS, oidn_missing
 
 
@@ -74,7 +74,6 @@ def _coat(text: str) -> float:
 
 
 def parser() -> argparse.ArgumentParser:
-    from .fit import RefineSettings
     from .scenes.bricks import DEFAULT_BRICK
 
     p = argparse.ArgumentParser(
@@ -203,7 +202,7 @@ def parser() -> argparse.ArgumentParser:
         default=None,
         metavar="STEPS",
         help=f"refine the albedo for STEPS steps against the style through the fast layer "
-        f"(default: 0; a single frame at full strength gets a look fitted on it instead; {RefineSettings.layer_steps} "
+        f"(default: 0; a single frame at full strength gets a look fitted on it instead; {REFINE_LAYER_STEPS} "
         "with --no-colour-match)",
     )
     p.add_argument(
@@ -212,7 +211,7 @@ def parser() -> argparse.ArgumentParser:
         default=None,
         metavar="STEPS",
         help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
-        f"0, or {RefineSettings.path_steps} for a single frame at full strength with --no-colour-match)",
+        f"0, or {REFINE_PATH_STEPS} for a single frame at full strength with --no-colour-match)",
     )
     p.add_argument("--fps", type=int, default=12)
     p.add_argument("--device", choices=DEVICES, default="cpu")

@@ -13,7 +13,7 @@ LAYERS = [
     {"io"},
     {"scenes", "pages"},
     {"integrators"},
-    {"bridge_torch", "reference_torch", "pathtrace", "denoise"},
+    {"bridge_torch", "reference_torch", "pathtrace", "denoise", "adam"},
     {"model", "objective"},
     {"fit", "response", "data"},
     {"colour_match"},

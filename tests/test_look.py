@@ -69,6 +69,29 @@ def test_a_fit_changes_the_network_and_a_saved_look_stylizes_as_the_fitted_one(
     assert loaded.density_scale == look.density_scale
 
 
+def test_a_texture_only_look_leaves_the_network_as_it_was(stylizer, blob_density, style):
+    """LookSettings.fixed_stage "logits": the head's logits are computed once, and the look keeps the
+    network's kernels and convolutions; only its texture moves."""
+    settings = LookSettings(steps=STEPS, tune_sites=(), tune_decoder=(), colour_match="none")
+    assert settings.fixed_stage == "logits" and LookSettings().fixed_stage == "body"
+    assert LookSettings(tune_sites=()).fixed_stage == "site" and LookSettings(tune_sites=(2, 3)).fixed_stage is None
+    textured = fit_look(stylizer, [blob_density], style, settings=settings)
+    initial = stylizer.kernels(style).without_noise()
+    for site, kernel in initial.sites.items():
+        for key, value in kernel.items():
+            assert torch.equal(textured.kernels.sites[site][key], value)
+    assert textured.decoder == {} and textured.texture.abs().max() > 0
+    untextured = fit_look(
+        stylizer,
+        [blob_density],
+        style,
+        settings=LookSettings(steps=0, tune_sites=(), tune_decoder=(), colour_match="none"),
+    )
+    assert not np.allclose(textured.stylize(blob_density), untextured.stylize(blob_density))
+    with pytest.raises(ValueError, match="must fit something"):
+        LookSettings(tune_sites=(), tune_decoder=(), texture_side=0)
+
+
 def test_frames_are_stylized_each_on_its_own(look, blob_density):
     frames = moving_frames(blob_density, 3)
     together = look.stylize(np.stack(frames))

@@ -410,17 +410,24 @@ class SKPN(nn.Module):
         """The last kernel site and convolution on ``decode_body``'s features: albedo ``(B, 3, D, H, W)``.
         ``offset`` (broadcast to ``(B, 3, D', H', W')``, the padded grid) is added before the tanh (a look's
         noise term)."""
-        x = self._stylize(x, 3, kernels, encoded)
+        logits = self.head_logits(self.head_site(x, kernels, encoded), kernels, encoded)
+        return head_albedo(logits if offset is None else logits + offset, encoded.size)
+
+    def head_site(self, x: torch.Tensor, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
+        """The last kernel site on ``decode_body``'s features (a fit that tunes only the last
+        convolution computes this once)."""
+        return self._stylize(x, 3, kernels, encoded)
+
+    def head_logits(self, x: torch.Tensor, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
+        """The last convolution and the noise site on ``head_site``'s features: the albedo's logits
+        ``(B, 3, D', H', W')`` on the padded grid, before the tanh (a fit that tunes only what it adds to
+        them computes these once)."""
         logits = self.decoder[2](x).float()
-        if offset is not None:
-            logits = logits + offset
         if NOISE_SITE in kernels.sites and encoded.noise is not None:
             weight = kernels.sites[NOISE_SITE]["weight"].float()
             noise = encoded.noise.expand(weight.shape[0], *encoded.noise.shape[1:])
             logits = logits + torch.einsum("boc,bcdhw->bodhw", weight, noise)
-        albedo = 0.5 * (torch.tanh(logits) + 1.0)
-        size = encoded.size
-        return albedo[..., : size[0], : size[1], : size[2]]
+        return logits
 
     @torch.no_grad()
     def infer(
@@ -450,6 +457,12 @@ class SKPN(nn.Module):
         with torch.autocast(density.device.type, dtype=torch.bfloat16, enabled=precision == "bf16"):
             albedo = self(part, kernels, noise).float()
         return uncrop(albedo, window, density.shape[2:])
+
+
+def head_albedo(logits: torch.Tensor, size: tuple) -> torch.Tensor:
+    """Albedo in [0, 1] of the head's logits ``(B, 3, D', H', W')`` on the padded grid, cut to ``size``."""
+    albedo = 0.5 * (torch.tanh(logits) + 1.0)
+    return albedo[..., : size[0], : size[1], : size[2]]
 
 
 def inference_precision(device: torch.device) -> str:

@@ -7,6 +7,7 @@ Feature maps are ``(B, C, H, W)`` with a foreground mask ``(B, 1, H, W)`` in {0,
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -22,6 +23,14 @@ def _quantiles(sorted_values: torch.Tensor, count: int) -> torch.Tensor:
     high = (low + 1).clamp(max=size - 1)
     weight = (position - low).to(sorted_values.dtype)
     return sorted_values[..., low] * (1 - weight) + sorted_values[..., high] * weight
+
+
+def _sorted_columns(values: torch.Tensor) -> torch.Tensor:
+    """``values (N, P)`` sorted along N, without gradient: by NumPy on the CPU, where it sorts about twice
+    as fast as ``torch.sort`` (a look's fit sorts a target's 8192 projections four times a step)."""
+    if values.device.type != "cpu" or values.dtype not in (torch.float32, torch.float64):
+        return torch.sort(values, dim=0).values
+    return torch.from_numpy(np.sort(values.T.contiguous().numpy(), axis=1)).T
 
 
 def histogram_loss(features: torch.Tensor, style: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
@@ -101,7 +110,7 @@ def sliced_wasserstein_loss(
     directions = directions / directions.norm(dim=0, keepdim=True)
     ours = torch.sort(points @ directions, dim=0).values
     with torch.no_grad():
-        theirs = torch.sort(target.to(points) @ directions, dim=0).values
+        theirs = _sorted_columns(target.to(points) @ directions)
         theirs = _quantiles(theirs.T.contiguous(), ours.shape[0]).T
     return ((ours - theirs) ** 2).mean() * points.shape[1]
 

@@ -1,0 +1,151 @@
+"""Cheaper look fits against today's (issue #35, part 2): arms of ``look.LookSettings`` on held-out pairs.
+
+Each arm fits a look on one held-out density with one held-out style (the single-frame default:
+the frame is its own key frame), applies it and scores it as the benchmark scores
+(``benchmark.study.score``: 3 metric views, 128^2, 16 spp). The reference is the benchmark's own
+``look`` row of the same pair and metric settings (``--against``, today's default output) and its
+``smooth_noise`` row; the table gives medians of per-pair ratios, and the fit's seconds.
+
+    python experiments/look_speed_study.py --arms texture30,head30 --pairs 8
+    python experiments/look_speed_study.py --list
+
+Rows: ``<out>/rows.jsonl`` (a row per arm and pair, replaced when rerun); table: ``<out>/table.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+FIXED = dict(tune_sites=(), tune_decoder=())
+ARMS = {
+    "default": dict(),
+    "head30": dict(steps=30),
+    "head60": dict(steps=60),
+    "head60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075),
+    "head45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1),
+    "conv90": dict(tune_sites=()),
+    "conv60_lr1.5x": dict(steps=60, tune_sites=(), lr=0.03, texture_lr=0.075),
+    "texture30": dict(steps=30, **FIXED),
+    "texture30_lr0.1": dict(steps=30, texture_lr=0.1, **FIXED),
+    "texture20_lr0.1": dict(steps=20, texture_lr=0.1, **FIXED),
+    "texture60": dict(steps=60, **FIXED),
+    "texture90": dict(steps=90, **FIXED),
+    "texture60_lr0.1": dict(steps=60, texture_lr=0.1, **FIXED),
+    "texture90_lr0.1": dict(steps=90, texture_lr=0.1, **FIXED),
+    "texture30_res32": dict(steps=30, layer_res=32, **FIXED),
+    "texture30_res32_v1": dict(steps=30, layer_res=32, views_per_step=1, **FIXED),
+}
+
+
+def read(path: Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
+
+
+def write_table(out: Path, rows: list[dict]) -> None:
+    lines = [
+        "Medians over the pairs each arm ran on of per-pair ratios (lower is better) to the benchmark's `look` "
+        "row (today's default output) and its `smooth_noise` row; fit seconds on this machine with whatever "
+        "else ran.",
+        "",
+        "| arm | pairs | RGB x look | patch x look | RGB x noise | patch x noise | fit s (median) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for arm in dict.fromkeys(row["arm"] for row in rows):
+        mine = [row for row in rows if row["arm"] == arm]
+
+        def median(key, mine=mine):
+            return float(np.median([row[key] for row in mine]))
+
+        lines.append(
+            f"| {arm} | {len(mine)} | {median('rgb_x_look'):.3f} | {median('patch_x_look'):.3f} | "
+            f"{median('rgb_x_noise'):.3f} | {median('patch_x_noise'):.3f} | {median('fit_seconds'):.2f} |"
+        )
+    (out / "table.md").write_text("\n".join(lines) + "\n")
+
+
+def main() -> None:
+    from mistyle.benchmark.study import add_metric_arguments
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--arms", default="texture30")
+    parser.add_argument("--pairs", type=int, default=0, help="N pairs spread over the held-out split (0: all)")
+    parser.add_argument("--against", type=Path, default=Path("results/benchmark"), help="the benchmark's rows")
+    parser.add_argument("--out", type=Path, default=Path("results/look_speed"))
+    parser.add_argument("--list", action="store_true")
+    add_metric_arguments(parser)
+    args = parser.parse_args()
+    if args.list:
+        for name, settings in ARMS.items():
+            print(f"{name}: {settings}")
+        return
+
+    from mistyle.benchmark.runner import ROWS_FILE, code_commit
+    from mistyle.benchmark.splits import split_pairs
+    from mistyle.benchmark.study import metric_views, score
+    from mistyle.data.heldout import held_out_density, held_out_styles
+    from mistyle.io import load_style
+    from mistyle.look import LookSettings, fit_look
+    from mistyle.pipeline import Stylizer
+
+    unknown = [arm for arm in args.arms.split(",") if arm not in ARMS]
+    if unknown:
+        raise SystemExit(f"Unknown arm(s) {', '.join(unknown)}; --list shows them.")
+    reference = {}
+    for row in read(args.against / ROWS_FILE):
+        settings = row["settings"]
+        if settings["res"] == args.res and settings["spp"] == args.spp and not settings["quick"]:
+            reference[(row["method"], row["density"], row["style"])] = row
+    stylizer = Stylizer()
+    views = metric_views(stylizer.config.render.camera_distance)
+    options = dict(
+        res=args.res, spp=args.spp, density_scale=stylizer.density_scale, radiance=stylizer.config.render.radiance
+    )
+    styles = held_out_styles()
+    pairs = split_pairs("heldout")
+    pairs = pairs[:: max(1, len(pairs) // args.pairs)][: args.pairs] if args.pairs else pairs
+    args.out.mkdir(parents=True, exist_ok=True)
+    rows_path = args.out / "rows.jsonl"
+    for spec, style_name in pairs:
+        look_row = reference.get(("look", spec.name, style_name))
+        noise_row = reference.get(("smooth_noise", spec.name, style_name))
+        if look_row is None or noise_row is None:
+            print(f"skipped {spec.name} x {style_name}: no look or smooth_noise row in {args.against}")
+            continue
+        density = held_out_density(spec, args.cache)
+        style = load_style(styles[style_name]["path"])
+        for arm in args.arms.split(","):
+            started = time.perf_counter()
+            look = fit_look(stylizer, [density], style, settings=LookSettings(**ARMS[arm]))
+            fitted = time.perf_counter() - started
+            metrics = score(density, look.stylize(density), style, views, **options)[0]
+            row = {
+                "arm": arm,
+                "settings": ARMS[arm],
+                "density": spec.name,
+                "style": style_name,
+                "rgb_swd": metrics["rgb_swd"],
+                "patch_swd": metrics["patch_swd"],
+                "rgb_x_look": metrics["rgb_swd"] / look_row["rgb_swd"],
+                "patch_x_look": metrics["patch_swd"] / look_row["patch_swd"],
+                "rgb_x_noise": metrics["rgb_swd"] / noise_row["rgb_swd"],
+                "patch_x_noise": metrics["patch_swd"] / noise_row["patch_swd"],
+                "fit_seconds": fitted,
+                "commit": code_commit(),
+            }
+            print(json.dumps(row), flush=True)
+            rows = [
+                old
+                for old in read(rows_path)
+                if (old["arm"], old["density"], old["style"]) != (arm, spec.name, style_name)
+            ]
+            rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows + [row]))
+    write_table(args.out, read(rows_path))
+
+
+if __name__ == "__main__":
+    main()

@@ -6,8 +6,7 @@ the frame is its own key frame), applies it and scores it as the benchmark score
 ``look`` row of the same pair and metric settings (``--against``, today's default output) and its
 ``smooth_noise`` row; the table gives medians of per-pair ratios, and the fit's seconds.
 
-    python experiments/look_speed_study.py --arms texture30,head30 --pairs 8
-    python experiments/look_speed_study.py --list
+    python experiments/look_speed_study.py --arms texture30,head30 --pairs 8     # ARMS below
 
 Rows: ``<out>/rows.jsonl`` (a row per arm and pair, replaced when rerun); table: ``<out>/table.md``.
 """
@@ -76,13 +75,8 @@ def main() -> None:
     parser.add_argument("--pairs", type=int, default=0, help="N pairs spread over the held-out split (0: all)")
     parser.add_argument("--against", type=Path, default=Path("results/benchmark"), help="the benchmark's rows")
     parser.add_argument("--out", type=Path, default=Path("results/look_speed"))
-    parser.add_argument("--list", action="store_true")
     add_metric_arguments(parser)
     args = parser.parse_args()
-    if args.list:
-        for name, settings in ARMS.items():
-            print(f"{name}: {settings}")
-        return
 
     from mistyle.benchmark.runner import ROWS_FILE, code_commit
     from mistyle.benchmark.splits import split_pairs
@@ -94,7 +88,7 @@ def main() -> None:
 
     unknown = [arm for arm in args.arms.split(",") if arm not in ARMS]
     if unknown:
-        raise SystemExit(f"Unknown arm(s) {', '.join(unknown)}; --list shows them.")
+        raise SystemExit(f"Unknown arm(s) {', '.join(unknown)}; choose from {', '.join(ARMS)}.")
     reference = {}
     for row in read(args.against / ROWS_FILE):
         settings = row["settings"]

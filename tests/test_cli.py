@@ -23,6 +23,18 @@ def test_console_commands_and_module_forms_run(command, module):
         assert f"usage: {command}" in done.stdout and "--quiet" in done.stdout
 
 
+def test_the_render_commands_help_and_argument_errors_need_no_torch():
+    """Importing torch costs seconds: ``--help`` and a bad option answer without it."""
+    probe = (
+        "import sys\n"
+        "from mistyle.render_final import main\n"
+        "code = main(['--density', 'missing.vol', '--style', 'missing.png', '--out', 'x', '--res', '-1'])\n"
+        "print(code, 'torch' in sys.modules)"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300)
+    assert done.stdout.split() == ["2", "False"], done.stdout + done.stderr
+
+
 def test_progress_is_off_when_stderr_is_not_a_terminal(tmp_path):
     """Through a pipe, data generation prints its status lines and no bar (no carriage returns)."""
     done = subprocess.run(

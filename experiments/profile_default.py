@@ -16,11 +16,11 @@ every kernel is compiled; the later runs are **warm** (compiled kernels come fro
 
     python experiments/profile_default.py --runs 2 --cold       # results/profile_default/
 
-``--baseline DIR`` (a checkout of other code, e.g. ``git worktree add /tmp/before HEAD~3``) runs that
+``--baseline DIR`` (a checkout of other code, e.g. ``git worktree add ../before HEAD~3``) runs that
 code's ``mistyle-render`` before each run of this checkout's, so both see the same machine, and adds
 the ratios of their median stage times (this / baseline) to the table.
 
-    python experiments/profile_default.py --runs 3 --baseline /tmp/before
+    python experiments/profile_default.py --runs 3 --baseline ../before
 
 Writes ``rows.jsonl`` and ``table.md`` under ``--out``.
 """

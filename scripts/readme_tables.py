@@ -27,9 +27,11 @@ def blocks() -> dict[str, str]:
     commits = sorted({row.commit for row in rows})
     source = (
         f"From `results/benchmark/rows.jsonl` ({len(rows)} rows, commit(s) {', '.join(commits)}): "
-        'medians over the held-out pairs; "x uniform" and "x noise" are the medians of per-pair ratios to the '
-        'uniform baseline and to smooth noise + colour match; "beats uniform": pairs lower than the uniform '
-        "baseline in both SWDs; seconds to make the albedo on this project's 2-core CPU.\n\n"
+        'medians over the held-out pairs; "x uniform", "x noise" and "x tuned" are the medians of per-pair ratios '
+        "to the uniform baseline, to smooth noise + colour match and to tuned noise + colour match (the strongest "
+        'training-free field); "structure < ...": pairs whose structure is closer to the style than that '
+        'baseline\'s; "beats uniform": pairs lower than the uniform baseline in both SWDs; seconds to make the '
+        "albedo on this project's 2-core CPU.\n\n"
     )
     return {"benchmark": source + table(rows)}
 

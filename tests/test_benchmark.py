@@ -7,7 +7,7 @@ import pytest
 
 from mistyle.benchmark import METHODS, split_pairs
 from mistyle.benchmark.__main__ import main
-from mistyle.benchmark.methods import density_ramp, smooth_noise
+from mistyle.benchmark.methods import density_ramp, smooth_noise, tuned_noise
 from mistyle.benchmark.runner import read_rows, run, summary
 from mistyle.data.heldout import HELD_OUT_SEED_BASE, HeldOutDensity, held_out_styles
 
@@ -42,9 +42,10 @@ def test_splits_name_their_pairs_and_refuse_unknown_names():
 def test_the_registry_holds_the_product_the_baselines_and_the_reference():
     roles = {name: method.role for name, method in METHODS.items()}
     assert {"default", "network"} <= {n for n, r in roles.items() if r == "product"}
-    assert {"uniform", "density_ramp", "smooth_noise"} <= {n for n, r in roles.items() if r == "baseline"}
+    baselines = {"uniform", "density_ramp", "smooth_noise", "tuned_noise"}
+    assert baselines <= {n for n, r in roles.items() if r == "baseline"}
     assert roles["optimised"] == "reference"
-    assert not any(METHODS[name].uses_network for name in ("uniform", "density_ramp", "smooth_noise"))
+    assert not any(METHODS[name].uses_network for name in baselines)
 
 
 def test_density_ramp_is_the_densitys_rank(rng):
@@ -68,6 +69,19 @@ def test_smooth_noise_is_seeded_spans_the_unit_cube_and_is_smooth():
     assert float(np.abs(np.diff(noise, axis=0)).mean()) < 0.05
     channels = noise.reshape(-1, 3).T
     assert abs(np.corrcoef(channels)[0, 1]) < 0.5  # independent channels: colour varies in every direction
+
+
+def test_tuned_noise_is_seeded_coarser_than_smooth_noise_and_wraps_around_the_box():
+    noise = tuned_noise((32, 32, 32), seed=3)
+    assert noise.shape == (32, 32, 32, 3) and noise.dtype == np.float32
+    assert np.array_equal(noise, tuned_noise((32, 32, 32), seed=3))
+    assert not np.array_equal(noise, tuned_noise((32, 32, 32), seed=4))
+    assert np.allclose(noise.reshape(-1, 3).min(axis=0), 0) and np.allclose(noise.reshape(-1, 3).max(axis=0), 1)
+    steps = float(np.abs(np.diff(noise, axis=0)).mean())
+    assert steps < 0.75 * float(np.abs(np.diff(smooth_noise((32, 32, 32), seed=3), axis=0)).mean())  # coarser
+    # Wrapped: the last slice continues into the first as smoothly as any two neighbours do.
+    assert float(np.abs(noise[-1] - noise[0]).mean()) < 2 * steps
+    assert abs(np.corrcoef(noise.reshape(-1, 3).T)[0, 1]) < 0.5
 
 
 def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):

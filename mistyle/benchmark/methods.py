@@ -11,6 +11,11 @@ network.
 * ``density_ramp``: the density's rank among the occupied voxels, as a grey albedo.
 * ``smooth_noise``: independent Gaussian noise per channel, blurred by ``NOISE_SIGMA`` of the grid's
   longest side (3 voxels at 64^3) and stretched to [0, 1] per channel.
+* ``tuned_noise``: the same kind of field made as the network's noise site makes its fields (filtered
+  in the frequency domain, so it wraps around the box: no edge is flatter than the middle) at
+  ``TUNED_NOISE_SIGMA``, the scale that came closest to the validation paintings
+  (``experiments/noise_field_probe.py``, ``results/noise_fields/``). The strongest training-free field
+  mistyle knows of: a network whose patterns are only noise cannot beat it.
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ import numpy as np
 
 NOISE_SIGMA = 3 / 64
 """The smooth noise's blur, as a fraction of the grid's longest side: structures of one size in the box."""
+TUNED_NOISE_SIGMA = 6 / 64
+"""``tuned_noise``'s scale (fraction of the longest side), chosen on the validation split only."""
 QUICK_STEPS = (4, 1)
 """Refinement and optimisation steps (fast layer, path traced) in quick mode."""
 
@@ -107,6 +114,16 @@ def smooth_noise(shape: tuple, seed: int = 0, sigma: float = NOISE_SIGMA) -> np.
     return np.ascontiguousarray((field - low) / np.maximum(high - low, 1e-12), dtype=np.float32)
 
 
+def tuned_noise(shape: tuple, seed: int = 0, sigma: float = TUNED_NOISE_SIGMA) -> np.ndarray:
+    """RGB noise ``shape + (3,)`` in [0, 1]: three of ``model.noise``'s wrapped fields at ``sigma`` of the
+    longest side, each channel stretched to span [0, 1]."""
+    from ..model.noise import noise_fields
+
+    field = noise_fields(tuple(shape), (sigma,), 3, seed).permute(1, 2, 3, 0).numpy()
+    low, high = field.reshape(-1, 3).min(axis=0), field.reshape(-1, 3).max(axis=0)
+    return np.ascontiguousarray((field - low) / np.maximum(high - low, 1e-12), dtype=np.float32)
+
+
 def colour_matched(context: Context, field: np.ndarray, density: np.ndarray, style: np.ndarray) -> np.ndarray:
     """``field`` given the style's colours by the product's colour match."""
     return context.stylizer.match_colours([field], [density], style)[0]
@@ -118,6 +135,10 @@ def _density_ramp(context, density, style):
 
 def _smooth_noise(context, density, style):
     return colour_matched(context, smooth_noise(density.shape, context.seed), density, style)
+
+
+def _tuned_noise(context, density, style):
+    return colour_matched(context, tuned_noise(density.shape, context.seed), density, style)
 
 
 def _network(context, density, style):
@@ -216,6 +237,12 @@ METHODS = {
             _density_ramp,
         ),
         Method("smooth_noise", "baseline", "training-free: smooth RGB noise, then the colour match", _smooth_noise),
+        Method(
+            "tuned_noise",
+            "baseline",
+            "training-free: wrapped RGB noise at the scale best on validation, then the colour match",
+            _tuned_noise,
+        ),
         Method(
             "uniform", "baseline", "one colour matched to the style's mean (the must-beat baseline)", uniform_albedo
         ),

@@ -186,20 +186,24 @@ def run(
 # ---------------------------------------------------------------------------- report
 NOISE_BASELINE = "smooth_noise"
 """The training-free baseline every stylization claim is also measured against (``methods``)."""
+TUNED_NOISE_BASELINE = "tuned_noise"
+"""The strongest training-free field (``methods``): the bar for a claim that patterns are the style's."""
+RATIO_BASELINES = (("uniform", "uniform"), (NOISE_BASELINE, "noise"), (TUNED_NOISE_BASELINE, "tuned"))
+"""``(method, suffix)``: the baselines ``summary`` divides each row by, on the same pair and settings."""
 
 
 def summary(rows: list[Row]) -> dict:
     """Per method (in ``METHODS`` order, then others): medians of the metrics and of each SWD's ratio to
-    the uniform baseline and to ``NOISE_BASELINE`` on the same pair and settings, the number of pairs,
-    and how many of them beat the uniform baseline on both SWDs."""
+    each of ``RATIO_BASELINES`` on the same pair and settings (``<metric>_x_<suffix>``, NaN where that
+    baseline has no rows), how many pairs have a structure closer than the noise baselines'
+    (``structure_beats_<suffix>`` of ``structure_pairs_<suffix>``), the number of pairs, and how many
+    of them beat the uniform baseline on both SWDs."""
     from .methods import METHODS
 
     def on_pair(row: Row) -> tuple:
         return (row.density, row.style, json.dumps(row.settings, sort_keys=True))
 
-    baselines = {
-        name: {on_pair(row): row for row in rows if row.method == name} for name in ("uniform", NOISE_BASELINE)
-    }
+    baselines = {name: {on_pair(row): row for row in rows if row.method == name} for name, _ in RATIO_BASELINES}
     order = list(METHODS) + sorted({row.method for row in rows} - set(METHODS))
     result = {}
     for method in order:
@@ -210,7 +214,9 @@ def summary(rows: list[Row]) -> dict:
             key: float(np.median([getattr(row, key) for row in mine]))
             for key in ("rgb_swd", "patch_swd", "hue_coverage", "seconds")
         }
-        for name, suffix in (("uniform", "uniform"), (NOISE_BASELINE, "noise")):
+        measured = [row for row in mine if row.structure is not None]
+        entry["structure"] = float(np.median([row.structure for row in measured])) if measured else float("nan")
+        for name, suffix in RATIO_BASELINES:
             matched = [(row, baselines[name].get(on_pair(row))) for row in mine]
             matched = [(row, base) for row, base in matched if base is not None]
             for key in ("rgb_swd", "patch_swd"):
@@ -223,12 +229,10 @@ def summary(rows: list[Row]) -> dict:
                 entry["beats_uniform"] = sum(
                     row.rgb_swd < base.rgb_swd and row.patch_swd < base.patch_swd for row, base in matched
                 )
-        measured = [row for row in mine if row.structure is not None]
-        entry["structure"] = float(np.median([row.structure for row in measured])) if measured else float("nan")
-        against = [(row, baselines[NOISE_BASELINE].get(on_pair(row))) for row in measured]
-        against = [(row, base) for row, base in against if base is not None and base.structure is not None]
-        entry["structure_pairs"] = len(against)
-        entry["structure_beats_noise"] = sum(row.structure < base.structure for row, base in against)
+                continue
+            against = [(row, base) for row, base in matched if row.structure is not None and base.structure is not None]
+            entry[f"structure_pairs_{suffix}"] = len(against)
+            entry[f"structure_beats_{suffix}"] = sum(row.structure < base.structure for row, base in against)
         entry["pairs"] = len(mine)
         result[method] = entry
     return result
@@ -237,17 +241,25 @@ def summary(rows: list[Row]) -> dict:
 def table(rows: list[Row]) -> str:
     """The medians of ``summary`` as a Markdown table."""
     lines = [
-        "| method | RGB SWD | x uniform | x noise | patch SWD | x uniform | x noise | hue coverage | structure | "
-        "structure < noise | beats uniform | seconds | pairs |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| method | RGB SWD | x uniform | x noise | x tuned | patch SWD | x uniform | x noise | x tuned | "
+        "hue coverage | structure | structure < noise | structure < tuned | beats uniform | seconds | pairs |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
+
+    def ratio(value: float) -> str:
+        return "n/a" if np.isnan(value) else f"{value:.2f}"
+
+    def closer(m: dict, suffix: str) -> str:
+        pairs = m[f"structure_pairs_{suffix}"]
+        return f"{m[f'structure_beats_{suffix}']}/{pairs}" if pairs else "n/a"
+
     for method, m in summary(rows).items():
         structure = "n/a" if np.isnan(m["structure"]) else f"{m['structure']:.3f}"
-        beats_noise = f"{m['structure_beats_noise']}/{m['structure_pairs']}" if m["structure_pairs"] else "n/a"
         lines.append(
-            f"| {method} | {m['rgb_swd']:.4f} | {m['rgb_swd_x_uniform']:.2f} | {m['rgb_swd_x_noise']:.2f} | "
-            f"{m['patch_swd']:.4f} | {m['patch_swd_x_uniform']:.2f} | {m['patch_swd_x_noise']:.2f} | "
-            f"{m['hue_coverage']:.2f} | {structure} | {beats_noise} | {m['beats_uniform']}/{m['pairs']} | "
+            f"| {method} | {m['rgb_swd']:.4f} | {ratio(m['rgb_swd_x_uniform'])} | {ratio(m['rgb_swd_x_noise'])} | "
+            f"{ratio(m['rgb_swd_x_tuned'])} | {m['patch_swd']:.4f} | {ratio(m['patch_swd_x_uniform'])} | "
+            f"{ratio(m['patch_swd_x_noise'])} | {ratio(m['patch_swd_x_tuned'])} | {m['hue_coverage']:.2f} | "
+            f"{structure} | {closer(m, 'noise')} | {closer(m, 'tuned')} | {m['beats_uniform']}/{m['pairs']} | "
             f"{m['seconds']:.1f} | {m['pairs']} |"
         )
     return "\n".join(lines) + "\n"

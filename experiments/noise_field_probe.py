@@ -15,6 +15,7 @@ pair's best field in the set, an upper bound on what a network choosing among th
 style could reach with them alone.
 
     python experiments/noise_field_probe.py --out results/noise_fields
+    python experiments/noise_field_probe.py --fields '' --checkpoints runs/x/steps/step_000800.pt   # networks too
 """
 
 from __future__ import annotations
@@ -29,7 +30,6 @@ import numpy as np
 # Standard deviations in voxels along (Z, Y, X) at 64^3.
 FIELDS = {
     "iso1.5": (1.5, 1.5, 1.5),
-    "iso6": (6.0, 6.0, 6.0),
     "upright": (1.5, 8.0, 1.5),
     "layers": (6.0, 1.5, 6.0),
     "upright_coarse": (3.0, 12.0, 3.0),
@@ -38,8 +38,8 @@ FIELDS = {
 # The benchmark's own smooth noise (a zero-padded separable blur) at other standard deviations, in voxels at 64^3.
 SMOOTH_NOISE_VOXELS = {"smooth_noise": 3.0, "smooth_noise_6": 6.0, "smooth_noise_9": 9.0, "smooth_noise_12": 12.0}
 SETS = {
-    "isotropic": ("smooth_noise", "iso1.5", "iso6", "smooth_noise_6", "smooth_noise_9", "smooth_noise_12"),
-    "isotropic+oriented": tuple(["smooth_noise", *FIELDS]),
+    "isotropic": ("smooth_noise", "iso1.5", "tuned_noise", "smooth_noise_6", "smooth_noise_9", "smooth_noise_12"),
+    "isotropic+oriented": ("smooth_noise", "tuned_noise", *FIELDS),
 }
 
 
@@ -71,14 +71,21 @@ def main(argv=None) -> None:
     parser.add_argument("--out", type=Path, default=Path("results/noise_fields"))
     parser.add_argument("--paintings", type=int, default=0, help="only the first N validation paintings (0: all)")
     parser.add_argument(
+        "--checkpoints",
+        nargs="*",
+        type=Path,
+        default=[],
+        help="networks to score too (feed-forward with the colour match, as the benchmark's network row)",
+    )
+    parser.add_argument(
         "--fields",
-        default="",
-        help="comma-separated names of FIELDS to score (default: all); "
-        "rows already in <out>/rows.jsonl for other fields are kept",
+        default=None,
+        help="comma-separated names of the fields to score (default: all; '' for none but smooth_noise, which "
+        "every ratio needs); rows already in <out>/rows.jsonl for other fields and networks are kept",
     )
     args = parser.parse_args(argv)
 
-    from mistyle.benchmark.methods import smooth_noise
+    from mistyle.benchmark.methods import smooth_noise, tuned_noise
     from mistyle.benchmark.runner import metric_views, score
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style
@@ -92,24 +99,37 @@ def main(argv=None) -> None:
         res=VALIDATION_RES, spp=VALIDATION_SPP, density_scale=pipeline.density_scale, radiance=pipeline.radiance
     )
     paintings = validation_paintings()[: args.paintings or None]
+    networks = {
+        checkpoint_label(path): Pipeline(PipelineSettings(checkpoint=path, refine_steps=0, refine_path_steps=0))
+        for path in args.checkpoints
+    }
     args.out.mkdir(parents=True, exist_ok=True)
     rows_file = args.out / "rows.jsonl"
     old = [json.loads(line) for line in rows_file.read_text().splitlines()] if rows_file.exists() else []
     rows = []
     for spec in VALIDATION_DENSITIES:
         density = held_out_density(spec, Path("data") / "heldout")
-        wanted = args.fields.split(",") if args.fields else [*SMOOTH_NOISE_VOXELS, *FIELDS]
+        every = [*SMOOTH_NOISE_VOXELS, "tuned_noise", *FIELDS]
+        wanted = every if args.fields is None else [name for name in args.fields.split(",") if name]
         fields = {"smooth_noise": smooth_noise(density.shape)}  # every ratio's reference
         for name in wanted:
-            if name in SMOOTH_NOISE_VOXELS:
+            if name == "tuned_noise":  # the benchmark's own
+                fields[name] = tuned_noise(density.shape)
+            elif name in SMOOTH_NOISE_VOXELS:
                 fields[name] = smooth_noise(density.shape, sigma=SMOOTH_NOISE_VOXELS[name] / 64)
             else:
                 fields[name] = oriented_noise(density.shape, FIELDS[name])
         for path in paintings:
             style = load_style(path)
-            for name, field in fields.items():
+            makers = {
+                name: lambda field=field: pipeline.stylizer.match_colours([field], [density], style)[0]
+                for name, field in fields.items()
+            }
+            for label, network in networks.items():
+                makers[label] = lambda network=network: network.stylize(density, style).albedos[0]
+            for name, make in makers.items():
                 start = time.perf_counter()
-                albedo = pipeline.stylizer.match_colours([field], [density], style)[0]
+                albedo = make()
                 metrics = score(density, albedo, style, views, **options)[0]
                 rows.append(dict(field=name, density=spec.name, style=path.stem, **metrics))
                 print(
@@ -123,30 +143,47 @@ def main(argv=None) -> None:
     write_table(args.out, rows)
 
 
+def checkpoint_label(path: Path) -> str:
+    """``network:<run>/<step>`` for a run's kept checkpoint, ``network:<file name>`` otherwise."""
+    return f"network:{path.parent.parent.name}/{path.stem}" if path.parent.name == "steps" else f"network:{path.stem}"
+
+
 def write_table(out: Path, rows: list[dict]) -> None:
     pairs = sorted({(row["density"], row["style"]) for row in rows})
     table = {(row["field"], row["density"], row["style"]): row for row in rows}
-    names = list(dict.fromkeys(row["field"] for row in rows))
+    names = [name for name in dict.fromkeys(row["field"] for row in rows) if all((name, *p) in table for p in pairs)]
+    fields = [name for name in names if not name.startswith("network:")]
 
-    def ratios(name, key):
-        return np.array([table[(name, *pair)][key] / table[("smooth_noise", *pair)][key] for pair in pairs])
+    def ratios(name, key, against="smooth_noise"):
+        return np.array([table[(name, *pair)][key] / table[(against, *pair)][key] for pair in pairs])
+
+    def against(name, baseline):
+        if baseline not in names:
+            return "n/a | n/a"
+        return " | ".join(f"{np.median(ratios(name, key, baseline)):.3f}" for key in ("rgb_swd", "patch_swd"))
 
     lines = [
-        f"Training-free fields + the colour match on the validation split ({len(pairs)} pairs): medians of "
-        'per-pair ratios to `smooth_noise` (lower is better); "best for": pairs where the field has the '
-        "lowest patch SWD of all. `python experiments/noise_field_probe.py`.",
+        f"Training-free fields and networks (feed-forward), each + the colour match, on the validation split "
+        f"({len(pairs)} pairs): medians of per-pair ratios (lower is better) to `smooth_noise` and to "
+        '`tuned_noise`; "score": the mean of the two medians against `smooth_noise` (what a recipe\'s '
+        '`select="validation:noise"` minimises); "best field for": pairs where the field has the lowest patch '
+        "SWD of the training-free fields. `python experiments/noise_field_probe.py`.",
         "",
-        "| field | RGB x noise | patch x noise | best for (patch) |",
-        "|---|---|---|---|",
+        "| field or network | RGB x noise | patch x noise | score | RGB x tuned | patch x tuned | best field for |",
+        "|---|---|---|---|---|---|---|",
     ]
-    patch = np.stack([ratios(name, "patch_swd") for name in names])
+    patch = np.stack([ratios(name, "patch_swd") for name in fields])
     best = np.argmin(patch, axis=0)
-    for i, name in enumerate(names):
-        rgb = np.median(ratios(name, "rgb_swd"))
-        lines.append(f"| {name} | {rgb:.3f} | {np.median(patch[i]):.3f} | {int((best == i).sum())} |")
+    for name in names:
+        rgb, patch_ratio = (np.median(ratios(name, key)) for key in ("rgb_swd", "patch_swd"))
+        wins = int((best == fields.index(name)).sum()) if name in fields else "-"
+        lines.append(
+            f"| {name} | {rgb:.3f} | {patch_ratio:.3f} | {(rgb + patch_ratio) / 2:.3f} | "
+            f"{against(name, 'tuned_noise')} | {wins} |"
+        )
     lines += ["", "| set (per pair its best field) | RGB x noise | patch x noise |", "|---|---|---|"]
     for set_name, members in SETS.items():
-        members = [m for m in members if m in names]
+        members = [m for m in members if m in fields]
         chosen = np.argmin(np.stack([ratios(m, "patch_swd") for m in members]), axis=0)
         rgb = np.stack([ratios(m, "rgb_swd") for m in members])[chosen, np.arange(len(pairs))]
         best_patch = np.stack([ratios(m, "patch_swd") for m in members])[chosen, np.arange(len(pairs))]

@@ -42,6 +42,24 @@ def test_fields_are_seeded_normalised_and_smoother_at_larger_scales():
     assert noise_fields((12, 16, 20), (0.05, 0.25), 2, seed=3).abs().sum() > 0
 
 
+def test_oriented_fields_stretch_along_their_axes_and_leave_the_isotropic_ones_as_they_were():
+    isotropic = noise_fields((24, 24, 24), (0.04,), 2, seed=1)
+    fields = noise_fields((24, 24, 24), (0.04,), 2, seed=1, orientations=("isotropic", "upright", "layers"))
+    assert fields.shape == (6, 24, 24, 24) and torch.equal(fields[:2], isotropic)
+
+    def roughness(field, axis):  # mean step between neighbours along a grid axis (Z, Y, X)
+        return float(field.diff(dim=axis).abs().mean())
+
+    upright, layers = fields[2], fields[4]
+    assert roughness(upright, 1) < 0.5 * min(roughness(upright, 0), roughness(upright, 2))  # smooth along up
+    assert roughness(layers, 0) < 0.5 * roughness(layers, 1) and roughness(layers, 2) < 0.5 * roughness(layers, 1)
+    config = SKPNConfig(**dict(NOISY, noise_orientations=("isotropic", "layers")))
+    assert config.noise_channels == 2 * len(NOISY["noise_scales"]) * NOISY["noise_per_scale"]
+    assert SKPN(config).noise_fields((8, 8, 8)).shape == (1, config.noise_channels, 8, 8, 8)
+    with pytest.raises(ValueError, match="noise orientations must be distinct names"):
+        SKPNConfig(**dict(NOISY, noise_orientations=("diagonal",)))
+
+
 @pytest.mark.parametrize("scales", [(0.0,), (1.5,), (-0.1, 0.2)])
 def test_scales_outside_the_box_are_refused(scales):
     with pytest.raises(ValueError, match="noise scales must lie in"):

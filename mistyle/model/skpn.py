@@ -19,8 +19,8 @@ Noise site (``model.noise_scales``; not in the paper): smooth noise fields fixed
 (``model.noise``) are added before the decoder's tanh, weighted per albedo channel by a fifth
 predictor from the shallowest style level and the code (``NoiseWeightPredictor``; its kernel is
 ``StylizingKernels.sites[NOISE_SITE]``). The density decides where the other sites' features vary;
-the noise lets colour vary where it does not, at the scales each style weighs
-(``docs/decisions/2026-12-02-noise-site.md``).
+the noise lets colour vary where it does not, at the scales (and, with ``model.noise_orientations``,
+in the upright or layered shapes) each style weighs (``docs/decisions/2026-12-02-noise-site.md``).
 
 Mixing and strength: ``SKPN.predict_kernels`` returns the SKP's output (``StylizingKernels``) and
 ``forward`` also takes it, so styles are combined where the model combines them: a convex
@@ -42,7 +42,7 @@ import torch.nn.functional as F
 
 from ..conventions import PRECISIONS
 from .dain import dain, density_mask
-from .noise import noise_fields, validate_noise_scales
+from .noise import noise_fields, validate_noise_orientations, validate_noise_scales
 from .style_code import CODE_SIZE, style_code
 
 DEFAULT_CROP_MARGIN = 8
@@ -63,6 +63,7 @@ class SKPNConfig:
     noise_scales: tuple[float, ...] = ()  # the noise site's field scales (fractions of the longest side); (): none
     noise_per_scale: int = 2  # fields at each scale
     noise_seed: int = 0
+    noise_orientations: tuple[str, ...] = ("isotropic",)  # model.noise.NOISE_ORIENTATIONS, fields of each
 
     def __post_init__(self):
         if self.kernels not in (1, 2, 4):
@@ -74,6 +75,7 @@ class SKPNConfig:
         if self.style_code not in ("moments", "quantiles"):
             raise ValueError(f"style_code must be moments or quantiles, got {self.style_code}.")
         self.noise_scales = validate_noise_scales(self.noise_scales)
+        self.noise_orientations = validate_noise_orientations(self.noise_orientations)
         if self.noise_per_scale < 1:
             raise ValueError(f"noise_per_scale must be >= 1, got {self.noise_per_scale}.")
 
@@ -83,7 +85,7 @@ class SKPNConfig:
 
     @property
     def noise_channels(self) -> int:
-        return len(self.noise_scales) * self.noise_per_scale
+        return len(self.noise_orientations) * len(self.noise_scales) * self.noise_per_scale
 
 
 class StyleInputs(NamedTuple):
@@ -352,7 +354,9 @@ class SKPN(nn.Module):
         config = self.config
         if not config.noise_channels:
             return None
-        fields = noise_fields(size, config.noise_scales, config.noise_per_scale, config.noise_seed)
+        fields = noise_fields(
+            size, config.noise_scales, config.noise_per_scale, config.noise_seed, config.noise_orientations
+        )
         if window is not None:
             fields = fields[(slice(None), *window)]
         return fields[None].to(next(self.parameters()).device)

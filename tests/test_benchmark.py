@@ -9,6 +9,7 @@ from mistyle.benchmark import METHODS, split_pairs
 from mistyle.benchmark.__main__ import main
 from mistyle.benchmark.methods import density_ramp, smooth_noise, tuned_noise
 from mistyle.benchmark.runner import read_rows, run, summary
+from mistyle.benchmark.runner import table as table_of
 from mistyle.data.heldout import HELD_OUT_SEED_BASE, HeldOutDensity, held_out_styles
 
 TINY = HeldOutDensity("pyroclastic16", "pyroclastic", 16, HELD_OUT_SEED_BASE + 3)
@@ -86,25 +87,28 @@ def test_tuned_noise_is_seeded_coarser_than_smooth_noise_and_wraps_around_the_bo
 
 def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
     pairs = [(TINY, "hokusai_great_wave")]
-    methods = ["density_ramp", "smooth_noise", "uniform"]
+    methods = ["density_ramp", "smooth_noise", "tuned_noise", "uniform"]
     lines = []
     rows = run(tmp_path, pairs, methods, res=16, spp=1, cache=tmp_path / "cache", log=lines.append)
-    assert len(rows) == 3 and len(lines) == 3
+    assert len(rows) == 4 and len(lines) == 4
     stored = read_rows(tmp_path / "rows.jsonl")
     assert [row.method for row in stored] == methods
     row = stored[0]
     assert row.density == "pyroclastic16" and row.settings["res"] == 16 and row.checkpoint.startswith("skpn_noise.pt:")
     assert np.isfinite([row.rgb_swd, row.patch_swd, row.hue_coverage]).all() and row.commit
-    assert summary(stored)["uniform"]["rgb_swd_x_uniform"] == 1.0
+    medians = summary(stored)
+    assert medians["uniform"]["rgb_swd_x_uniform"] == 1.0 and medians["tuned_noise"]["patch_swd_x_tuned"] == 1.0
     table = (tmp_path / "table.md").read_text()
-    assert all(f"| {name} |" in table for name in methods)
+    assert all(f"| {name} |" in table for name in methods) and "| x tuned |" in table
     assert (tmp_path / "sheet.jpg").stat().st_size > 0 and (tmp_path / "index.html").exists()
     # Resume: nothing is recomputed; another setting gives rows of its own beside the first ones.
     lines.clear()
     run(tmp_path, pairs, methods, res=16, spp=1, cache=tmp_path / "cache", resume=True, log=lines.append)
     assert lines == [] and read_rows(tmp_path / "rows.jsonl") == stored
     run(tmp_path, pairs, ["uniform"], res=16, spp=2, cache=tmp_path / "cache", log=lines.append)
-    assert len(read_rows(tmp_path / "rows.jsonl")) == 4
+    assert len(read_rows(tmp_path / "rows.jsonl")) == 5
+    # Without tuned_noise rows the ratios to it are n/a, not an error.
+    assert "n/a" in table_of([row for row in stored if row.method != "tuned_noise"])
 
 
 def test_command_refuses_bad_input_in_one_line(tmp_path, capsys):

@@ -60,29 +60,30 @@ def test_density_ramp_is_the_densitys_rank(rng):
     assert np.all(np.diff(ramp[..., 0][occupied][order]) > 0)  # strictly increasing with density
 
 
-def test_smooth_noise_is_seeded_spans_the_unit_cube_and_is_smooth():
-    noise = smooth_noise((32, 32, 32), seed=3)
+def seeded_rgb_field(make) -> np.ndarray:
+    """``make(shape, seed=3)``, checked to be a seeded RGB field spanning [0, 1] per channel, with
+    independent channels (colour varies in every direction)."""
+    noise = make((32, 32, 32), seed=3)
     assert noise.shape == (32, 32, 32, 3) and noise.dtype == np.float32
-    assert np.array_equal(noise, smooth_noise((32, 32, 32), seed=3))
-    assert not np.array_equal(noise, smooth_noise((32, 32, 32), seed=4))
+    assert np.array_equal(noise, make((32, 32, 32), seed=3))
+    assert not np.array_equal(noise, make((32, 32, 32), seed=4))
     assert np.allclose(noise.reshape(-1, 3).min(axis=0), 0) and np.allclose(noise.reshape(-1, 3).max(axis=0), 1)
+    assert abs(np.corrcoef(noise.reshape(-1, 3).T)[0, 1]) < 0.5
+    return noise
+
+
+def test_smooth_noise_is_seeded_spans_the_unit_cube_and_is_smooth():
+    noise = seeded_rgb_field(smooth_noise)
     # Neighbours are close: much closer than white noise's (mean |difference| 1/3 for uniform values).
     assert float(np.abs(np.diff(noise, axis=0)).mean()) < 0.05
-    channels = noise.reshape(-1, 3).T
-    assert abs(np.corrcoef(channels)[0, 1]) < 0.5  # independent channels: colour varies in every direction
 
 
 def test_tuned_noise_is_seeded_coarser_than_smooth_noise_and_wraps_around_the_box():
-    noise = tuned_noise((32, 32, 32), seed=3)
-    assert noise.shape == (32, 32, 32, 3) and noise.dtype == np.float32
-    assert np.array_equal(noise, tuned_noise((32, 32, 32), seed=3))
-    assert not np.array_equal(noise, tuned_noise((32, 32, 32), seed=4))
-    assert np.allclose(noise.reshape(-1, 3).min(axis=0), 0) and np.allclose(noise.reshape(-1, 3).max(axis=0), 1)
+    noise = seeded_rgb_field(tuned_noise)
     steps = float(np.abs(np.diff(noise, axis=0)).mean())
     assert steps < 0.75 * float(np.abs(np.diff(smooth_noise((32, 32, 32), seed=3), axis=0)).mean())  # coarser
     # Wrapped: the last slice continues into the first as smoothly as any two neighbours do.
     assert float(np.abs(noise[-1] - noise[0]).mean()) < 2 * steps
-    assert abs(np.corrcoef(noise.reshape(-1, 3).T)[0, 1]) < 0.5
 
 
 def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):

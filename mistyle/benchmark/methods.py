@@ -15,7 +15,7 @@ network.
   in the frequency domain, so it wraps around the box: no edge is flatter than the middle) at
   ``TUNED_NOISE_SIGMA``, the scale that came closest to the validation paintings
   (``experiments/noise_field_probe.py``, ``results/noise_fields/``). The strongest training-free field
-  mistyle knows of: a network whose patterns are only noise cannot beat it.
+  mistyle knows of: what a network adds beyond noise of the right scale shows against it.
 """
 
 from __future__ import annotations

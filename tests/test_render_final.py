@@ -939,9 +939,43 @@ def test_a_signal_during_refinement_exits_in_one_line_and_leaves_nothing(
     time.sleep(1.0)
     process.send_signal(getattr(signal, signal_name))  # Ctrl-C is SIGINT
     _, error = process.communicate(timeout=120)
-    assert process.returncode == code
+    assert process.returncode == code, error
     assert error.strip().splitlines() == [line]
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "handler, code, word",
+    [(mistyle.render_final._interrupt, 130, "interrupted"), (mistyle.render_final._terminate, 143, "terminated")],
+)
+@pytest.mark.parametrize("chained", [True, False], ids=["caused-by-the-signal", "cause-lost"])
+def test_a_signal_inside_dr_jits_custom_operation_still_stops_cleanly(
+    monkeypatch, tmp_path, capsys, handler, code, word, chained
+):
+    """A Ctrl-C or SIGTERM that lands while Dr.Jit runs the fast layer's custom operation reaches Python as
+    a RuntimeError (seen about once in ten runs of the test above), with the signal's exception as its
+    cause or without it; the run stops as the signal asked all the same."""
+
+    def run(args):
+        try:
+            handler(None, None)
+        except BaseException as cause:
+            error = RuntimeError("drjit.custom(<LayerOp>): error while performing a custom operation")
+            raise error from (cause if chained else None)
+
+    monkeypatch.setattr(mistyle.render_final, "run", run)
+    argv = ["--density", "d.vol", "--style", "s.png", "--out", str(tmp_path / "out")]
+    assert main(argv) == code
+    assert capsys.readouterr().err.strip().startswith(f"{word}: the output being written was removed")
+
+
+def test_an_error_without_a_signal_is_not_taken_for_one(monkeypatch, tmp_path):
+    def run(args):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(mistyle.render_final, "run", run)
+    with pytest.raises(RuntimeError, match="a bug"):
+        main(["--density", "d.vol", "--style", "s.png", "--out", str(tmp_path / "out")])
 
 
 def test_a_killed_runs_staging_folders_are_removed_by_the_next_run(mi, checkpoint, inputs, tmp_path, capsys):

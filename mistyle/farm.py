@@ -104,39 +104,47 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from .look import Look
-    from .render_final import parse_frame_range
+    from .stops import run_stoppable
 
     args = parser().parse_args(argv)
-    options = args.options[1:] if args.options[:1] == ["--"] else args.options
     try:
-        if not args.look.is_file():
-            raise ValueError(f"Look {args.look} does not exist; fit one with mistyle-render --save-look.")
-        if not args.density.exists():
-            raise ValueError(f"Density {args.density} does not exist.")
-        if args.local_workers is not None and not 1 <= args.local_workers <= 256:
-            raise ValueError(f"--local-workers must lie in [1, 256], got {args.local_workers}.")
-        named = options[options.index("--checkpoint") + 1] if "--checkpoint" in options[:-1] else None
-        Look.load(args.look, checkpoint=named)  # a damaged look or another network: one line here, not per task
-        frames = None if args.frames is None else parse_frame_range(args.frames)
-        from distributed import Client, LocalCluster
-
-        if args.local_workers is not None:
-            cluster = LocalCluster(n_workers=args.local_workers, threads_per_worker=1, processes=True)
-            client = Client(cluster)
-        else:
-            cluster, client = None, Client(args.scheduler, timeout=30)
-        try:
-            done = render_on_cluster(
-                client, args.density, args.look, args.out, chunk=args.chunk, frames=frames, options=options
-            )
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+        kept = f"the frames finished so far are kept in {args.out}"
+        return run_stoppable(lambda: _farm(args), kept, in_process=argv is not None)
     except (ValueError, OSError, RuntimeError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+
+
+def _farm(args) -> int:
+    """The command's work: the checks, the cluster, the chunks; the cluster is closed however it ends."""
+    from .look import Look
+    from .render_final import parse_frame_range
+
+    options = args.options[1:] if args.options[:1] == ["--"] else args.options
+    if not args.look.is_file():
+        raise ValueError(f"Look {args.look} does not exist; fit one with mistyle-render --save-look.")
+    if not args.density.exists():
+        raise ValueError(f"Density {args.density} does not exist.")
+    if args.local_workers is not None and not 1 <= args.local_workers <= 256:
+        raise ValueError(f"--local-workers must lie in [1, 256], got {args.local_workers}.")
+    named = options[options.index("--checkpoint") + 1] if "--checkpoint" in options[:-1] else None
+    Look.load(args.look, checkpoint=named)  # a damaged look or another network: one line here, not per task
+    frames = None if args.frames is None else parse_frame_range(args.frames)
+    from distributed import Client, LocalCluster
+
+    if args.local_workers is not None:
+        cluster = LocalCluster(n_workers=args.local_workers, threads_per_worker=1, processes=True)
+        client = Client(cluster)
+    else:
+        cluster, client = None, Client(args.scheduler, timeout=30)
+    try:
+        done = render_on_cluster(
+            client, args.density, args.look, args.out, chunk=args.chunk, frames=frames, options=options
+        )
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
     print(f"wrote {args.out}/: {sum(b - a + 1 for a, b in (d['frames'] for d in done))} frames in {len(done)} chunks")
     return 0
 

@@ -218,85 +218,18 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-class Terminated(Exception):
-    """Raised in the main thread by SIGTERM, so that staging folders are cleaned up as on Ctrl-C."""
-
-
-# The stop a signal asked for, set by the handlers below: Dr.Jit and torch may wrap the exception the
-# handler raises (a signal landing inside the fast layer's ``dr.custom`` operation reaches Python as a
-# RuntimeError), so whatever error follows a signal ends the run as the stop the user asked for.
-_requested_stop: type[BaseException] | None = None
-
-
-def _terminate(signum, frame):
-    global _requested_stop
-    _requested_stop = Terminated
-    raise Terminated
-
-
-def _interrupt(signum, frame):
-    global _requested_stop
-    _requested_stop = KeyboardInterrupt
-    raise KeyboardInterrupt
-
-
-def _stop_request(error: BaseException) -> type[BaseException] | None:
-    """The stop (``KeyboardInterrupt`` or ``Terminated``) behind ``error``: a signal received during the
-    run, or one found among the exceptions that caused ``error``."""
-    if _requested_stop is not None:
-        return _requested_stop
-    seen = set()
-    while error is not None and id(error) not in seen:
-        if isinstance(error, (KeyboardInterrupt, Terminated)):
-            return type(error)
-        seen.add(id(error))
-        error = error.__cause__ or error.__context__
-    return None
-
-
-def _interrupted(message: str, code: int, in_process: bool) -> int:
-    """Say why a run stopped; return ``code`` to an in-process caller (``main(argv)``), and end the
-    command's process with it at once. The signal may also have reached Mitsuba's or torch's threads,
-    and the interpreter's shutdown could then end the process by the signal instead of ``code``
-    (measured: about one Ctrl-C in four); the outputs are cleaned up already."""
-    import os
-
-    print(message, file=sys.stderr)
-    if in_process:
-        return code
-    sys.stderr.flush()
-    sys.stdout.flush()
-    os._exit(code)
-
-
 def main(argv=None) -> int:
-    import signal
-    import threading
-
     from .progress import set_quiet
+    from .stops import run_stoppable
 
     args = parser().parse_args(argv)
     set_quiet(args.quiet)
-    global _requested_stop
-    _requested_stop = None
-    previous = {}
-    if threading.current_thread() is threading.main_thread():
-        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, _terminate)
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when Ctrl-C is ignored
-            previous[signal.SIGINT] = signal.signal(signal.SIGINT, _interrupt)
-    kept = "the output being written was removed; finished outputs are kept"
     try:
-        try:
-            return run(args)
-        except Exception as error:
-            stop = _stop_request(error)
-            if stop is None:
-                raise
-            raise stop from None
-    except KeyboardInterrupt:
-        return _interrupted(f"interrupted: {kept}", 130, in_process=argv is not None)
-    except Terminated:
-        return _interrupted(f"terminated: {kept}", 143, in_process=argv is not None)
+        return run_stoppable(
+            lambda: run(args),
+            "the output being written was removed; finished outputs are kept",
+            in_process=argv is not None,
+        )
     except (ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -307,9 +240,6 @@ def main(argv=None) -> int:
             print(f"error: {error}", file=sys.stderr)
             return 2
         raise
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
 
 
 def log(message: str) -> None:

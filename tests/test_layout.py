@@ -9,7 +9,7 @@ ROOT = Path(mistyle.__file__).parent
 # A unit may import units of a lower layer only (or itself). Same as the map in README.md.
 LAYERS = [
     {"conventions", "vdb_convert"},
-    {"display", "volume", "warp", "backend", "progress", "vdb", "outputs"},
+    {"display", "volume", "warp", "backend", "progress", "stops", "vdb", "outputs"},
     {"io"},
     {"scenes", "pages"},
     {"integrators"},

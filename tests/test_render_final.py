@@ -8,6 +8,7 @@ import torch
 from PIL import Image
 
 import mistyle
+import mistyle.stops
 from mistyle.io import read_vol, write_vol
 from mistyle.render_final import main
 
@@ -946,7 +947,7 @@ def test_a_signal_during_refinement_exits_in_one_line_and_leaves_nothing(
 
 @pytest.mark.parametrize(
     "handler, code, word",
-    [(mistyle.render_final._interrupt, 130, "interrupted"), (mistyle.render_final._terminate, 143, "terminated")],
+    [(mistyle.stops.on_sigint, 130, "interrupted"), (mistyle.stops.on_sigterm, 143, "terminated")],
 )
 @pytest.mark.parametrize("chained", [True, False], ids=["caused-by-the-signal", "cause-lost"])
 def test_a_signal_inside_dr_jits_custom_operation_still_stops_cleanly(

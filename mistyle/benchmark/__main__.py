@@ -25,7 +25,7 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--split", default="heldout", choices=list(SPLITS), help="which pairs (default: heldout)")
     p.add_argument("--densities", default=None, help="comma-separated density names of the split (default: all)")
-    p.add_argument("--styles", default=None, help="comma-separated held-out style names (default: all of the split)")
+    p.add_argument("--styles", default=None, help="comma-separated style names of the split (default: all)")
     p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated, of {', '.join(METHODS)}")
     p.add_argument("--res", type=int, default=128, help="metric renders' side")
     p.add_argument("--spp", type=int, default=16, help="metric renders' paths per pixel")
@@ -53,6 +53,7 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     out = args.out or (DEFAULT_OUT.with_name(DEFAULT_OUT.name + "-quick") if args.quick else DEFAULT_OUT)
     try:
+        from ..stops import run_stoppable
         from .runner import report, run
         from .splits import split_pairs
 
@@ -71,22 +72,27 @@ def main(argv=None) -> int:
             args.densities.split(",") if args.densities else None,
             args.styles.split(",") if args.styles else None,
         )
-        run(
-            out,
-            pairs,
-            args.methods.split(","),
-            res=res,
-            spp=spp,
-            quick=args.quick,
-            resume=args.resume,
-            checkpoint=args.checkpoint,
-            optimise_factor=args.optimise_factor,
-            cache=args.cache,
-            split=split,
-        )
-        print((out / "table.md").read_text(), end="")
-        print(f"wrote {out}/: rows.jsonl, table.md, sheet.jpg, index.html")
-        return 0
+
+        def score() -> int:
+            run(
+                out,
+                pairs,
+                args.methods.split(","),
+                res=res,
+                spp=spp,
+                quick=args.quick,
+                resume=args.resume,
+                checkpoint=args.checkpoint,
+                optimise_factor=args.optimise_factor,
+                cache=args.cache,
+                split=split,
+            )
+            print((out / "table.md").read_text(), end="")
+            print(f"wrote {out}/: rows.jsonl, table.md, sheet.jpg, index.html")
+            return 0
+
+        kept = f"the rows scored so far are kept in {out / 'rows.jsonl'}; add --resume to go on from them"
+        return run_stoppable(score, kept, in_process=argv is not None)
     except (ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -98,6 +98,14 @@ def main(argv=None) -> int:
     from ..progress import set_quiet
 
     set_quiet(args.quiet)
+    from ..stops import run_stoppable
+
+    kept = f"the files finished so far under {args.out} are kept, none half-written; run the same command again"
+    return run_stoppable(lambda: _command(args), kept, in_process=argv is not None)
+
+
+def _command(args) -> int:
+    """The chosen command's work; 2 for bad input, after one line on stderr."""
     low, high = RES_RANGE[args.command] if args.command in RES_RANGE else (None, None)
     if low is not None and not low <= args.res <= high:
         print(f"error: --res must lie in [{low}, {high}] for {args.command}, got {args.res}.", file=sys.stderr)

@@ -63,64 +63,21 @@ def main(argv=None) -> int:
     set_quiet(args.quiet)
 
     from ..backend import BackendError
-    from ..model.config import ConfigError, load_config
+    from ..model.config import ConfigError
 
     overrides = list(args.overrides)
     if args.device:
         overrides.append(f'run.device="{args.device}"')
     if args.vgg_weights:
         overrides.append(f"run.vgg_weights={json.dumps(args.vgg_weights)}")
-    distributed = int(os.environ.get("WORLD_SIZE", "1")) > 1
+    from ..stops import run_stoppable
+
+    if args.recipe:
+        kept = f"finished stages and checkpoints in {args.out} are kept; run the same command again to resume"
+    else:
+        kept = f"the checkpoints already saved in {args.out} are kept; continue with --resume"
     try:
-        if args.recipe:
-            from .recipes import recipe, run_recipe
-
-            if args.init or args.resume or args.optimize:
-                raise ValueError(
-                    "--recipe runs its own stages (and resumes them by itself); drop --init/--resume/--optimize."
-                )
-            from .trainer import Interrupted
-
-            try:
-                chosen = run_recipe(recipe(args.recipe), args.out, overrides)
-            except Interrupted:
-                print(f"stopped; run the same command again to resume the recipe in {args.out}", file=sys.stderr)
-                return 130
-            print(f"done: {chosen}  (stages and choices: {args.out / 'recipe.json'})")
-            return 0
-        config = load_config(args.config, overrides)
-        if args.optimize:
-            from .baseline import compare_with_direct_fit
-
-            return compare_with_direct_fit(config, args.out, args.checkpoint, args.optimize_steps, args.optimize_styles)
-        if distributed:
-            _init_distributed(config)
-        from .trainer import Interrupted, Trainer
-
-        if args.init and args.resume:
-            raise ValueError(
-                "--init starts a new run from a checkpoint's weights; --resume continues one: give one of them."
-            )
-        created = not args.out.exists()
-        try:
-            trainer = Trainer(config, args.out, resume=args.resume, init=args.init)
-        except BaseException:
-            if created:  # a run that never started leaves no folder behind
-                import shutil
-
-                shutil.rmtree(args.out, ignore_errors=True)
-            raise
-        try:
-            final = trainer.run()
-        except Interrupted:
-            print(
-                f"stopped at step {trainer.step}; checkpoint {args.out / 'last.pt'}; continue with --resume",
-                file=sys.stderr,
-            )
-            return 130
-        if trainer.rank == 0:
-            print(f"done: {final}  (metrics {args.out / 'metrics.jsonl'}, previews {args.out / 'previews'})")
-        return 0
+        return run_stoppable(lambda: _train(args, overrides), kept, in_process=argv is not None)
     except (ConfigError, ValueError, OSError, BackendError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -129,6 +86,62 @@ def main(argv=None) -> int:
 
         if dist.is_initialized():
             dist.destroy_process_group()
+
+
+def _train(args, overrides: list[str]) -> int:
+    """The command's work: a recipe, a direct optimisation or a training run."""
+    from ..model.config import load_config
+
+    distributed = int(os.environ.get("WORLD_SIZE", "1")) > 1
+    if args.recipe:
+        from .recipes import recipe, run_recipe
+
+        if args.init or args.resume or args.optimize:
+            raise ValueError(
+                "--recipe runs its own stages (and resumes them by itself); drop --init/--resume/--optimize."
+            )
+        from .trainer import Interrupted
+
+        try:
+            chosen = run_recipe(recipe(args.recipe), args.out, overrides)
+        except Interrupted:
+            print(f"stopped; run the same command again to resume the recipe in {args.out}", file=sys.stderr)
+            return 130
+        print(f"done: {chosen}  (stages and choices: {args.out / 'recipe.json'})")
+        return 0
+    config = load_config(args.config, overrides)
+    if args.optimize:
+        from .baseline import compare_with_direct_fit
+
+        return compare_with_direct_fit(config, args.out, args.checkpoint, args.optimize_steps, args.optimize_styles)
+    if distributed:
+        _init_distributed(config)
+    from .trainer import Interrupted, Trainer
+
+    if args.init and args.resume:
+        raise ValueError(
+            "--init starts a new run from a checkpoint's weights; --resume continues one: give one of them."
+        )
+    created = not args.out.exists()
+    try:
+        trainer = Trainer(config, args.out, resume=args.resume, init=args.init)
+    except BaseException:
+        if created:  # a run that never started leaves no folder behind
+            import shutil
+
+            shutil.rmtree(args.out, ignore_errors=True)
+        raise
+    try:
+        final = trainer.run()
+    except Interrupted:
+        print(
+            f"stopped at step {trainer.step}; checkpoint {args.out / 'last.pt'}; continue with --resume",
+            file=sys.stderr,
+        )
+        return 130
+    if trainer.rank == 0:
+        print(f"done: {final}  (metrics {args.out / 'metrics.jsonl'}, previews {args.out / 'previews'})")
+    return 0
 
 
 def _init_distributed(config) -> None:

@@ -10,7 +10,7 @@ from mistyle.benchmark.__main__ import main
 from mistyle.benchmark.methods import density_ramp, smooth_noise, tuned_noise
 from mistyle.benchmark.runner import read_rows, run, summary
 from mistyle.benchmark.runner import table as table_of
-from mistyle.data.heldout import HELD_OUT_SEED_BASE, HeldOutDensity, held_out_styles
+from mistyle.data.heldout import HELD_OUT_SEED_BASE, HeldOutDensity, held_out_styles, validation_styles
 
 TINY = HeldOutDensity("pyroclastic16", "pyroclastic", 16, HELD_OUT_SEED_BASE + 3)
 
@@ -31,8 +31,13 @@ def test_splits_name_their_pairs_and_refuse_unknown_names():
     assert {spec.name for spec, _ in pairs} == {"smoke64", "pyroclastic64"}
     assert len(pairs) == 2 * len(held_out_styles())
     assert [style for _, style in split_pairs("heldout", ["smoke64"], ["munch_the_scream"])] == ["munch_the_scream"]
+    validation = split_pairs("validation")
+    assert {spec.name for spec, _ in validation} == {"val_smoke64", "val_pyroclastic64"}
+    assert {style for _, style in validation} == set(validation_styles())
+    assert not {style for _, style in validation} & set(held_out_styles())
     for bad, message in (
         (("nope",), "Unknown split"),
+        (("validation", None, ["munch_the_scream"]), "no style munch_the_scream"),
         (("heldout", ["smoke32"]), "no density smoke32"),
         (("quick", None, ["munch_the_scream"]), "no style munch_the_scream"),
     ):
@@ -108,6 +113,11 @@ def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
     assert lines == [] and read_rows(tmp_path / "rows.jsonl") == stored
     run(tmp_path, pairs, ["uniform"], res=16, spp=2, cache=tmp_path / "cache", log=lines.append)
     assert len(read_rows(tmp_path / "rows.jsonl")) == 5
+    # The validation split's pairs draw their styles from the validation set.
+    pairs = [(HeldOutDensity("val_pyroclastic16", "pyroclastic", 16, HELD_OUT_SEED_BASE + 103), "klimt_the_kiss")]
+    run(tmp_path / "validation", pairs, ["uniform"], res=16, spp=1, cache=tmp_path / "cache", split="validation")
+    assert [row.split for row in read_rows(tmp_path / "validation" / "rows.jsonl")] == ["validation"]
+    assert (tmp_path / "validation" / "sheet.jpg").stat().st_size > 0
     # Without tuned_noise rows the ratios to it are n/a, not an error.
     assert "n/a" in table_of([row for row in stored if row.method != "tuned_noise"])
 

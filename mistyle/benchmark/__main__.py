@@ -4,6 +4,7 @@ mistyle-bench --quick                                   # a minute: 1 small dens
 mistyle-bench                                           # the held-out split, every method (hours on 2 cores)
 mistyle-bench --methods network,density_ramp,smooth_noise,uniform --resume
 mistyle-bench --split heldout128 --methods network,uniform
+mistyle-bench --split validation --methods network --checkpoint runs/x/steps/step_000600.pt --out runs/x/validation
 mistyle-bench --report-only                             # table.md, sheet.jpg, index.html from rows.jsonl
 """
 

@@ -123,10 +123,11 @@ def run(
 ) -> list[Row]:
     """Score ``method_names`` on ``pairs`` (``splits.split_pairs``), writing rows as they come, then the
     report. Returns every row in ``<out>/rows.jsonl``."""
-    from ..data.heldout import held_out_density, held_out_styles
+    from ..data.heldout import held_out_density
     from ..io import load_style
     from ..pipeline import Stylizer
     from .methods import METHODS, Context, timed
+    from .splits import split_styles
 
     unknown = [name for name in method_names if name not in METHODS]
     if unknown:
@@ -141,7 +142,7 @@ def run(
     )
     settings = {"res": res, "spp": spp, "views": METRIC_VIEWS, "quick": quick, "optimise_factor": optimise_factor}
     common = {"settings": settings, "checkpoint": checkpoint_id(stylizer.path), "commit": code_commit(), "split": split}
-    styles = held_out_styles()
+    styles = split_styles(split or "heldout")
     for spec in dict.fromkeys(spec for spec, _ in pairs):
         density = held_out_density(spec, cache)
         for style_name in [name for density_spec, name in pairs if density_spec == spec]:
@@ -303,15 +304,17 @@ def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
     """Per (density, style): the style, then each method's tile (grey where none was saved)."""
     from PIL import Image, ImageDraw
 
-    from ..data.heldout import held_out_styles
     from ..io import atomic_output, load_style
     from ..model.features import square_style
+    from .splits import split_styles
 
     pairs = list(dict.fromkeys((row.density, row.style) for row in rows))
     if not pairs:
         return
     methods = list(summary(rows))
-    styles = held_out_styles()
+    styles = {}
+    for split in dict.fromkeys(row.split or "heldout" for row in rows):
+        styles.update(split_styles(split))
     canvas = np.full((len(pairs) * TILE + 16, (len(methods) + 1) * TILE, 3), 1.0, np.float32)
     for index, (density, style) in enumerate(pairs):
         cells = [square_style(load_style(styles[style]["path"]), TILE).permute(1, 2, 0).numpy()]

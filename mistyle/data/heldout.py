@@ -10,9 +10,12 @@ solver with the dataset seeds of ``configs/`` (0 and up); the benchmark uses
   (smoke at 64^3 and 128^3, and densities from other generators: a pyroclastic cloud and a
   voxelized mesh).
 
-``check_training_styles`` refuses a training style folder holding a held-out image (compared by
-content, so a renamed copy is caught too); ``tests/test_heldout.py`` checks the offline set and the
-configs' seeds.
+Choosing between checkpoints and recipes uses a validation split drawn the same way and kept apart
+from both: the images under ``mistyle/data/validation_styles/`` (paintings by other painters,
+photographs and textures, from repositories neither training nor the held-out set took from) and
+``VALIDATION_DENSITIES`` (the same generators, other seeds). ``check_training_styles`` refuses a
+training style folder holding a held-out or validation image (compared by content, so a renamed copy
+is caught too); ``tests/test_heldout.py`` checks the offline set and the configs' seeds.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ import tomllib
 
 HELD_OUT_STYLE_DIR = Path(__file__).resolve().parent / "heldout_styles"
 """The held-out styles: package data, so an installed mistyle benchmarks without the repository."""
+VALIDATION_STYLE_DIR = Path(__file__).resolve().parent / "validation_styles"
+"""The validation styles: the held-out set's kinds of picture from other sources, for model selection."""
 HELD_OUT_SEED_BASE = 7000
 """Seeds of held-out densities start here; training datasets use small seeds (``tests/test_heldout.py``)."""
 
@@ -58,9 +63,13 @@ HELD_OUT_DENSITIES = (
 )
 
 
-VALIDATION_DENSITIES = (HeldOutDensity("val_smoke64", "smoke", 64, HELD_OUT_SEED_BASE + 101, frame=69),)
-"""Densities for choosing between checkpoints (``experiments/validation_curve.py``): made like the
-benchmark's but from other seeds, so model selection never looks at the benchmark's split."""
+VALIDATION_DENSITIES = (
+    HeldOutDensity("val_smoke64", "smoke", 64, HELD_OUT_SEED_BASE + 101, frame=69),
+    HeldOutDensity("val_pyroclastic64", "pyroclastic", 64, HELD_OUT_SEED_BASE + 103),
+)
+"""Densities for choosing between checkpoints (the benchmark's ``validation`` split): the held-out
+split's two kinds, made by the same generators from other seeds, so model selection never looks at
+the benchmark's pairs."""
 
 
 def held_out_density(spec: HeldOutDensity, cache: Path | None = None) -> np.ndarray:
@@ -93,10 +102,11 @@ def held_out_density(spec: HeldOutDensity, cache: Path | None = None) -> np.ndar
 
 
 def held_out_styles(root: Path = HELD_OUT_STYLE_DIR) -> dict[str, dict]:
-    """``name -> record`` of the held-out styles (``SOURCES.toml``), each with its ``path``."""
+    """``name -> record`` of the held-out styles (``SOURCES.toml``), each with its ``path``; with
+    ``root=VALIDATION_STYLE_DIR``, the validation styles (``validation_styles``)."""
     sources = root / "SOURCES.toml"
     if not sources.exists():
-        raise ValueError(f"The held-out style list {sources} is missing.")
+        raise ValueError(f"The style list {sources} is missing.")
     records = tomllib.loads(sources.read_text())
     for name, record in records.items():
         record["path"] = root / record["file"]
@@ -105,20 +115,27 @@ def held_out_styles(root: Path = HELD_OUT_STYLE_DIR) -> dict[str, dict]:
     return records
 
 
+def validation_styles() -> dict[str, dict]:
+    """``name -> record`` of the validation styles (``VALIDATION_STYLE_DIR``), as ``held_out_styles``."""
+    return held_out_styles(VALIDATION_STYLE_DIR)
+
+
 def file_digest(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def check_training_styles(paths) -> None:
-    """``ValueError`` when any of ``paths`` is a held-out benchmark style (by content)."""
-    if not (HELD_OUT_STYLE_DIR / "SOURCES.toml").exists():
-        return
-    held = {file_digest(record["path"]): name for name, record in held_out_styles().items()}
+    """``ValueError`` when any of ``paths`` is a held-out benchmark style or a validation style (by content)."""
+    kept = {}
+    for root, what in ((VALIDATION_STYLE_DIR, "validation"), (HELD_OUT_STYLE_DIR, "held-out benchmark")):
+        if (root / "SOURCES.toml").exists():
+            kept.update({file_digest(record["path"]): (name, what) for name, record in held_out_styles(root).items()})
     for path in paths:
-        if file_digest(path) in held:
+        if file_digest(path) in kept:
+            name, what = kept[file_digest(path)]
             raise ValueError(
-                f"{path} is the held-out benchmark style {held[file_digest(path)]!r}; training must "
-                f"never see it. Remove it from the training style folder."
+                f"{path} is the {what} style {name!r}; training must never see it. Remove it from the "
+                f"training style folder."
             )
 
 

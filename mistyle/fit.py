@@ -34,6 +34,7 @@ from .conventions import DEFAULT_ENV_RADIANCE, ORBIT_DISTANCE, REFINE_LAYER_STEP
 from .objective.losses import tv_loss
 from .objective.masks import body_mask
 from .scenes import CameraPath, View
+from .stops import raise_if_requested
 
 Renderer = Callable[[torch.Tensor, Sequence[View], int], torch.Tensor]
 """``render(albedo (3, Z, Y, X), views, seed) -> (V, 3, H, W)`` linear radiance, differentiable."""
@@ -112,6 +113,7 @@ def fit_albedo(
     losses = []
     started = time.perf_counter()
     for step in range(settings.steps):
+        raise_if_requested()
         albedo = variable.albedo()
         views = orbit.sample(settings.views_per_step, rng)
         images = render(albedo, views, step * settings.views_per_step)

@@ -509,6 +509,7 @@ def fit_look(
     from .objective.masks import body_mask
     from .objective.style import SLICED_STYLE_SIZE, SlicedObjective
     from .scenes import CameraPath
+    from .stops import raise_if_requested
     from .stylizer import style_parts, style_target
 
     settings = LookSettings() if settings is None else settings
@@ -617,6 +618,7 @@ def fit_look(
     render = dict(steps=settings.layer_steps_per_ray, radiance=radiance)
     losses = []
     for step in range(settings.steps):
+        raise_if_requested()
         frame = frames[step % len(frames)]
         views = orbit.sample(settings.views_per_step, rng)
         prepared = prepared_densities[step % len(frames)]

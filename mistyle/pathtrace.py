@@ -20,6 +20,7 @@ import numpy as np
 from .backend import active_variant
 from .conventions import DEFAULT_DENSITY_SCALE
 from .scenes.cameras import split_views
+from .stops import raise_if_requested
 
 MAX_PASS_SAMPLES = 1 << 26
 """Paths per launch of the path tracer (a 256^2 image at 1024 spp); larger renders go in passes."""
@@ -125,6 +126,7 @@ def path_trace(
     passes = sample_passes(res, spp, MAX_PASS_SAMPLES if max_pass_samples is None else max_pass_samples)
     images, seconds = [], []
     for index in range(len(views)):
+        raise_if_requested()
         started = time.perf_counter()
         if len(passes) == 1:
             image = np.array(mi.render(scene, sensor=index), dtype=np.float32)

@@ -3,7 +3,10 @@ kept, and the shell's exit code for the signal (130, 143), never a traceback.
 
 Every console command runs its work through ``run_stoppable``. The work cleans up as any exception
 passes (staging folders, atomic writes); this module owns the rest: the handlers, recognising the
-stop however Dr.Jit or torch wrapped it, the message and the exit code.
+stop however Dr.Jit or torch wrapped it, the message and the exit code. A handler's exception can be
+lost (raised while the interpreter runs a finalizer, it is printed as ignored and the run goes on:
+seen about once in eight Ctrl-Cs during refinement), so the long loops call ``raise_if_requested``
+at each step.
 """
 
 from __future__ import annotations
@@ -35,6 +38,13 @@ def on_sigint(signum, frame):
     global _requested_stop
     _requested_stop = KeyboardInterrupt
     raise KeyboardInterrupt
+
+
+def raise_if_requested() -> None:
+    """Raise the stop a signal asked for, if one did: a loop's safe point, should the handler's own
+    exception have been lost. Does nothing outside ``run_stoppable`` (library calls)."""
+    if _requested_stop is not None:
+        raise _requested_stop
 
 
 def requested_stop(error: BaseException) -> type[BaseException] | None:
@@ -83,7 +93,9 @@ def run_stoppable(work: Callable[[], int], kept: str, in_process: bool) -> int:
             previous[signal.SIGINT] = signal.signal(signal.SIGINT, on_sigint)
     try:
         try:
-            return work()
+            code = work()
+            raise_if_requested()  # a stop lost after the last safe point
+            return code
         except Exception as error:
             stop = requested_stop(error)
             if stop is None:
@@ -96,3 +108,4 @@ def run_stoppable(work: Callable[[], int], kept: str, in_process: bool) -> int:
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
+        _requested_stop = None  # library calls after an in-process run are not stopped by its signal

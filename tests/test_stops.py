@@ -79,3 +79,24 @@ def test_a_benchmark_stopped_by_ctrl_c_keeps_its_rows_and_says_how_to_go_on(mi, 
         f"interrupted: the rows scored so far are kept in {out / 'rows.jsonl'}; add --resume to go on from them"
     )
     assert "Traceback" not in error and (out / "rows.jsonl").read_text().strip()
+
+
+@pytest.mark.parametrize("safe_points", [3, 0], ids=["at-the-next-step", "at-the-end"])
+def test_a_stop_whose_exception_was_lost_still_stops_the_run(capsys, safe_points):
+    """Raised while the interpreter runs a finalizer, a handler's exception is printed as ignored and the
+    run goes on; the loops' safe points (or the end of the work) raise it again."""
+    steps = []
+
+    def work():
+        try:
+            stops.on_sigint(None, None)
+        except KeyboardInterrupt:
+            pass  # lost
+        for step in range(safe_points):
+            stops.raise_if_requested()
+            steps.append(step)
+        return 0
+
+    assert run_stoppable(work, "kept", in_process=True) == INTERRUPTED_CODE
+    assert steps == [] and capsys.readouterr().err == "interrupted: kept\n"
+    stops.raise_if_requested()  # once the run is over, library calls are not stopped by its signal

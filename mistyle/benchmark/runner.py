@@ -126,6 +126,7 @@ def run(
     from ..data.heldout import held_out_density
     from ..io import load_style
     from ..pipeline import Stylizer
+    from ..stops import raise_if_requested
     from .methods import METHODS, Context, timed
     from .splits import split_styles
 
@@ -148,6 +149,7 @@ def run(
         for style_name in [name for density_spec, name in pairs if density_spec == spec]:
             style = load_style(styles[style_name]["path"])
             for name in method_names:
+                raise_if_requested()
                 probe = Row(name, spec.name, style_name, 0.0, 0.0, 0.0, 0.0, **common)
                 if resume and any(row.key() == probe.key() for row in rows):
                     continue

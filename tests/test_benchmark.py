@@ -32,7 +32,7 @@ def test_splits_name_their_pairs_and_refuse_unknown_names():
     assert len(pairs) == 2 * len(held_out_styles())
     assert [style for _, style in split_pairs("heldout", ["smoke64"], ["munch_the_scream"])] == ["munch_the_scream"]
     validation = split_pairs("validation")
-    assert {spec.name for spec, _ in validation} == {"val_smoke64", "val_pyroclastic64"}
+    assert {spec.kind for spec, _ in validation} == {"smoke", "pyroclastic"}
     assert {style for _, style in validation} == set(validation_styles())
     assert not {style for _, style in validation} & set(held_out_styles())
     for bad, message in (

@@ -379,7 +379,7 @@ def test_validation_selection_scores_kept_checkpoints_and_picks_the_lowest(mi, t
     chosen = recipes.select(
         recipes.Stage("s", "tiny.toml", select="validation"),
         tmp_path / "run",
-        paintings=1,
+        styles=1,
         res=16,
         spp=1,
         densities=[blob_density],
@@ -389,7 +389,7 @@ def test_validation_selection_scores_kept_checkpoints_and_picks_the_lowest(mi, t
     against_noise = recipes.select(
         recipes.Stage("s", "tiny.toml", select="validation:noise"),
         tmp_path / "run",
-        paintings=1,
+        styles=1,
         res=48,  # patches to compare
         spp=1,
         densities=[blob_density],

@@ -12,9 +12,9 @@ by choosing one of its kept checkpoints (``select``):
 * ``"last"``: the stage's final weights;
 * ``"step:N"``: the weights of step N (a run that was stopped there, e.g. before it diverged);
 * ``"validation"``: the kept checkpoint with the lowest median RGB SWD, as a ratio to the uniform
-  baseline of the same pair, on the validation split (``VALIDATION_DENSITIES`` x the validation
-  paintings, path traced and scored as the benchmark scores: ``mistyle.benchmark.study``). Never the
-  benchmark's held-out split.
+  baseline of the same pair, on the benchmark's ``validation`` split (the validation styles on
+  ``VALIDATION_DENSITIES``, path traced and scored as the benchmark scores:
+  ``mistyle.benchmark.study``). Never the benchmark's held-out split.
 * ``"validation:noise"``: the same split, the lowest mean of the median RGB SWD and median patch SWD
   ratios to the smooth-noise baseline with the colour match (``benchmark.methods``): for a network
   whose job is to beat that baseline.
@@ -237,7 +237,7 @@ def select(stage: Stage, folder: Path, log=print, **validation) -> StageResult:
 
 def validation_scores(
     checkpoints: list[Path],
-    paintings: int = 0,
+    styles: int = 0,
     res: int = VALIDATION_RES,
     spp: int = VALIDATION_SPP,
     densities: list | None = None,
@@ -245,21 +245,25 @@ def validation_scores(
     log=print,
     against: str = "uniform",
 ) -> dict[str, float]:
-    """``checkpoint -> median RGB SWD x uniform`` on the validation split, each network's feed-forward
-    output scored as ``mistyle-bench`` scores ``network``. ``paintings``: only that many validation
-    paintings (0: all); ``densities``: other ``(Z, Y, X)`` grids than ``VALIDATION_DENSITIES`` (made
-    once and cached in ``cache``). ``against="smooth_noise"``: the mean of the median RGB and patch
-    SWD ratios to the smooth-noise baseline with the colour match instead."""
+    """``checkpoint -> median RGB SWD x uniform`` on the benchmark's ``validation`` split (drawn like the
+    held-out split: the validation styles on ``VALIDATION_DENSITIES``), each network's feed-forward
+    output scored as ``mistyle-bench`` scores ``network``. ``styles``: only the first that many
+    validation styles (0: all); ``densities``: other ``(Z, Y, X)`` grids than ``VALIDATION_DENSITIES``
+    (made once and cached in ``cache``). ``against="smooth_noise"``: the mean of the median RGB and patch
+    SWD ratios to the smooth-noise baseline with the colour match instead. (The recipes' recorded
+    choices, ``Stage.chose``, were made on the split of their day: 13 paintings held back from the
+    training collection, on the smoke density alone.)"""
     import numpy as np
 
     from ..benchmark.methods import smooth_noise
+    from ..benchmark.splits import split_styles
     from ..benchmark.study import metric_views, score, uniform_baseline
     from ..data.heldout import VALIDATION_DENSITIES, held_out_density
     from ..io import load_style
     from ..pipeline import Pipeline, PipelineSettings
-    from .dataset import validation_paintings
 
-    styles = [load_style(path) for path in validation_paintings()[: paintings or None]]
+    records = list(split_styles("validation").values())[: styles or None]
+    styles = [load_style(record["path"]) for record in records]
     if densities is None:
         densities = [held_out_density(spec, cache) for spec in VALIDATION_DENSITIES]
     baselines: dict = {}

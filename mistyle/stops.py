@@ -85,7 +85,6 @@ def run_stoppable(work: Callable[[], int], kept: str, in_process: bool) -> int:
     import threading
 
     global _requested_stop
-    _requested_stop = None
     previous = {}
     if threading.current_thread() is threading.main_thread():
         previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, on_sigterm)

@@ -134,8 +134,8 @@ def check_training_styles(paths) -> None:
         if (root / "SOURCES.toml").exists():
             kept.update({file_digest(record["path"]): (name, what) for name, record in held_out_styles(root).items()})
     for path in paths:
-        if file_digest(path) in kept:
-            name, what = kept[file_digest(path)]
+        if (digest := file_digest(path)) in kept:
+            name, what = kept[digest]
             raise ValueError(
                 f"{path} is the {what} style {name!r}; training must never see it. Remove it from the "
                 f"training style folder."

@@ -256,16 +256,18 @@ def validation_scores(
     import numpy as np
 
     from ..benchmark.methods import smooth_noise
-    from ..benchmark.splits import split_styles
+    from ..benchmark.splits import split_pairs, split_styles
     from ..benchmark.study import metric_views, score, uniform_baseline
-    from ..data.heldout import VALIDATION_DENSITIES, held_out_density
+    from ..data.heldout import held_out_density
     from ..io import load_style
     from ..pipeline import Pipeline, PipelineSettings
 
-    records = list(split_styles("validation").values())[: styles or None]
-    styles = [load_style(record["path"]) for record in records]
+    pairs = split_pairs("validation")
+    records = split_styles("validation")
+    names = list(dict.fromkeys(name for _, name in pairs))[: styles or None]
+    pictures = [load_style(records[name]["path"]) for name in names]
     if densities is None:
-        densities = [held_out_density(spec, cache) for spec in VALIDATION_DENSITIES]
+        densities = [held_out_density(spec, cache) for spec in dict.fromkeys(spec for spec, _ in pairs)]
     baselines: dict = {}
     scores = {}
     for path in checkpoints:
@@ -274,7 +276,7 @@ def validation_scores(
         options = {"res": res, "spp": spp, "density_scale": pipeline.density_scale, "radiance": pipeline.radiance}
         ratios = []
         for d, density in enumerate(densities):
-            for s, style in enumerate(styles):
+            for s, style in enumerate(pictures):
                 if (d, s) not in baselines:
                     if against == "smooth_noise":  # the benchmark's smooth_noise method
                         field = smooth_noise(density.shape)

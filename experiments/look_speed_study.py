@@ -8,7 +8,15 @@ the frame is its own key frame), applies it and scores it as the benchmark score
 
     python experiments/look_speed_study.py --arms texture30,head30 --pairs 8     # ARMS below
 
-Rows: ``<out>/rows.jsonl`` (a row per arm and pair, replaced when rerun); table: ``<out>/table.md``.
+A look's fit is seeded (its views, the sliced objective's projections, the colour match), and on one
+pair two seeds of today's fit can differ by more than the arms do. ``--seeds 0,1,2`` fits every arm
+with each seed; the table then also compares each arm with the ``default`` arm fitted with the same
+seed on the same pair (``x default``), and the ``default`` arm's rows at other seeds than 0 give the
+spread that the seed alone makes (their ``x look``).
+
+    python experiments/look_speed_study.py --arms default,head60 --pairs 8 --seeds 0,1,2
+
+Rows: ``<out>/rows.jsonl`` (a row per arm, pair and seed, replaced when rerun); table: ``<out>/table.md``.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ ARMS = {
     "default": dict(),
     "head30": dict(steps=30),
     "head60": dict(steps=60),
+    "head45": dict(steps=45),
     "head60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075),
     "head45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1),
     "conv90": dict(tune_sites=()),
@@ -38,6 +47,10 @@ ARMS = {
     "texture90_lr0.1": dict(steps=90, texture_lr=0.1, **FIXED),
     "texture30_res32": dict(steps=30, layer_res=32, **FIXED),
     "texture30_res32_v1": dict(steps=30, layer_res=32, views_per_step=1, **FIXED),
+    "cos90": dict(lr_schedule="cosine"),
+    "cos60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075, lr_schedule="cosine"),
+    "cos45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),
+    "cos30_lr2x": dict(steps=30, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),
 }
 
 
@@ -45,24 +58,42 @@ def read(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
 
 
+def seed_of(row: dict) -> int:
+    return int(row.get("seed", row["settings"].get("seed", 0)))
+
+
 def write_table(out: Path, rows: list[dict]) -> None:
     lines = [
-        "Medians over the pairs each arm ran on of per-pair ratios (lower is better) to the benchmark's `look` "
-        "row (today's default output) and its `smooth_noise` row; fit seconds on this machine with whatever "
-        "else ran.",
+        "Medians over the pairs (and seeds) each arm ran on of per-pair ratios (lower is better) to the "
+        "benchmark's `look` row (today's default output, seed 0) and its `smooth_noise` row; `x default`: "
+        "geometric means of the ratios to the `default` arm fitted with the same seed on the same pair; fit "
+        "seconds on this machine with whatever else ran.",
         "",
-        "| arm | pairs | RGB x look | patch x look | RGB x noise | patch x noise | fit s (median) |",
-        "|---|---|---|---|---|---|---|",
+        "| arm | seeds | pairs x seeds | RGB x look | patch x look | RGB x noise | patch x noise | "
+        "RGB x default (geo. mean) | patch x default (geo. mean) | fit s (median) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for arm in dict.fromkeys(row["arm"] for row in rows):
-        mine = [row for row in rows if row["arm"] == arm]
+    defaults = {(row["density"], row["style"], seed_of(row)): row for row in rows if row["arm"] == "default"}
+    for arm, seeds in dict.fromkeys((row["arm"], row["arm"] == "default" and seed_of(row) > 0) for row in rows):
+        mine = [row for row in rows if row["arm"] == arm and (arm != "default" or (seed_of(row) > 0) == seeds)]
 
         def median(key, mine=mine):
             return float(np.median([row[key] for row in mine]))
 
+        def against_default(metric, mine=mine):
+            ratios = [
+                row[metric] / defaults[key][metric]
+                for row in mine
+                if (key := (row["density"], row["style"], seed_of(row))) in defaults
+            ]
+            return f"{float(np.exp(np.mean(np.log(ratios)))):.3f} ({len(ratios)})" if ratios else "-"
+
+        label = "default (seeds > 0)" if seeds else arm
         lines.append(
-            f"| {arm} | {len(mine)} | {median('rgb_x_look'):.3f} | {median('patch_x_look'):.3f} | "
-            f"{median('rgb_x_noise'):.3f} | {median('patch_x_noise'):.3f} | {median('fit_seconds'):.2f} |"
+            f"| {label} | {','.join(map(str, sorted({seed_of(row) for row in mine})))} | {len(mine)} | "
+            f"{median('rgb_x_look'):.3f} | {median('patch_x_look'):.3f} | {median('rgb_x_noise'):.3f} | "
+            f"{median('patch_x_noise'):.3f} | {against_default('rgb_swd')} | {against_default('patch_swd')} | "
+            f"{median('fit_seconds'):.2f} |"
         )
     (out / "table.md").write_text("\n".join(lines) + "\n")
 
@@ -73,6 +104,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--arms", default="texture30")
     parser.add_argument("--pairs", type=int, default=0, help="N pairs spread over the held-out split (0: all)")
+    parser.add_argument("--seeds", default="0", help="comma-separated seeds each arm is fitted with")
     parser.add_argument("--against", type=Path, default=Path("results/benchmark"), help="the benchmark's rows")
     parser.add_argument("--out", type=Path, default=Path("results/look_speed"))
     add_metric_arguments(parser)
@@ -94,6 +126,7 @@ def main() -> None:
         settings = row["settings"]
         if settings["res"] == args.res and settings["spp"] == args.spp and not settings["quick"]:
             reference[(row["method"], row["density"], row["style"])] = row
+    seeds = [int(seed) for seed in args.seeds.split(",")]
     stylizer = Stylizer()
     views = metric_views(stylizer.config.render.camera_distance)
     options = dict(
@@ -112,14 +145,15 @@ def main() -> None:
             continue
         density = held_out_density(spec, args.cache)
         style = load_style(styles[style_name]["path"])
-        for arm in args.arms.split(","):
+        for arm, seed in [(arm, seed) for seed in seeds for arm in args.arms.split(",")]:
             started = time.perf_counter()
-            look = fit_look(stylizer, [density], style, settings=LookSettings(**ARMS[arm]))
+            look = fit_look(stylizer, [density], style, settings=LookSettings(**{**ARMS[arm], "seed": seed}))
             fitted = time.perf_counter() - started
             metrics = score(density, look.stylize(density), style, views, **options)[0]
             row = {
                 "arm": arm,
                 "settings": ARMS[arm],
+                "seed": seed,
                 "density": spec.name,
                 "style": style_name,
                 "rgb_swd": metrics["rgb_swd"],
@@ -135,7 +169,7 @@ def main() -> None:
             rows = [
                 old
                 for old in read(rows_path)
-                if (old["arm"], old["density"], old["style"]) != (arm, spec.name, style_name)
+                if (old["arm"], old["density"], old["style"], seed_of(old)) != (arm, spec.name, style_name, seed)
             ]
             rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows + [row]))
     write_table(args.out, read(rows_path))

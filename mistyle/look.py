@@ -37,6 +37,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import io
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -52,6 +53,7 @@ SIZE_RATIO_NOTE = 2.0
 """A frame more than this many times larger or smaller (longest side) than the key frames gets a note."""
 DENSITY_SCALE_TOLERANCE = 1e-6
 COLOUR_MATCH_MODES = ("through", "after", "none")
+LR_SCHEDULES = ("constant", "cosine")
 
 
 @dataclass
@@ -75,6 +77,7 @@ class LookSettings:
     texture_side: int = 32  # > 0: a texture of this many texels along the box's longest side, added before the tanh
     texture_lr: float = 0.05
     texture_init: float = 0.0  # spread of the texture's random start (0: zeros); colour variation to spread
+    lr_schedule: str = "constant"  # or "cosine": every learning rate decays to zero over the steps
     seed: int = 0
 
     def __post_init__(self):
@@ -82,6 +85,8 @@ class LookSettings:
             raise ValueError(f"A look's fit steps must lie in [0, 10000], got {self.steps}.")
         if not set(self.tune_decoder) <= {0, 1, 2}:
             raise ValueError(f"tune_decoder takes decoder convolutions 0, 1, 2; got {self.tune_decoder}.")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"lr_schedule must be one of {', '.join(LR_SCHEDULES)}, got {self.lr_schedule!r}.")
         if self.colour_match not in COLOUR_MATCH_MODES:
             raise ValueError(f"colour_match must be one of {', '.join(COLOUR_MATCH_MODES)}, got {self.colour_match!r}.")
         if not set(self.tune_sites) <= {0, 1, 2, 3}:
@@ -152,6 +157,7 @@ class Look:
     texture: object = None  # (3, tz, ty, tx) tensor over the box, or None
     stylizer: object = field(default=None, repr=False)
     _network: object = field(default=None, repr=False)
+    _prepared_frames: dict = field(default_factory=dict, repr=False)  # frame_key -> prepare_frame's dict
 
     @property
     def density_scale(self) -> float:
@@ -182,7 +188,9 @@ class Look:
         import torch
 
         with torch.no_grad():
-            frame = prepare_frame(self.network, grid, self.meta.get("scale_structures", 1.0), self.noise_spec())
+            frame = self._prepared_frames.get(frame_key(grid))
+            if frame is None:
+                frame = prepare_frame(self.network, grid, self.meta.get("scale_structures", 1.0), self.noise_spec())
             albedo = frame_albedo(self.network, frame, self.kernels, self.noise_weight, self.texture)
         return np.ascontiguousarray(albedo.permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
 
@@ -380,6 +388,12 @@ def look_noise(shape: tuple, channels: int, seed: int):
     return torch.stack(out)
 
 
+def frame_key(grid: np.ndarray) -> tuple:
+    """A frame's identity for a look's cache of what its fit computed of the key frames."""
+    data = np.ascontiguousarray(grid, dtype=np.float32).data
+    return tuple(grid.shape), hashlib.blake2b(data, digest_size=16).digest()
+
+
 def prepare_frame(
     network,
     grid: np.ndarray,
@@ -391,7 +405,9 @@ def prepare_frame(
     """What a look's network computes of one frame before its tuned parts: the (resampled, cropped)
     density's encoder features, its crop window, the noise fields on the padded crop (``noise``:
     ``(channels, seed)``) and, with ``fixed_kernels``, the decoder up to ``fixed_stage``
-    (``LookSettings.fixed_stage``: the values a fit that tunes only what follows reuses)."""
+    (``LookSettings.fixed_stage``: the values a fit that tunes only what follows reuses; at ``"body"``
+    also what ``frame_albedo`` needs to fold the head into one convolution,
+    ``SKPN.folded_head_logits``)."""
     import torch
     import torch.nn.functional as F
 
@@ -405,13 +421,15 @@ def prepare_frame(
     size = tuple(tensor.shape[2:])
     window = occupied_window(tensor, DEFAULT_CROP_MARGIN)
     part = tensor if window is None else tensor[(..., *window)]
-    fixed = {"body": None, "site": None, "logits": None}
+    fixed = {"body": None, "folded": None, "site": None, "logits": None}
     stages = ("body", "site", "logits")
     reached = stages.index(fixed_stage) + 1 if fixed_kernels is not None and fixed_stage is not None else 0
     with torch.no_grad():
         encoded = network.encode(part, network.noise_fields(size, window))
         if reached >= 1:
             fixed["body"] = network.decode_body(encoded, fixed_kernels)
+            if reached == 1 and network.folds_head(fixed_kernels):
+                fixed["folded"] = network.fold_head_input(fixed["body"], encoded)
         if reached >= 2:
             fixed["site"] = network.head_site(fixed["body"], fixed_kernels, encoded)
         if reached >= 3:
@@ -437,7 +455,9 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
 
     encoded = frame["encoded"]
     logits = frame["logits"]
-    if logits is None:
+    if logits is None and frame["folded"] is not None and network.folds_head(kernels):
+        logits = network.folded_head_logits(frame["folded"], kernels, encoded)
+    elif logits is None:
         site = frame["site"]
         if site is None:
             body = frame["body"] if frame["body"] is not None else network.decode_body(encoded, kernels)
@@ -617,8 +637,12 @@ def fit_look(
     orbit, rng = CameraPath(distance=camera_distance), np.random.default_rng(settings.seed)
     render = dict(steps=settings.layer_steps_per_ray, radiance=radiance)
     losses = []
+    base_rates = [group["lr"] for group in optimizer.groups]
     for step in range(settings.steps):
         raise_if_requested()
+        if settings.lr_schedule == "cosine":
+            for group, rate in zip(optimizer.groups, base_rates):
+                group["lr"] = rate * 0.5 * (1.0 + math.cos(math.pi * step / settings.steps))
         frame = frames[step % len(frames)]
         views = orbit.sample(settings.views_per_step, rng)
         prepared = prepared_densities[step % len(frames)]
@@ -666,6 +690,12 @@ def fit_look(
     if texture is not None:
         texture = texture.detach().half().float()  # as the file keeps it
     look = Look(kernels, decoder, match, thumbnail, meta, noise_weight, texture, stylizer=stylizer)
+    if settings.fixed_stage is not None:
+        # What the fit computed once per key frame (encoder features, the decoder up to its fixed stage)
+        # is what applying the look computes first, as nothing tuned enters it: kept, applying the look to
+        # a key frame (a single frame's default output) computes only the rest, by the plain path.
+        for key, frame in zip(keys, frames):
+            look._prepared_frames[frame_key(densities[key])] = {**frame, "folded": None}
     if settings.colour_match == "after":
         look.colour_match = fit_match(look.network_albedo(densities[keys[0]]))
     look.meta["fit_seconds"] = time.perf_counter() - started

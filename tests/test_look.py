@@ -92,6 +92,33 @@ def test_a_texture_only_look_leaves_the_network_as_it_was(stylizer, blob_density
         LookSettings(tune_sites=(), tune_decoder=(), texture_side=0)
 
 
+def test_the_fit_folds_the_head_and_fits_what_the_plain_head_fits(stylizer, blob_density, style, monkeypatch):
+    """The default fit (``fixed_stage`` "body") computes the head as one convolution
+    (``SKPN.folded_head_logits``); it must step as the plain head would."""
+    from mistyle.model.skpn import SKPN
+
+    settings = LookSettings(steps=STEPS, colour_match="none")
+    calls = []
+    folded_head_logits = SKPN.folded_head_logits
+    monkeypatch.setattr(SKPN, "folded_head_logits", lambda *a: calls.append(1) or folded_head_logits(*a))
+    folded = fit_look(stylizer, [blob_density], style, settings=settings)
+    assert len(calls) >= STEPS
+    monkeypatch.setattr(SKPN, "folds_head", staticmethod(lambda kernels: False))
+    plain = fit_look(stylizer, [blob_density], style, settings=settings)
+    for key, value in plain.kernels.sites[3].items():
+        torch.testing.assert_close(folded.kernels.sites[3][key], value, rtol=1e-3, atol=1e-5)
+    np.testing.assert_allclose(folded.stylize(blob_density), plain.stylize(blob_density), atol=1e-4)
+
+
+def test_a_cosine_schedule_fits_and_bad_schedules_are_refused(stylizer, blob_density, style):
+    cosine = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS, lr_schedule="cosine"))
+    constant = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS))
+    assert cosine.meta["settings"]["lr_schedule"] == "cosine"
+    assert not torch.equal(cosine.kernels.sites[3]["gamma"], constant.kernels.sites[3]["gamma"])
+    with pytest.raises(ValueError, match="lr_schedule"):
+        LookSettings(lr_schedule="step")
+
+
 def test_frames_are_stylized_each_on_its_own(look, blob_density):
     frames = moving_frames(blob_density, 3)
     together = look.stylize(np.stack(frames))

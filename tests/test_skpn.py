@@ -220,3 +220,44 @@ def test_the_shipped_networks_fast_path_changes_its_albedo_by_less_than_8_bit_st
         plain = model(density, kernels)
     change = (model.infer(density, kernels) - plain)[0].permute(1, 2, 3, 0)[density[0, 0] > 0].abs()
     assert float(change.mean()) < 1.0 / 255 and float(change.quantile(0.99)) < 2.0 / 255
+
+
+@pytest.mark.parametrize("norm", ["dain", "in"])
+def test_the_folded_head_is_the_plain_head_in_value_and_gradient(norm):
+    """``folded_head_logits`` (a look's fit) computes ``head_logits(head_site(...))`` as one convolution:
+    the same logits, and the same gradients for the last site's kernel and the last convolution."""
+    model = SKPN(SKPNConfig(**TINY, norm=norm))
+    density = torch.rand(2, 1, 8, 12, 8, generator=GEN)
+    density[0, :, :3] = 0  # an empty slab, so the mask weighs voxels unequally
+    levels = style_levels(2)
+    with torch.no_grad():
+        kernels = model.predict_kernels(levels)
+        encoded = model.encode(density)
+        body = model.decode_body(encoded, kernels)
+    folded_input = model.fold_head_input(body, encoded)
+    assert SKPN.folds_head(kernels)
+
+    def logits_and_gradients(compute):
+        head = {key: value.detach().clone().requires_grad_() for key, value in kernels.sites[3].items()}
+        trial = type(kernels)({**kernels.sites, 3: head})
+        model.zero_grad()
+        logits = compute(trial)
+        (logits * torch.linspace(-1, 1, logits.numel()).view_as(logits)).sum().backward()
+        grads = [head[key].grad for key in ("weight", "gamma", "beta")]
+        grads += [parameter.grad for parameter in model.decoder[2].parameters()]
+        return logits.detach(), [g.clone() for g in grads]
+
+    plain, plain_grads = logits_and_gradients(
+        lambda trial: model.head_logits(model.head_site(body, trial, encoded), trial, encoded)
+    )
+    folded, folded_grads = logits_and_gradients(lambda trial: model.folded_head_logits(folded_input, trial, encoded))
+    torch.testing.assert_close(folded, plain, rtol=1e-4, atol=1e-5)
+    for folded_grad, plain_grad in zip(folded_grads, plain_grads):
+        torch.testing.assert_close(folded_grad, plain_grad, rtol=1e-3, atol=1e-5)
+
+
+def test_a_head_with_a_larger_kernel_is_not_folded():
+    model = SKPN(SKPNConfig(**TINY, kernel_size=3))
+    with torch.no_grad():
+        kernels = model.predict_kernels(style_levels())
+    assert not SKPN.folds_head(kernels)

@@ -73,3 +73,39 @@ def dain(features: torch.Tensor, mask: torch.Tensor | None, gamma: torch.Tensor,
     # Not addcmul: multiply-then-add_ runs twice as fast on the CPU, and autograd allows add_ on the
     # fresh product.
     return (features * scale.to(features.dtype)).add_(shift.to(features.dtype))
+
+
+def masked_moments(features: torch.Tensor, mask: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-instance mean ``(B, C)`` and covariance ``(B, C, C)`` of ``features (B, C, D, H, W)`` over
+    its voxels, weighted by ``mask`` as ``masked_statistics`` weighs them (None: unweighted). With them,
+    DAIN after a 1x1x1 kernel has a closed form (``dain_of_mixed``), so features that do not change can
+    be summarised once."""
+    with torch.autocast(features.device.type, enabled=False):
+        batch, channels = features.shape[:2]
+        rows = features.float().permute(0, 2, 3, 4, 1).reshape(batch, -1, channels)
+        shift = rows[:, :: max(1, rows.shape[1] // 4096)].mean(1, keepdim=True)
+        centred = rows - shift
+        if mask is None:
+            weight = torch.ones((batch, 1, rows.shape[1]), device=features.device)
+        else:
+            weight = mask.float().expand(-1, 1, *features.shape[2:]).reshape(batch, 1, -1)
+        total = weight.sum(2, keepdim=True)
+        if bool((total <= 1e-12).any()):
+            raise ValueError("masked_moments needs a mask with some weight in every instance.")
+        first = torch.bmm(weight, centred) / total  # (B, 1, C)
+        second = torch.bmm(centred.transpose(1, 2), centred * weight.transpose(1, 2)) / total  # (B, C, C)
+        covariance = second - first.transpose(1, 2) * first
+        return (first + shift)[:, 0], covariance
+
+
+def dain_of_mixed(
+    mean: torch.Tensor, covariance: torch.Tensor, mix: torch.Tensor, gamma: torch.Tensor, beta: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """DAIN of the channel mix ``y = mix @ x`` as an affine map of ``x``: ``(scale (B, C, C), shift (B, C))``
+    with ``dain(mix @ x, mask, gamma, beta) = scale @ x + shift``, where ``mean (B, C)`` and ``covariance
+    (B, C, C)`` are ``masked_moments(x, mask)`` and ``mix (B, C, C)`` a 1x1x1 kernel's weight. Differentiable
+    in ``mix``, ``gamma`` and ``beta``."""
+    mixed_mean = torch.einsum("boi,bi->bo", mix, mean)
+    variance = torch.einsum("boi,bij,boj->bo", mix, covariance, mix).clamp_min(0.0)
+    factor = gamma.float() * torch.rsqrt(variance + EPSILON)
+    return factor[..., None] * mix, beta.float() - factor * mixed_mean

@@ -41,7 +41,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from ..conventions import PRECISIONS
-from .dain import dain, density_mask
+from .dain import dain, dain_of_mixed, density_mask, masked_moments
 from .noise import noise_fields, validate_noise_orientations, validate_noise_scales
 from .style_code import CODE_SIZE, style_code
 
@@ -143,6 +143,16 @@ class EncodedDensity(NamedTuple):
     features: tuple
     masks: dict
     noise: torch.Tensor | None = None
+
+
+class FoldedBody(NamedTuple):
+    """``SKPN.fold_head_input``'s output: ``decode_body``'s features with a channel of ones appended
+    ``(B, C + 1, D', H', W')``, and their mean ``(B, C)`` and covariance ``(B, C, C)`` as the last site's
+    DAIN weighs voxels."""
+
+    features: torch.Tensor
+    mean: torch.Tensor
+    covariance: torch.Tensor
 
 
 NOISE_SITE = "noise"
@@ -426,12 +436,66 @@ class SKPN(nn.Module):
         """The last convolution and the noise site on ``head_site``'s features: the albedo's logits
         ``(B, 3, D', H', W')`` on the padded grid, before the tanh (a fit that tunes only what it adds to
         them computes these once)."""
-        logits = self.decoder[2](x).float()
+        return self._add_noise(self.decoder[2](x).float(), kernels, encoded)
+
+    def _add_noise(self, logits: torch.Tensor, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
         if NOISE_SITE in kernels.sites and encoded.noise is not None:
             weight = kernels.sites[NOISE_SITE]["weight"].float()
             noise = encoded.noise.expand(weight.shape[0], *encoded.noise.shape[1:])
             logits = logits + torch.einsum("boc,bcdhw->bodhw", weight, noise)
         return logits
+
+    def fold_head_input(self, x: torch.Tensor, encoded: EncodedDensity) -> FoldedBody | None:
+        """What ``folded_head_logits`` needs of ``decode_body``'s features ``x``; None where the last
+        site's DAIN mask is empty (the plain path then applies)."""
+        mask = encoded.masks.get(tuple(x.shape[2:])) if self.config.norm == "dain" else None
+        if mask is not None and not bool((mask.flatten(1).sum(1) > 1e-12).all()):
+            return None
+        mean, covariance = masked_moments(x, mask)
+        inside = torch.ones((x.shape[0], 1, *x.shape[2:]), dtype=torch.float32, device=x.device)
+        # Channels-last: the one convolution a step runs is about 1.7x faster so on this project's CPU.
+        features = torch.cat([x.float(), inside], dim=1).contiguous(memory_format=torch.channels_last_3d)
+        return FoldedBody(features, mean, covariance)
+
+    @staticmethod
+    def folds_head(kernels: StylizingKernels) -> bool:
+        """Whether ``folded_head_logits`` applies: the last site's kernel is a 1x1x1 channel mix."""
+        weight = kernels.sites.get(3, {}).get("weight")
+        return weight is not None and tuple(weight.shape[-3:]) == (1, 1, 1)
+
+    def folded_head_logits(self, body: FoldedBody, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
+        """``head_logits(head_site(x, ...), ...)`` as one convolution of ``body = fold_head_input(x, ...)``.
+
+        The last site (a 1x1x1 mix, then DAIN, whose statistics follow from the features' moments) is an
+        affine map of ``x`` (``dain_of_mixed``); its matrix folds into the last convolution's weights, its
+        shift into the weights of the input's channel of ones (zero outside the grid, as the plain path
+        pads). Equal to the plain path up to rounding; a fit that holds ``x`` fixed and tunes the kernel or
+        the convolution steps about twice as fast, as nothing of ``x``'s size needs a gradient."""
+        kernel = kernels.sites[3]
+        scale, shift = dain_of_mixed(
+            body.mean, body.covariance, kernel["weight"][..., 0, 0, 0].float(), kernel["gamma"], kernel["beta"]
+        )
+        convolution = self.decoder[2]
+        features = body.features
+        batch, channels = features.shape[:2]
+        weight = torch.cat(
+            [
+                torch.einsum("oc...,bci->boi...", convolution.weight, scale),
+                torch.einsum("oc...,bc->bo...", convolution.weight, shift)[:, :, None],
+            ],
+            dim=2,
+        )
+        if batch == 1:
+            logits = F.conv3d(features, weight[0].contiguous(), convolution.bias, padding=convolution.padding)
+        else:
+            logits = F.conv3d(
+                features.reshape(1, batch * channels, *features.shape[2:]),
+                weight.reshape(-1, channels, *weight.shape[3:]),
+                convolution.bias.repeat(batch),
+                padding=convolution.padding,
+                groups=batch,
+            ).reshape(batch, -1, *features.shape[2:])
+        return self._add_noise(logits, kernels, encoded)
 
     @torch.no_grad()
     def infer(

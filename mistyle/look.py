@@ -18,7 +18,8 @@ What a look holds (``LOOK_VERSION`` 1), chosen by measurement (``experiments/loo
   (``LookSettings.tune_sites``, ``tune_decoder``) through the fast layer against the sliced objective
   (RGB and patch sliced Wasserstein, the refinement's) on the key frames' renders. The encoder and
   the decoder's body are the checkpoint's, computed once per key frame, which is what makes the fit
-  cheap; the look names the checkpoint by its SHA-256.
+  cheap; with them fixed, the site (a channel mix and DAIN) folds into the last convolution, so a step
+  runs one convolution (``SKPN.folded_head_logits``). The look names the checkpoint by its SHA-256.
 * **A coarse texture over the medium's box** (``texture_side`` texels along the longest side), added
   before the head's tanh: strokes and grain where the density alone has no structure. It is fixed
   in box coordinates. Optionally (off by default) smooth-noise fields the head weighs.

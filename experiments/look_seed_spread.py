@@ -1,0 +1,110 @@
+"""Which seed moves a look's score: its fit's or its colour match's (issue #35's step-count study).
+
+For each named held-out pair, fits a look (the default settings, no colour match) with each of
+``--fit-seeds``, then fits the colour match on that look's albedo with each of ``--match-seeds`` and
+scores the matched albedo as the benchmark does (``benchmark.study.score``). The table gives, per pair
+and fit seed, the spread (max/min) of RGB and patch SWD over the match seeds, and per pair the spread
+over the fit seeds with the match seed held at 0.
+
+    python experiments/look_seed_spread.py --pairs smoke64:signac_la_calanque,smoke64:munch_the_scream
+
+Rows: ``<out>/seed_spread.jsonl``; table: ``<out>/seed_spread.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def main() -> None:
+    from mistyle.benchmark.study import add_metric_arguments
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--pairs", required=True, help="comma-separated density:style held-out pairs")
+    parser.add_argument("--fit-seeds", default="0,1")
+    parser.add_argument("--match-seeds", default="0,1,2")
+    parser.add_argument("--out", type=Path, default=Path("results/look_speed"))
+    add_metric_arguments(parser)
+    args = parser.parse_args()
+
+    from mistyle.benchmark.splits import split_pairs
+    from mistyle.benchmark.study import metric_views, score
+    from mistyle.colour_match import fit_colour_match
+    from mistyle.data.heldout import held_out_density, held_out_styles
+    from mistyle.io import load_style
+    from mistyle.look import LookSettings, fit_look
+    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import style_target
+
+    wanted = args.pairs.split(",")
+    pairs = [(spec, name) for spec, name in split_pairs("heldout") if f"{spec.name}:{name}" in wanted]
+    if len(pairs) != len(wanted):
+        raise SystemExit(f"Not all of {wanted} are held-out pairs (density:style).")
+    stylizer = Stylizer()
+    views = metric_views(stylizer.config.render.camera_distance)
+    radiance = stylizer.config.render.radiance
+    options = dict(res=args.res, spp=args.spp, density_scale=stylizer.density_scale, radiance=radiance)
+    styles = held_out_styles()
+    rows = []
+    for spec, name in pairs:
+        density = held_out_density(spec, args.cache)
+        style = load_style(styles[name]["path"])
+        target = style_target([style], [1.0])
+        for fit_seed in map(int, args.fit_seeds.split(",")):
+            settings = LookSettings(seed=fit_seed, colour_match="none")
+            look = fit_look(stylizer, [density], style, settings=settings)
+            albedo = look.network_albedo(density)
+            for match_seed in map(int, args.match_seeds.split(",")):
+                match = fit_colour_match(
+                    albedo,
+                    density,
+                    target,
+                    density_scale=stylizer.density_scale,
+                    radiance=radiance,
+                    camera_distance=look.camera_distance,
+                    seed=match_seed,
+                )
+                metrics = score(density, match.apply(albedo, density), style, views, **options)[0]
+                row = dict(
+                    pair=f"{spec.name}:{name}",
+                    fit_seed=fit_seed,
+                    match_seed=match_seed,
+                    rgb_swd=metrics["rgb_swd"],
+                    patch_swd=metrics["patch_swd"],
+                )
+                print(json.dumps(row), flush=True)
+                rows.append(row)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "seed_spread.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+    lines = [
+        "Spread (max / min) of a look's scores over one seed with the other held: over the colour match's "
+        "seeds for each fit seed, and over the fit's seeds with the match seed 0.",
+        "",
+        "| pair | varied | held | RGB SWD spread | patch SWD spread |",
+        "|---|---|---|---|---|",
+    ]
+
+    def spread(subset, key):
+        values = [row[key] for row in subset]
+        return f"{max(values) / min(values):.3f}"
+
+    for pair in dict.fromkeys(row["pair"] for row in rows):
+        mine = [row for row in rows if row["pair"] == pair]
+        for fit_seed in dict.fromkeys(row["fit_seed"] for row in mine):
+            subset = [row for row in mine if row["fit_seed"] == fit_seed]
+            lines.append(
+                f"| {pair} | match seed | fit seed {fit_seed} | {spread(subset, 'rgb_swd')} | "
+                f"{spread(subset, 'patch_swd')} |"
+            )
+        subset = [row for row in mine if row["match_seed"] == 0]
+        lines.append(
+            f"| {pair} | fit seed | match seed 0 | {spread(subset, 'rgb_swd')} | {spread(subset, 'patch_swd')} |"
+        )
+    lines += ["", f"`python experiments/look_seed_spread.py --pairs {args.pairs}`", ""]
+    (args.out / "seed_spread.md").write_text("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -48,6 +48,8 @@ ARMS = {
     "texture30_res32": dict(steps=30, layer_res=32, **FIXED),
     "texture30_res32_v1": dict(steps=30, layer_res=32, views_per_step=1, **FIXED),
     "cos90": dict(lr_schedule="cosine"),
+    "stratified": dict(view_sampling="stratified"),
+    "stratified60": dict(steps=60, view_sampling="stratified"),
     "cos60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075, lr_schedule="cosine"),
     "cos45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),
     "cos30_lr2x": dict(steps=30, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),

@@ -55,6 +55,7 @@ SIZE_RATIO_NOTE = 2.0
 DENSITY_SCALE_TOLERANCE = 1e-6
 COLOUR_MATCH_MODES = ("through", "after", "none")
 LR_SCHEDULES = ("constant", "cosine")
+VIEW_SAMPLINGS = ("independent", "stratified")
 
 
 @dataclass
@@ -79,6 +80,7 @@ class LookSettings:
     texture_lr: float = 0.05
     texture_init: float = 0.0  # spread of the texture's random start (0: zeros); colour variation to spread
     lr_schedule: str = "constant"  # or "cosine": every learning rate decays to zero over the steps
+    view_sampling: str = "independent"  # or "stratified": a step's views evenly spaced from a random offset
     seed: int = 0
 
     def __post_init__(self):
@@ -86,6 +88,8 @@ class LookSettings:
             raise ValueError(f"A look's fit steps must lie in [0, 10000], got {self.steps}.")
         if not set(self.tune_decoder) <= {0, 1, 2}:
             raise ValueError(f"tune_decoder takes decoder convolutions 0, 1, 2; got {self.tune_decoder}.")
+        if self.view_sampling not in VIEW_SAMPLINGS:
+            raise ValueError(f"view_sampling must be one of {', '.join(VIEW_SAMPLINGS)}, got {self.view_sampling!r}.")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ValueError(f"lr_schedule must be one of {', '.join(LR_SCHEDULES)}, got {self.lr_schedule!r}.")
         if self.colour_match not in COLOUR_MATCH_MODES:
@@ -645,7 +649,10 @@ def fit_look(
             for group, rate in zip(optimizer.groups, base_rates):
                 group["lr"] = rate * 0.5 * (1.0 + math.cos(math.pi * step / settings.steps))
         frame = frames[step % len(frames)]
-        views = orbit.sample(settings.views_per_step, rng)
+        if settings.view_sampling == "stratified":
+            views = orbit.sample_stratified(settings.views_per_step, rng)
+        else:
+            views = orbit.sample(settings.views_per_step, rng)
         prepared = prepared_densities[step % len(frames)]
         with torch.no_grad():
             white = torch.ones((3,) + frame["grid"].shape, device=device)

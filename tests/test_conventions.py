@@ -131,6 +131,18 @@ def test_camera_path_views_look_at_the_box():
         View(origin=(0.0, 2.0, 0.0), up=(0.0, 1.0, 0.0))  # looking straight down its up vector
 
 
+def test_stratified_views_are_evenly_spaced_from_a_random_offset():
+    path = CameraPath()
+    azimuths = []
+    for seed in range(50):
+        views = path.sample_stratified(3, np.random.default_rng(seed))
+        angles = sorted(np.arctan2(view.origin[0], view.origin[2]) % (2 * np.pi) for view in views)
+        gaps = np.diff(angles + [angles[0] + 2 * np.pi])
+        np.testing.assert_allclose(gaps, 2 * np.pi / 3, atol=1e-9)
+        azimuths.append(angles[0])
+    assert 0 < min(azimuths) and max(azimuths) < 2 * np.pi / 3 and np.std(azimuths) > 0.3
+
+
 def test_torch_reference_camera_matches_mitsuba_rays(mi):
     from mistyle.reference_torch import camera_rays
     from mistyle.scenes.cameras import sensor_dict

@@ -110,13 +110,15 @@ def test_the_fit_folds_the_head_and_fits_what_the_plain_head_fits(stylizer, blob
     np.testing.assert_allclose(folded.stylize(blob_density), plain.stylize(blob_density), atol=1e-4)
 
 
-def test_a_cosine_schedule_fits_and_bad_schedules_are_refused(stylizer, blob_density, style):
+def test_a_cosine_schedule_fits_and_bad_schedules_or_view_samplings_are_refused(stylizer, blob_density, style):
     cosine = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS, lr_schedule="cosine"))
     constant = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS))
     assert cosine.meta["settings"]["lr_schedule"] == "cosine"
     assert not torch.equal(cosine.kernels.sites[3]["gamma"], constant.kernels.sites[3]["gamma"])
     with pytest.raises(ValueError, match="lr_schedule"):
         LookSettings(lr_schedule="step")
+    with pytest.raises(ValueError, match="view_sampling"):
+        LookSettings(view_sampling="grid")
 
 
 def test_frames_are_stylized_each_on_its_own(look, blob_density):

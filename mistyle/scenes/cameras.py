@@ -90,6 +90,12 @@ class CameraPath:
         """``count`` views at independent uniform positions on the orbit."""
         return [self.view(u) for u in rng.random(count)]
 
+    def sample_stratified(self, count: int, rng: np.random.Generator) -> list[View]:
+        """``count`` views evenly spaced around the orbit from one uniform random offset: each is uniform
+        on the orbit, as ``sample``'s are, and together they never bunch on one side."""
+        offset = rng.random()
+        return [self.view((offset + i) / count % 1.0) for i in range(count)]
+
     def turntable(self, frames: int, offset: float = 0.0) -> list[View]:
         """``frames`` evenly spaced views, one full turn."""
         return [self.view(offset + i / frames) for i in range(frames)]

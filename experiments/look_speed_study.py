@@ -1,20 +1,23 @@
-"""Cheaper look fits against today's (issue #35, part 2): arms of ``look.LookSettings`` on held-out pairs.
+"""Cheaper look fits against a reference fit (issue #35, part 2): arms of ``look.LookSettings`` on held-out pairs.
 
 Each arm fits a look on one held-out density with one held-out style (the single-frame default:
 the frame is its own key frame), applies it and scores it as the benchmark scores
-(``benchmark.study.score``: 3 metric views, 128^2, 16 spp). The reference is the benchmark's own
-``look`` row of the same pair and metric settings (``--against``, today's default output) and its
-``smooth_noise`` row; the table gives medians of per-pair ratios, and the fit's seconds.
+(``benchmark.study.score``: 3 metric views, 128^2, 16 spp). Each row keeps its ratios to the
+benchmark's ``look`` row of the same pair and metric settings as it was when the row was made
+(``--against``; ``x look``) and to its ``smooth_noise`` row; the table gives medians of per-pair
+ratios, and the fit's seconds. Arms change ``independent90`` (90 steps, independent views: the default
+until 2026-12-03, the fit the benchmark's ``look`` rows came from until then); ``default`` is
+``LookSettings()`` as it is now.
 
     python experiments/look_speed_study.py --arms texture30,head30 --pairs 8     # ARMS below
 
 A look's fit is seeded (its views, the sliced objective's projections, the colour match), and on one
-pair two seeds of today's fit can differ by more than the arms do. ``--seeds 0,1,2`` fits every arm
-with each seed; the table then also compares each arm with the ``default`` arm fitted with the same
-seed on the same pair (``x default``), and the ``default`` arm's rows at other seeds than 0 give the
-spread that the seed alone makes (their ``x look``).
+pair two seeds of a fit can differ by more than the arms do. ``--seeds 0,1,2`` fits every arm with
+each seed; the table then also compares each arm with ``independent90`` fitted with the same seed on
+the same pair (``x reference``), and ``independent90``'s rows at other seeds than 0 give the spread
+that the seed alone makes (their ``x look``).
 
-    python experiments/look_speed_study.py --arms default,head60 --pairs 8 --seeds 0,1,2
+    python experiments/look_speed_study.py --arms independent90,head60 --pairs 8 --seeds 0,1,2
 
 Rows: ``<out>/rows.jsonl`` (a row per arm, pair and seed, replaced when rerun); table: ``<out>/table.md``.
 """
@@ -29,30 +32,40 @@ from pathlib import Path
 import numpy as np
 
 FIXED = dict(tune_sites=(), tune_decoder=())
+# The reference every arm was measured against until 2026-12-03: 90 steps, independent views (the
+# default then). Each arm below changes it; "default" is whatever LookSettings' defaults are now.
+REFERENCE = "independent90"
+BEFORE = dict(steps=90, view_sampling="independent")
 ARMS = {
+    REFERENCE: BEFORE,
     "default": dict(),
-    "head30": dict(steps=30),
-    "head60": dict(steps=60),
-    "head45": dict(steps=45),
-    "head60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075),
-    "head45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1),
-    "conv90": dict(tune_sites=()),
-    "conv60_lr1.5x": dict(steps=60, tune_sites=(), lr=0.03, texture_lr=0.075),
-    "texture30": dict(steps=30, **FIXED),
-    "texture30_lr0.1": dict(steps=30, texture_lr=0.1, **FIXED),
-    "texture20_lr0.1": dict(steps=20, texture_lr=0.1, **FIXED),
-    "texture60": dict(steps=60, **FIXED),
-    "texture90": dict(steps=90, **FIXED),
-    "texture60_lr0.1": dict(steps=60, texture_lr=0.1, **FIXED),
-    "texture90_lr0.1": dict(steps=90, texture_lr=0.1, **FIXED),
-    "texture30_res32": dict(steps=30, layer_res=32, **FIXED),
-    "texture30_res32_v1": dict(steps=30, layer_res=32, views_per_step=1, **FIXED),
-    "cos90": dict(lr_schedule="cosine"),
-    "stratified": dict(view_sampling="stratified"),
-    "stratified60": dict(steps=60, view_sampling="stratified"),
-    "cos60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075, lr_schedule="cosine"),
-    "cos45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),
-    "cos30_lr2x": dict(steps=30, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),
+    **{
+        name: {**BEFORE, **change}
+        for name, change in {
+            "head30": dict(steps=30),
+            "head60": dict(steps=60),
+            "head45": dict(steps=45),
+            "head60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075),
+            "head45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1),
+            "conv90": dict(tune_sites=()),
+            "conv60_lr1.5x": dict(steps=60, tune_sites=(), lr=0.03, texture_lr=0.075),
+            "texture30": dict(steps=30, **FIXED),
+            "texture30_lr0.1": dict(steps=30, texture_lr=0.1, **FIXED),
+            "texture20_lr0.1": dict(steps=20, texture_lr=0.1, **FIXED),
+            "texture60": dict(steps=60, **FIXED),
+            "texture90": dict(steps=90, **FIXED),
+            "texture60_lr0.1": dict(steps=60, texture_lr=0.1, **FIXED),
+            "texture90_lr0.1": dict(steps=90, texture_lr=0.1, **FIXED),
+            "texture30_res32": dict(steps=30, layer_res=32, **FIXED),
+            "texture30_res32_v1": dict(steps=30, layer_res=32, views_per_step=1, **FIXED),
+            "cos90": dict(lr_schedule="cosine"),
+            "cos60_lr1.5x": dict(steps=60, lr=0.03, texture_lr=0.075, lr_schedule="cosine"),
+            "cos45_lr2x": dict(steps=45, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),
+            "cos30_lr2x": dict(steps=30, lr=0.04, texture_lr=0.1, lr_schedule="cosine"),
+            "stratified": dict(view_sampling="stratified"),
+            "stratified60": dict(steps=60, view_sampling="stratified"),
+        }.items()
+    },
 }
 
 
@@ -67,34 +80,35 @@ def seed_of(row: dict) -> int:
 def write_table(out: Path, rows: list[dict]) -> None:
     lines = [
         "Medians over the pairs (and seeds) each arm ran on of per-pair ratios (lower is better) to the "
-        "benchmark's `look` row (today's default output, seed 0) and its `smooth_noise` row; `x default`: "
-        "geometric means of the ratios to the `default` arm fitted with the same seed on the same pair; fit "
+        "benchmark's `look` row as it was when the row was made (seed 0) and its `smooth_noise` row; "
+        f"`x reference`: geometric means of the ratios to `{REFERENCE}` (90 steps, independent views) fitted "
+        "with the same seed on the same pair; fit "
         "seconds on this machine with whatever else ran.",
         "",
         "| arm | seeds | pairs x seeds | RGB x look | patch x look | RGB x noise | patch x noise | "
-        "RGB x default (geo. mean) | patch x default (geo. mean) | fit s (median) |",
+        "RGB x reference (geo. mean) | patch x reference (geo. mean) | fit s (median) |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    defaults = {(row["density"], row["style"], seed_of(row)): row for row in rows if row["arm"] == "default"}
-    for arm, seeds in dict.fromkeys((row["arm"], row["arm"] == "default" and seed_of(row) > 0) for row in rows):
-        mine = [row for row in rows if row["arm"] == arm and (arm != "default" or (seed_of(row) > 0) == seeds)]
+    references = {(row["density"], row["style"], seed_of(row)): row for row in rows if row["arm"] == REFERENCE}
+    for arm, seeds in dict.fromkeys((row["arm"], row["arm"] == REFERENCE and seed_of(row) > 0) for row in rows):
+        mine = [row for row in rows if row["arm"] == arm and (arm != REFERENCE or (seed_of(row) > 0) == seeds)]
 
         def median(key, mine=mine):
             return float(np.median([row[key] for row in mine]))
 
-        def against_default(metric, mine=mine):
+        def against_reference(metric, mine=mine):
             ratios = [
-                row[metric] / defaults[key][metric]
+                row[metric] / references[key][metric]
                 for row in mine
-                if (key := (row["density"], row["style"], seed_of(row))) in defaults
+                if (key := (row["density"], row["style"], seed_of(row))) in references
             ]
             return f"{float(np.exp(np.mean(np.log(ratios)))):.3f} ({len(ratios)})" if ratios else "-"
 
-        label = "default (seeds > 0)" if seeds else arm
+        label = f"{REFERENCE} (seeds > 0)" if seeds else arm
         lines.append(
             f"| {label} | {','.join(map(str, sorted({seed_of(row) for row in mine})))} | {len(mine)} | "
             f"{median('rgb_x_look'):.3f} | {median('patch_x_look'):.3f} | {median('rgb_x_noise'):.3f} | "
-            f"{median('patch_x_noise'):.3f} | {against_default('rgb_swd')} | {against_default('patch_swd')} | "
+            f"{median('patch_x_noise'):.3f} | {against_reference('rgb_swd')} | {against_reference('patch_swd')} | "
             f"{median('fit_seconds'):.2f} |"
         )
     (out / "table.md").write_text("\n".join(lines) + "\n")

@@ -111,6 +111,31 @@ def write_table(out: Path, rows: list[dict]) -> None:
             f"{median('patch_x_noise'):.3f} | {against_reference('rgb_swd')} | {against_reference('patch_swd')} | "
             f"{median('fit_seconds'):.2f} |"
         )
+    lines += [
+        "",
+        f"Per pair, for the arms fitted with several seeds: the geometric mean over the seeds of the ratios to "
+        f"`{REFERENCE}` at the same seed; pairs below 1 (better), and the worst pair.",
+        "",
+        "| arm | pairs | RGB: pairs better | RGB: worst pair | patch: pairs better | patch: worst pair |",
+        "|---|---|---|---|---|---|",
+    ]
+    for arm in dict.fromkeys(row["arm"] for row in rows if row["arm"] != REFERENCE):
+        mine = [row for row in rows if row["arm"] == arm]
+        if len({seed_of(row) for row in mine}) < 2:
+            continue
+        per_pair: dict = {}
+        for row in mine:
+            key = (row["density"], row["style"], seed_of(row))
+            if key in references:
+                ratio = (row["rgb_swd"] / references[key]["rgb_swd"], row["patch_swd"] / references[key]["patch_swd"])
+                per_pair.setdefault(key[:2], []).append(np.log(ratio))
+        means = {pair: np.exp(np.mean(logs, axis=0)) for pair, logs in per_pair.items()}
+        cells = []
+        for column in (0, 1):
+            worst = max(means, key=lambda pair, column=column: means[pair][column])
+            better = sum(value[column] < 1 for value in means.values())
+            cells += [f"{better} of {len(means)}", f"{means[worst][column]:.3f} ({worst[0]} x {worst[1]})"]
+        lines.append(f"| {arm} | {len(means)} | " + " | ".join(cells) + " |")
     (out / "table.md").write_text("\n".join(lines) + "\n")
 
 

@@ -453,7 +453,7 @@ class SKPN(nn.Module):
             return None
         mean, covariance = masked_moments(x, mask)
         inside = torch.ones((x.shape[0], 1, *x.shape[2:]), dtype=torch.float32, device=x.device)
-        # Channels-last: the one convolution a step runs is about 1.7x faster so on this project's CPU.
+        # Channels-last: the one convolution a fit step runs is about 1.7x faster in it on this project's CPU.
         features = torch.cat([x.float(), inside], dim=1).contiguous(memory_format=torch.channels_last_3d)
         return FoldedBody(features, mean, covariance)
 

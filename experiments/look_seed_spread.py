@@ -63,15 +63,7 @@ def main() -> None:
                     seed=match_seed,
                 )
                 metrics = score(density, match.apply(albedo, density), style)
-                row = dict(
-                    pair=name,
-                    fit_seed=fit_seed,
-                    match_seed=match_seed,
-                    rgb_swd=metrics["rgb_swd"],
-                    patch_swd=metrics["patch_swd"],
-                )
-                print(json.dumps(row), flush=True)
-                rows.append(row)
+                record(rows, metrics, pair=name, fit_seed=fit_seed, match_seed=match_seed)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "seed_spread.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
     lines = [
@@ -100,6 +92,13 @@ def main() -> None:
         )
     lines += ["", f"`python experiments/look_seed_spread.py --pairs {args.pairs}`", ""]
     (args.out / "seed_spread.md").write_text("\n".join(lines))
+
+
+def record(rows: list[dict], metrics: dict, **keys) -> None:
+    """Append (and print) the row of one fit: ``keys`` and its two SWDs."""
+    row = {**keys, "rgb_swd": metrics["rgb_swd"], "patch_swd": metrics["patch_swd"]}
+    print(json.dumps(row), flush=True)
+    rows.append(row)
 
 
 def setting(args):
@@ -148,15 +147,7 @@ def split_fit(args) -> None:
             finally:
                 objectives.SlicedObjective = original
             metrics = score(density, look.stylize(density), style)
-            row = dict(
-                pair=name,
-                view_seed=view_seed,
-                objective_seed=objective_seed,
-                rgb_swd=metrics["rgb_swd"],
-                patch_swd=metrics["patch_swd"],
-            )
-            print(json.dumps(row), flush=True)
-            rows.append(row)
+            record(rows, metrics, pair=name, view_seed=view_seed, objective_seed=objective_seed)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "seed_split.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
     lines = [

@@ -179,19 +179,92 @@ class ColourMatch:
         def table(values):
             return torch.as_tensor(np.asarray(values), dtype=torch.float64, device=albedo.device)
 
-        log_levels, shown_levels = table(self.log_levels), table(self.shown_levels)
-        colours = albedo.permute(1, 2, 3, 0)[inside].double()  # (N, 3)
-        shown = interpolate(colours.clamp(RESPONSE_LEVELS[0], 1.0).log(), log_levels, shown_levels)
-        carried = shown
-        for direction, source, target in self.stages:
-            direction = table(direction)
-            projected = carried @ direction
-            carried = carried + (interpolate(projected, table(source), table(target)) - projected)[:, None] * direction
-        moved = carried.clamp(float(self.shown_levels[0]), float(self.shown_levels[-1]))
-        matched = interpolate(moved, shown_levels, log_levels).exp().float()
-        result = albedo.permute(1, 2, 3, 0).clone()
-        result[inside] = matched
-        return result.permute(3, 0, 1, 2)
+        stages = [tuple(table(part) for part in stage) for stage in self.stages]
+        return carry_torch(albedo, inside, table(self.log_levels), table(self.shown_levels), stages)
+
+
+def carry_torch(albedo, inside, log_levels, shown_levels, stages):
+    """``albedo (3, Z, Y, X)`` where ``inside (Z, Y, X)`` holds, through the response ``log_levels`` ->
+    ``shown_levels`` and the transport ``stages`` (float64 tensors) and back: ``ColourMatch.apply_torch``'s
+    arithmetic, for stages that are constants or functions of the albedo (``fit_colour_match_torch``)."""
+    colours = albedo.permute(1, 2, 3, 0)[inside].double()  # (N, 3)
+    carried = interpolate(colours.clamp(RESPONSE_LEVELS[0], 1.0).log(), log_levels, shown_levels)
+    for direction, source, target in stages:
+        projected = carried @ direction
+        carried = carried + (interpolate(projected, source, target) - projected)[:, None] * direction
+    moved = carried.clamp(float(shown_levels[0]), float(shown_levels[-1]))
+    matched = interpolate(moved, shown_levels, log_levels).exp()
+    result = albedo.permute(1, 2, 3, 0).clone()
+    result[inside] = matched.to(albedo.dtype)
+    return result.permute(3, 0, 1, 2)
+
+
+@dataclass(frozen=True)
+class TorchColourMatch:
+    """A colour match without feedback fitted in torch on the albedo it is applied to
+    (``fit_colour_match_torch``): ``stages``' source quantiles are functions of that albedo."""
+
+    log_levels: object  # torch float64 (L,)
+    shown_levels: object
+    stages: tuple  # (direction (3,), source quantiles (Q,), target quantiles (Q,)), float64 tensors
+
+    def apply(self, albedo, inside):
+        """``albedo (3, Z, Y, X)`` matched where ``inside`` holds (``carry_torch``)."""
+        return carry_torch(albedo, inside, self.log_levels, self.shown_levels, self.stages)
+
+    def detached(self) -> TorchColourMatch:
+        """The same map, passing no gradient to the albedo it was fitted on."""
+        return replace(self, stages=tuple(tuple(part.detach() for part in stage) for stage in self.stages))
+
+
+def fit_colour_match_torch(
+    albedo, density: np.ndarray, style: np.ndarray, *, density_scale: float, response: np.ndarray, seed: int = 0
+) -> TorchColourMatch:
+    """``fit_colour_match(..., feedback=False)`` on the torch ``albedo (3, Z, Y, X)``, as a function of it.
+
+    The transport's source quantiles are order statistics of the albedo's own shown colours (the same
+    voxels, pixels and directions as the numpy fit draws for ``seed``, so the same map to rounding).
+    A gradient of a loss on ``apply(albedo)`` then counts how the fit moves with the albedo as well as
+    how the map moves each voxel: the part of a change that the refitted match would undo (a shift or
+    stretch of the colour distribution) gets no gradient, and what is left is the arrangement, which
+    the match keeps. Holding the map fixed instead (``ColourMatch.apply_torch`` on a fit of the
+    detached albedo) tells a network to move colours the next fit moves back."""
+    import torch
+
+    device = albedo.device
+
+    def table(values):
+        return torch.as_tensor(np.asarray(values), dtype=torch.float64, device=device)
+
+    pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
+    weight = visible_weight(density, density_scale).ravel()
+    rng = np.random.default_rng(seed)
+    voxels = rng.choice(weight.size, TRANSPORT_SAMPLES, p=weight / weight.sum())
+    target = pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)]
+    log_levels, shown_levels = table(np.log(RESPONSE_LEVELS)), table(np.asarray(response, dtype=np.float64))
+    colours = albedo.permute(1, 2, 3, 0).reshape(-1, 3)[torch.as_tensor(voxels, device=device)].double()
+    current = interpolate(colours.clamp(RESPONSE_LEVELS[0], 1.0).log(), log_levels, shown_levels)
+    levels, stages = np.linspace(0, 1, TRANSPORT_QUANTILES), []
+    for _ in range(TRANSPORT_ROUNDS):
+        basis, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        for direction in basis.T:
+            projected = current @ table(direction)
+            stage = (table(direction), quantiles_torch(projected, levels), table(quantiles(target @ direction, levels)))
+            stages.append(stage)
+            current = current + (interpolate(projected, stage[1], stage[2]) - projected)[:, None] * stage[0]
+    return TorchColourMatch(log_levels, shown_levels, tuple(stages))
+
+
+def quantiles_torch(values, levels: np.ndarray):
+    """``quantiles`` in torch, differentiable in ``values`` (through the sort)."""
+    import torch
+
+    ordered = torch.sort(values).values
+    position = np.asarray(levels) * (len(ordered) - 1)
+    below = np.minimum(position.astype(np.intp), len(ordered) - 2)
+    fraction = torch.as_tensor(position - below, dtype=ordered.dtype, device=ordered.device)
+    below = torch.as_tensor(below, device=ordered.device)
+    return ordered[below] + fraction * (ordered[below + 1] - ordered[below])
 
 
 MAX_SLOPE = 1e3
@@ -200,18 +273,19 @@ MAX_SLOPE = 1e3
 
 
 def interpolate(x, xp, fp):
-    """``np.interp`` in torch (``xp`` increasing, ties allowed; constant beyond its ends), differentiable in ``x``
-    except on segments steeper than ``MAX_SLOPE`` (there the value is exact and the gradient zero)."""
+    """``np.interp`` in torch (``xp`` increasing, ties allowed; constant beyond its ends), differentiable in
+    ``x``, ``xp`` and ``fp`` except on segments steeper than ``MAX_SLOPE`` (there the value is exact and
+    the gradient zero)."""
     import torch
 
-    index = torch.searchsorted(xp, x.detach().contiguous()).clamp(1, len(xp) - 1)
-    left, right = xp[index - 1], xp[index]
+    index = torch.searchsorted(xp.detach().contiguous(), x.detach().contiguous()).clamp(1, len(xp) - 1)
+    left, right, low, high = xp[index - 1], xp[index], fp[index - 1], fp[index]
+    steep = (high - low).detach().abs() > MAX_SLOPE * (right - left).detach()
+    x, left, right, low, high = (torch.where(steep, part.detach(), part) for part in (x, left, right, low, high))
     span = right - left
     safe = torch.where(span > 0, span, torch.ones_like(span))
-    steep = (fp[index] - fp[index - 1]).abs() > MAX_SLOPE * span
-    x = torch.where(steep, x.detach(), x)
     weight = torch.where(span > 0, (x - left) / safe, 1.0)
-    value = fp[index - 1] + weight.clamp(0.0, 1.0) * (fp[index] - fp[index - 1])
+    value = low + weight.clamp(0.0, 1.0) * (high - low)
     return torch.where(x <= xp[0], fp[0], torch.where(x >= xp[-1], fp[-1], value))
 
 

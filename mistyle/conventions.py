@@ -57,5 +57,8 @@ DEVICES = ("cpu", "cuda")
 TEMPORAL_GRADIENTS = ("both", "current")
 """Which frames the temporal term's gradient reaches: t and t+1, or t only (frame t+1 as a fixed target,
 which spares the network's backward pass for it)."""
+COLOUR_MATCH_GRADIENTS = ("map", "fit")
+"""How training's colour match passes the gradient: through the fitted map only, or through the fit too
+(``colour_match.fit_colour_match_torch``)."""
 PRECISIONS = ("fp32", "bf16")
 """The network's training precision: float32, or bfloat16 autocast (``run.precision``)."""

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import torch
 
+from mistyle.model.config import ConfigError
 from mistyle.model.noise import noise_fields
 from mistyle.model.skpn import NOISE_SITE, SKPN, SKPNConfig, StylizingKernels
 
@@ -130,8 +131,10 @@ def test_strength_zero_and_blends_carry_the_noise_site():
     assert float((grey - 0.5).abs().max()) < 1e-3
 
 
-def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_path, tiny_smoke):
-    """``optim.tune`` freezes everything else; ``loss.colour_match`` fits the product's match per item."""
+@pytest.mark.parametrize("gradient", ["map", "fit"])
+def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_path, tiny_smoke, gradient):
+    """``optim.tune`` freezes everything else; ``loss.colour_match`` fits the product's match per item, and
+    the gradient passes the fitted map or the fit as well (``loss.colour_match_gradient``)."""
     from mistyle.model.config import load_config
     from mistyle.train.trainer import Trainer
 
@@ -144,6 +147,7 @@ def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_
             "model.noise_scales=[0.1, 0.25]",
             "model.noise_per_scale=1",
             "loss.colour_match=true",
+            f'loss.colour_match_gradient="{gradient}"',
             'optim.tune=["noise_predictor"]',
             "optim.lr=1e-2",
         ],
@@ -158,6 +162,8 @@ def test_training_only_the_noise_site_with_the_colour_match_in_the_loop(mi, tmp_
     bad = load_config("configs/tiny.toml", [f'data.smoke="{tiny_smoke}"', 'optim.tune=["nothing_here"]'])
     with pytest.raises(ValueError, match="names no parameter"):
         Trainer(bad, tmp_path / "bad", log=lambda *a: None)
+    with pytest.raises(ConfigError, match="colour_match_gradient must be one of map, fit"):
+        load_config("configs/tiny.toml", ['loss.colour_match_gradient="both"'])
 
 
 def noisy_tiny_checkpoint(path, noise: bool = True):

@@ -25,6 +25,7 @@ from pathlib import Path
 import tomllib
 
 from ..conventions import (
+    COLOUR_MATCH_GRADIENTS,
     DEFAULT_ENV_RADIANCE,
     DEFAULT_LAYER_SCHEME,
     DEVICES,
@@ -99,9 +100,13 @@ class LossConfig:
         "both"  # "both" frames of the temporal term | "current": frame t only (t+1 is a fixed target)
     )
     # The product's colour match in the loop: each predicted albedo is given its style's colours by a
-    # colour_match.ColourMatch fitted on it (no gradient through the fit; the map is piecewise linear) before
-    # it is rendered, so the network learns what the match will make of its output.
+    # colour match fitted on it (without the feedback render) before it is rendered, so the network learns
+    # what the match will make of its output.
     colour_match: bool = False
+    # How the gradient passes the match: "map" holds the fitted map fixed (piecewise linear in the albedo);
+    # "fit" also differentiates the fit (colour_match.fit_colour_match_torch), so what a refitted match would
+    # undo gets no gradient and the arrangement is what is left to learn.
+    colour_match_gradient: str = "map"
 
 
 @dataclass
@@ -163,6 +168,10 @@ class TrainConfig:
             (
                 self.loss.temporal_gradient in TEMPORAL_GRADIENTS,
                 f"loss.temporal_gradient must be one of {', '.join(TEMPORAL_GRADIENTS)}",
+            ),
+            (
+                self.loss.colour_match_gradient in COLOUR_MATCH_GRADIENTS,
+                f"loss.colour_match_gradient must be one of {', '.join(COLOUR_MATCH_GRADIENTS)}",
             ),
             (self.loss.patch_weight >= 0, "loss.patch_weight must be >= 0"),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),

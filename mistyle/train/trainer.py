@@ -222,9 +222,10 @@ class Trainer:
         """``current`` and ``following`` ``(B, 3, D, H, W)`` with each item's colour match (``loss.colour_match``):
         fitted on the item's frame-t albedo as the product fits it, applied to both frames (the sequence
         rule: one map per style), differentiable in the albedo."""
-        from ..colour_match import InvisibleMedium, fit_colour_match, grey_response
+        from ..colour_match import InvisibleMedium, fit_colour_match, fit_colour_match_torch, grey_response
 
         config = self.config
+        through_fit = config.loss.colour_match_gradient == "fit"
         light = dict(
             density_scale=self.data.density_scale,
             radiance=config.render.radiance,
@@ -238,13 +239,26 @@ class Trainer:
                 key = frame["density0"].tobytes()  # the grey response depends on the density only: once per frame
                 if key not in self._responses:
                     self._responses[key] = grey_response(frame["density0"], **light)
+                seed = int(self.rng.integers(2**31))
+                if through_fit:
+                    match = fit_colour_match_torch(
+                        current[item],
+                        frame["density0"],
+                        styles[item].permute(1, 2, 0).cpu().numpy(),
+                        density_scale=light["density_scale"],
+                        response=self._responses[key],
+                        seed=seed,
+                    )
+                    matched_current.append(match.apply(current[item], inside))
+                    matched_following.append(match.detached().apply(following[item], inside_next))
+                    continue
                 # Without the feedback render (step 4 of colour_match): a quarter of the cost, a small correction.
                 match = fit_colour_match(
                     current[item].detach().permute(1, 2, 3, 0).cpu().numpy(),
                     frame["density0"],
                     styles[item].permute(1, 2, 0).cpu().numpy(),
                     **light,
-                    seed=int(self.rng.integers(2**31)),
+                    seed=seed,
                     feedback=False,
                     response=self._responses[key],
                 )

@@ -217,6 +217,16 @@ class TorchColourMatch:
         return replace(self, stages=tuple(tuple(part.detach() for part in stage) for stage in self.stages))
 
 
+def transport_samples(density, style, density_scale: float, rng: np.random.Generator) -> tuple:
+    """What a fit's transport is fitted on, drawn from ``rng`` in this order: ``TRANSPORT_SAMPLES`` flat
+    voxel indices of ``density (Z, Y, X)`` by ``visible_weight``, and as many of ``style``'s pixels
+    ``(TRANSPORT_SAMPLES, 3)``. Both fits draw through it, so for one seed they fit the same map."""
+    pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
+    weight = visible_weight(density, density_scale).ravel()
+    voxels = rng.choice(weight.size, TRANSPORT_SAMPLES, p=weight / weight.sum())
+    return voxels, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)]
+
+
 def fit_colour_match_torch(
     albedo, density: np.ndarray, style: np.ndarray, *, density_scale: float, response: np.ndarray, seed: int = 0
 ) -> TorchColourMatch:
@@ -236,11 +246,8 @@ def fit_colour_match_torch(
     def table(values):
         return torch.as_tensor(np.asarray(values), dtype=torch.float64, device=device)
 
-    pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
-    weight = visible_weight(density, density_scale).ravel()
     rng = np.random.default_rng(seed)
-    voxels = rng.choice(weight.size, TRANSPORT_SAMPLES, p=weight / weight.sum())
-    target = pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)]
+    voxels, target = transport_samples(density, style, density_scale, rng)
     log_levels, shown_levels = table(np.log(RESPONSE_LEVELS)), table(np.asarray(response, dtype=np.float64))
     colours = albedo.permute(1, 2, 3, 0).reshape(-1, 3)[torch.as_tensor(voxels, device=device)].double()
     current = interpolate(colours.clamp(RESPONSE_LEVELS[0], 1.0).log(), log_levels, shown_levels)
@@ -359,19 +366,17 @@ def fit_colour_match(
         raise ValueError(
             f"albedo must be the density's shape plus 3 channels {density.shape + (3,)}, got {albedo.shape}."
         )
-    pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
     orbit = CameraPath(distance=camera_distance)
     if response is None:
         response = grey_response(
             density, density_scale=density_scale, radiance=radiance, camera_distance=camera_distance
         )
     shown_levels = np.asarray(response, dtype=np.float64)
-    weight = visible_weight(density, density_scale).ravel()
     rng = np.random.default_rng(seed)
-    voxels = rng.choice(weight.size, TRANSPORT_SAMPLES, p=weight / weight.sum())
+    voxels, target = transport_samples(density, style, density_scale, rng)
     match = ColourMatch(np.log(RESPONSE_LEVELS), shown_levels, ())
     source = match.shown(albedo.reshape(-1, 3)[voxels].astype(np.float64))
-    stages = fit_sliced_transport(source, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng)
+    stages = fit_sliced_transport(source, target, rng)
     match = replace(match, stages=tuple(stages))
     if feedback:
         views = orbit.turntable(FEEDBACK_VIEWS)
@@ -381,6 +386,7 @@ def fit_colour_match(
         )
         rendered = display(renders[renders.max(axis=-1) > FOREGROUND_THRESHOLD]).astype(np.float64)
         if len(rendered):  # the response saw the medium; a render of darker albedos may not
+            pixels = np.asarray(style, dtype=np.float64).reshape(-1, 3)
             stages = fit_sliced_transport(
                 rendered, pixels[rng.choice(len(pixels), TRANSPORT_SAMPLES)], rng, rounds=FEEDBACK_ROUNDS
             )

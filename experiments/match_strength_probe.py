@@ -51,15 +51,17 @@ def main() -> None:
             "network": METHODS["network_unmatched"].albedo(context, density, style),
             "smooth_noise": smooth_noise(density.shape, context.seed),
         }
-        arms = [("uniform", None, METHODS["uniform"].albedo(context, density, style))]
+        colour = METHODS["uniform"].albedo(context, density, style)
+        arms = [("uniform", None, colour)]
         for name, field in fields.items():
-            for strength in STRENGTHS:
-                albedo = stylizer.match_colours([field], [density], style, strength=strength)[0]
-                arms.append((name, f"strength {strength:.2f}", albedo))
-            colour = arms[0][2]
-            for kept in STRENGTHS[1:-1]:
-                arms.append((name, f"spread {kept:.2f}", colour + kept * (albedo - colour)))
-        for name, strength, albedo in arms:
+            matched = {
+                strength: stylizer.match_colours([field], [density], style, strength=strength)[0]
+                for strength in STRENGTHS
+            }
+            arms += [(name, f"strength {strength:.2f}", albedo) for strength, albedo in matched.items()]
+            full = matched[1.0]
+            arms += [(name, f"spread {kept:.2f}", colour + kept * (full - colour)) for kept in STRENGTHS[1:-1]]
+        for name, moved, albedo in arms:
             metrics, _ = score(
                 density,
                 albedo,
@@ -70,7 +72,7 @@ def main() -> None:
                 density_scale=context.density_scale,
                 radiance=context.radiance,
             )
-            row = {"density": density_name, "style": style_name, "field": name, "moved": strength}
+            row = {"density": density_name, "style": style_name, "field": name, "moved": moved}
             row.update({key: float(metrics[key]) for key in ("rgb_swd", "patch_swd", "structure")})
             rows.append(row)
             print(json.dumps(row), flush=True)
@@ -93,9 +95,9 @@ def table(rows: list[dict]) -> str:
     for r in rows:
         base = uniform[(r["density"], r["style"])]
         below = r["field"] != "uniform" and r["rgb_swd"] < base["rgb_swd"] and r["patch_swd"] < base["patch_swd"]
-        strength = r["moved"] or ""
+        moved = r["moved"] or ""
         lines.append(
-            f"| {r['density']}:{r['style']} | {r['field']} | {strength} | {r['rgb_swd']:.4f} | {r['patch_swd']:.4f} | "
+            f"| {r['density']}:{r['style']} | {r['field']} | {moved} | {r['rgb_swd']:.4f} | {r['patch_swd']:.4f} | "
             f"{r['structure']:.3f} | {'yes' if below else ''} |"
         )
     return "\n".join(lines) + "\n"

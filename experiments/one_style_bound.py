@@ -49,8 +49,6 @@ COPIES = 20
 LEARNING_RATE = 2.5e-4
 """The fine-tuning stage's rate (``cpu_sliced_finetune.toml``): every weight moves, from a trained network."""
 BASELINES = ("network", "smooth_noise", "tuned_noise", "uniform", "look")
-BAR = {"rgb_swd": 0.9, "patch_swd": 0.9, "structure_share": 0.75}
-"""Issue #33's bar against ``smooth_noise`` + colour match."""
 
 
 def main() -> None:
@@ -182,32 +180,28 @@ def table(rows: list[dict], args) -> str:
     from mistyle.train.dataset import validation_paintings
 
     held_back = {path.stem for path in validation_paintings()}  # in the collection, kept from training
-    by_pair = {(r["style"], r["density"], r["method"]): r for r in rows}
+    from network_bar import check  # the bar's one definition (this folder is on the path of a script)
+
     styles = list(dict.fromkeys(r["style"] for r in rows))
     trained = [style for style in styles if style not in held_back]
     groups = [(f"{style} (held back)" if style in held_back else style, [style]) for style in styles]
     groups += [("all trained on", trained)] if len(trained) > 1 else []
     for label, members in groups:
+
+        def pairs_of(method):
+            return {(r["density"], r["style"]): r for r in rows if r["style"] in members and r["method"] == method}
+
+        noise, uniform = pairs_of("smooth_noise"), pairs_of("uniform")
         for method in dict.fromkeys(r["method"] for r in rows if r["style"] in members):
-            mine = [r for r in rows if r["style"] in members and r["method"] == method]
-            noise = [by_pair.get((r["style"], r["density"], "smooth_noise")) for r in mine]
-            uniform = [by_pair.get((r["style"], r["density"], "uniform")) for r in mine]
-            if not all(noise) or not all(uniform):
+            mine = pairs_of(method)
+            if set(mine) - set(noise) or set(mine) - set(uniform):
                 continue
-            rgb = float(np.median([r["rgb_swd"] / n["rgb_swd"] for r, n in zip(mine, noise)]))
-            patch = float(np.median([r["patch_swd"] / n["patch_swd"] for r, n in zip(mine, noise)]))
-            closer = sum(r["structure"] < n["structure"] for r, n in zip(mine, noise))
-            beats = sum(r["rgb_swd"] < u["rgb_swd"] and r["patch_swd"] < u["patch_swd"] for r, u in zip(mine, uniform))
-            meets = (
-                rgb <= BAR["rgb_swd"]
-                and patch <= BAR["patch_swd"]
-                and closer >= BAR["structure_share"] * len(mine)
-                and beats == len(mine)
-            )
-            structure = float(np.median([r["structure"] for r in mine]))
+            bar = check(mine, noise, uniform)
+            structure = float(np.median([r["structure"] for r in mine.values()]))
             lines.append(
-                f"| {label} | {method} | {len(mine)} | {rgb:.3f} | {patch:.3f} | {structure:.3f} | "
-                f"{closer}/{len(mine)} | {beats}/{len(mine)} | {'yes' if meets else 'no'} |"
+                f"| {label} | {method} | {bar['pairs']} | {bar['rgb']:.3f} | {bar['patch']:.3f} | {structure:.3f} | "
+                f"{bar['closer']}/{bar['pairs']} | {bar['pairs'] - len(bar['losing'])}/{bar['pairs']} | "
+                f"{'yes' if all(bar['meets'].values()) else 'no'} |"
             )
     return "\n".join(lines) + "\n"
 

@@ -3,10 +3,11 @@
 The held-out smoke64 simulation (``mistyle.data.heldout.held_out_sequence``; its frame 69 is the
 benchmark's smoke64) is stylized over ``--count`` frames from ``--first`` with each style in two ways:
 
-* ``network``: ``mistyle-render``'s feed-forward sequence (the network, the colour match fitted on the
-  first frame and shared);
-* ``look``: a look fitted on the first, middle and last frame (``mistyle-render --save-look``'s
-  default), applied to every frame without refinement.
+* ``network``: ``mistyle-render --refine 0``'s feed-forward sequence (the network, the colour match
+  fitted on the first frame and shared);
+* ``look``: a look fitted on the first, middle and last frame, applied to every frame without
+  refinement: ``mistyle-render``'s default for a sequence (``Pipeline.fits_look``) and
+  ``--save-look``'s.
 
 Per arm and style it records the albedo flicker (``objective.metrics.temporal_flicker``, warped by
 the velocities), and for the look the benchmark's metrics of every frame (``benchmark.study.score``,

@@ -9,16 +9,18 @@
 
 ``stylize`` runs the trained SKPN (the bundled checkpoint unless one is named) and the colour match
 on numpy arrays of any ``D, H, W``, single frames ``(Z, Y, X)`` or sequences ``(T, Z, Y, X)``; with
-``refine=True`` it returns what ``mistyle-render`` path traces by default: for a single frame at
-full strength, a look fitted on the frame and applied (``Pipeline.fits_look``), else the refinement
-``Pipeline.refinement`` gives. ``strength`` fades the style towards a uniform grey medium and a list of
-``(style, weight)`` pairs mixes styles; both act on the predicted stylizing kernels
-(``Stylizer.kernels``, ``Stylizer.weakened``), not on finished albedos:
+``refine=True`` it returns what ``mistyle-render`` path traces by default: at full strength, a look
+fitted on the frame, or on a sequence's first, middle and last frame, and applied to every frame
+(``Pipeline.fits_look``), else the refinement ``Pipeline.refinement`` gives. ``strength`` fades
+the style towards a uniform grey medium and a list of ``(style, weight)`` pairs mixes styles; both
+act on the predicted stylizing kernels (``Stylizer.kernels``, ``Stylizer.weakened``), not on
+finished albedos:
 
     albedo = mistyle.stylize(density, [("wave.png", 0.7), ("starry.png", 0.3)], strength=0.5)
 
 A sequence is stylized best from a look, fitted once on its key frames and applied to every frame
-(``mistyle.look``; ``mistyle-render --save-look`` / ``--look``):
+(``mistyle.look``; ``mistyle-render --save-look`` / ``--look``); to keep the look, or choose its
+key frames:
 
     look = mistyle.fit_look(frames, "wave.png")       # frames (T, Z, Y, X), a list, or a folder's path
     albedos = look.stylize(frames)                     # one albedo per frame, each from its own density
@@ -91,9 +93,9 @@ def stylize(
             > 1 makes the style's structures smaller relative to the volume.
         match_colours: False gives the network's albedo as predicted, without the colour match.
         refine: False: feed-forward, no gradient step (``mistyle-render --refine 0``, under a second
-            at 64^3). True: the albedo ``mistyle-render`` path traces with its defaults (a single
-            frame at full strength gets a look fitted on it, tens of seconds, ``Pipeline.fits_look``;
-            sequences and weakened styles are not refined, see ``Pipeline.refinement``).
+            at 64^3). True: the albedo ``mistyle-render`` path traces with its defaults (at full
+            strength a look fitted on the frame or on a sequence's key frames, tens of seconds,
+            ``Pipeline.fits_look``; weakened styles are not refined, see ``Pipeline.refinement``).
 
     Returns:
         ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) float32 albedo in [0, 1].

@@ -12,11 +12,12 @@ The chain, each stage owned by one module and configured by ``PipelineSettings``
    (mixed and weakened on the kernels: ``Stylizer.kernels``, ``Stylizer.weakened``).
 2. **Colour match** (``mistyle.colour_match``): the network's arrangement with the style's colours;
    a sequence shares the map fitted on its first frame.
-3. **Refinement** (``fit.refine_albedo``): fast-layer steps, then path-traced steps, against the
-   style; in a sequence each frame starts from the previous frame's result warped by the velocity
-   and is held near it by the temporal term. ``Pipeline.refinement`` owns the rule for how many
-   steps: a single frame at full strength gets ``RefineSettings``' schedule, sequences and weakened
-   styles none, unless the settings name the steps.
+3. **A look, or refinement.** By default (full strength, the colour match on, no refinement steps
+   named) a look is fitted on the frame, or on a sequence's key frames, and applied to every frame
+   (``Pipeline.fits_look``, ``mistyle.look``). Otherwise, when the settings name steps,
+   refinement (``fit.refine_albedo``): fast-layer steps, then path-traced steps, against the style;
+   in a sequence each frame starts from the previous frame's result warped by the velocity and is
+   held near it by the temporal term. ``Pipeline.refinement`` owns the rule for how many steps.
 4. **Path tracing** (``pathtrace.path_trace``): Mitsuba's ``volpath``, multiple scattering.
 
 ``mistyle-render`` is argparse -> ``PipelineSettings`` -> ``Pipeline`` -> files, and
@@ -57,6 +58,21 @@ def default_refinement(config, camera_distance: float | None = None):
 
     distance = config.render.camera_distance if camera_distance is None else camera_distance
     return RefineSettings(tv_weight=config.loss.tv_weight, camera_distance=distance)
+
+
+def flicker_report(albedos: list, frames, suffix: str = "") -> dict:
+    """How much a sequence's ``albedos`` flicker, for ``report.json``: ``temporal_flicker{suffix}``
+    (``objective.metrics.temporal_flicker``, each frame against the previous one warped by its
+    velocity), or ``temporal_flicker{suffix}_unwarped`` (mean absolute change) when the frames carry
+    no velocity; nothing for a single frame."""
+    from .objective.metrics import temporal_flicker
+
+    if not frames.sequence:
+        return {}
+    stacked = np.stack(albedos)
+    if frames.velocities is not None:
+        return {f"temporal_flicker{suffix}": temporal_flicker(stacked, np.stack(frames.velocities))}
+    return {f"temporal_flicker{suffix}_unwarped": float(np.mean(np.abs(np.diff(stacked, axis=0))))}
 
 
 @dataclass
@@ -140,7 +156,7 @@ class Stylization:
     refinement: object  # the fit.RefineSettings that ran (0 steps: none)
     report: dict  # seconds per stage, temporal flicker of sequences
     notes: list
-    look: object = None  # the look.Look fitted on the frame and applied (Pipeline.fits_look), or None
+    look: object = None  # the look.Look fitted on the frame(s) and applied (Pipeline.fits_look), or None
 
     @property
     def refined(self) -> bool:
@@ -200,27 +216,33 @@ class Pipeline:
         orbit = CameraPath(distance=self.camera_distance)
         return orbit.turntable(render.turntable, offset=render.view) if render.turntable else [orbit.view(render.view)]
 
-    def fits_look(self, frames: int = 1) -> bool:
-        """Whether a single frame is stylized by a look fitted on it (``look.fit_look``, then applied)
-        instead of refined: the default for one frame at full strength with the colour match, when no
-        refinement steps are named. On the held-out split it matches or beats the refinement it
-        replaces at about the same time (``results/benchmark/``: ``look`` against ``default``)."""
+    def fits_look(self) -> bool:
+        """Whether the frames are stylized by a look fitted on them (``look.fit_look`` on a single
+        frame, or on a sequence's key frames, ``look.default_key_frames``; then applied to every frame)
+        instead of refined or left feed-forward: the default at full strength with the colour match,
+        when no refinement steps are named.
+
+        On the held-out split a look has the lowest medians of every metric the benchmark has, and
+        matches or beats the refinement it replaced at about the same time (``results/benchmark/``:
+        ``look`` against ``default``). Over a sequence, a look fitted on three key frames flickers
+        0.4-0.65x as much as the network's frames, and the frames it was not fitted on score within
+        1.05x of the key frames (``results/look_sequence/``)."""
         s = self.settings
         named = s.refine_steps is not None or s.refine_path_steps is not None
-        return frames == 1 and s.strength == 1.0 and s.colour_match and not named
+        return s.strength == 1.0 and s.colour_match and not named
 
     def refinement(self, frames: int = 1):
         """The refinement schedule (``fit.RefineSettings``) for ``frames`` frames.
 
-        Steps the settings name are used as they are. Otherwise a single frame at full strength gets
-        none when a look is fitted on it instead (``fits_look``: with the colour match), else
-        ``default_refinement``'s steps; sequences and weakened styles get none: even warm-started
-        and anchored, refined frames flicker about twice as much as the network's and each frame costs
-        the refinement's time, and refining against the style would undo a strength below 1.
-        ``refine_steps=0`` also turns the path-traced steps off unless they are named."""
+        Steps the settings name are used as they are. Otherwise none when a look is fitted instead
+        (``fits_look``); a single frame without the colour match gets ``default_refinement``'s steps;
+        sequences and weakened styles get none: even warm-started and anchored, refined frames
+        flicker about twice as much as the network's and each frame costs the refinement's time, and
+        refining against the style would undo a strength below 1. ``refine_steps=0`` also turns the
+        path-traced steps off unless they are named."""
         s = self.settings
         defaults = default_refinement(self.config, self.camera_distance)
-        unrefined = frames > 1 or s.strength < 1.0 or self.fits_look(frames)
+        unrefined = frames > 1 or s.strength < 1.0 or self.fits_look()
         layer = s.refine_steps if s.refine_steps is not None else 0 if unrefined else defaults.layer_steps
         path = (
             s.refine_path_steps
@@ -258,8 +280,6 @@ class Pipeline:
 
         ``style``: an image or path, or a mix ``[(image or path, weight)]`` (see ``style_parts``).
         ``notes`` (a list) collects what the user should know (conversions, skipped stages)."""
-        from .objective.metrics import temporal_flicker
-
         s = self.settings
         notes = [] if notes is None else notes
         frames = self.frames(density, velocities)
@@ -289,23 +309,23 @@ class Pipeline:
         self.log(
             f"stylized {len(network)} frame(s) of {frames.densities[0].shape} in {report['stylize_seconds']:.2f} s"
         )
-        if frames.sequence and frames.velocities is not None:
-            report["temporal_flicker"] = temporal_flicker(np.stack(network), np.stack(frames.velocities))
-        elif frames.sequence:
-            report["temporal_flicker_unwarped"] = float(np.mean(np.abs(np.diff(np.stack(network), axis=0))))
-            notes.append("the frames carry no velocity; temporal_flicker_unwarped compares frames without warping")
+        report.update(flicker_report(network, frames))
+        if frames.sequence and frames.velocities is None:
+            notes.append("the frames carry no velocity; temporal_flicker*_unwarped compares frames without warping")
 
         albedos, look = network, None
-        if self.fits_look(len(frames.densities)):
+        if self.fits_look():
             started = time.perf_counter()
             look = self.fit_look(frames, parts if len(parts) > 1 else parts[0][0], notes=notes)
             albedos = [look.apply(grid) for grid in frames.densities]
             report["look_seconds"] = time.perf_counter() - started
-            self.log(f"fitted a look on the frame and applied it in {report['look_seconds']:.1f} s")
+            report.update(flicker_report(albedos, frames, "_look"))
+            fitted_on = f"key frames {', '.join(map(str, look.meta['key_frames']))}" if frames.sequence else "the frame"
+            seconds = report["look_seconds"]
+            self.log(f"fitted a look on {fitted_on} and applied it to {len(albedos)} frame(s) in {seconds:.1f} s")
         elif refinement.layer_steps or refinement.path_steps:
             albedos, report["refine_seconds"] = self.refine(frames, albedos, target, refinement)
-            if frames.sequence and frames.velocities is not None:
-                report["temporal_flicker_refined"] = temporal_flicker(np.stack(albedos), np.stack(frames.velocities))
+            report.update(flicker_report(albedos, frames, "_refined"))
         check_finite("The corrected albedo of frame", albedos)
         return Stylization(frames, network, albedos, target, refinement, report, notes, look)
 
@@ -346,8 +366,6 @@ class Pipeline:
         """Every frame of ``density`` stylized by ``look`` (``look.Look``): the look's tuned network and
         colour match on each frame's own density, no refinement unless the settings name steps (then
         each frame is refined on its own, from the look's albedo). The target is the look's style."""
-        from .objective.metrics import temporal_flicker
-
         notes = [] if notes is None else notes
         frames = self.frames(density, velocities)
         notes.extend(look.notes_for(frames.densities[0].shape, frames.density_scale))
@@ -357,8 +375,7 @@ class Pipeline:
         report["stylize_seconds"] = time.perf_counter() - started
         check_finite("The look's albedo of frame", network)
         self.log(f"stylized {len(network)} frame(s) from the look in {report['stylize_seconds']:.2f} s")
-        if frames.sequence and frames.velocities is not None:
-            report["temporal_flicker"] = temporal_flicker(np.stack(network), np.stack(frames.velocities))
+        report.update(flicker_report(network, frames))
         refinement = self.look_refinement()
         albedos = network
         if refinement.layer_steps or refinement.path_steps:

@@ -29,17 +29,19 @@ One output per (density, style) pair (``mistyle.outputs``): a single pair into `
 - ``report.json`` with timings and the style metrics of the path-traced images against the style:
   ``rgb_swd``, ``patch_swd`` and ``hue_coverage`` (the fidelity benchmark's,
   ``objective.metrics.style_fidelity``), ``swd_final`` (sliced W2 of colours), ``swd_layer`` (the
-  ``*_network_layer`` images), and ``temporal_flicker`` for sequences.
+  ``*_network_layer`` images), and for sequences ``temporal_flicker`` (the feed-forward frames) and
+  ``temporal_flicker_look`` (the look's; ``*_unwarped`` when the frames carry no velocity).
 
 ``--strength`` (0: a uniform grey medium, 1: the full style) and ``--mix`` act on the network's
 predicted stylizing kernels (``pipeline.Stylizer.kernels``); a mix is measured and refined against a
-mosaic of its styles with areas in proportion to the weights (``pipeline.style_target``). By default a
-single frame at full strength is stylized by a look fitted on it (``Pipeline.fits_look``,
-``mistyle.look``), which is what makes the medium take on the style's hues and patterns; naming
+mosaic of its styles with areas in proportion to the weights (``pipeline.style_target``). By default
+at full strength a look is fitted on the frame, or on a sequence's first, middle and last frame, and
+applied to every frame (``Pipeline.fits_look``, ``mistyle.look``), which is what makes the medium take
+on the style's hues and patterns; naming
 ``--refine`` (fast-layer steps) or ``--refine-path`` (path-traced steps) refines the feed-forward
 albedo against the style instead (``Pipeline.refinement``;
-``docs/decisions/2026-11-25-style-fidelity-study.md``). ``--save-look``/``--look``/``--frames`` fit a
-look once and apply it to every frame of a sequence, in chunks that merge (``docs/looks.md``).
+``docs/decisions/2026-11-25-style-fidelity-study.md``). ``--save-look``/``--look``/``--frames`` keep a
+look in a file and apply it to chunks of a sequence that merge (``docs/looks.md``).
 ``--refine 0`` renders the feed-forward albedo: the network's arrangement with the style's colours
 (``mistyle.colour_match``, no gradient step; ``--no-colour-match`` keeps the network's own colours).
 Each output is written into a hidden staging folder beside it that replaces it only when complete, so a failed or
@@ -132,7 +134,7 @@ def parser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         metavar="STEPS",
-        help="steps of a look's fit, with --save-look or for a single frame's default (default: "
+        help="steps of a look's fit, with --save-look or for the default output's look (default: "
         "mistyle.look.LookSettings.steps)",
     )
     p.add_argument(
@@ -202,8 +204,8 @@ def parser() -> argparse.ArgumentParser:
         default=None,
         metavar="STEPS",
         help=f"refine the albedo for STEPS steps against the style through the fast layer "
-        f"(default: 0; a single frame at full strength gets a look fitted on it instead; {REFINE_LAYER_STEPS} "
-        "with --no-colour-match)",
+        f"(default: 0, a look fitted on the frame or a sequence's key frames instead; {REFINE_LAYER_STEPS} "
+        "for a single frame with --no-colour-match)",
     )
     p.add_argument(
         "--refine-path",
@@ -547,8 +549,8 @@ def check_look_options(args) -> None:
             raise ValueError("--frames selects frames of a density sequence; a mesh has one frame.")
         if args.look is None and args.save_look is None:
             raise ValueError(
-                "--frames renders chunks from a look, so that every chunk matches the others (from a style, a "
-                "chunk's colours would follow its own first frame): add --look FILE, or --save-look FILE to fit one."
+                "--frames renders chunks from a look file, so that every chunk matches the others (from a style, "
+                "each chunk would fit its own look on its own frames): add --look FILE, or --save-look FILE to fit one."
             )
     else:
         args.frame_range = None

@@ -57,10 +57,12 @@ def test_stylize_refine_runs_the_commands_default_settings():
     args = parser().parse_args(["--density", "d.vol", "--style", STYLE, "--out", "o"])
     assert settings_from(args) == PipelineSettings()  # the command's defaults are the pipeline's defaults
     pipeline = Pipeline()
-    assert pipeline.fits_look(1) and not pipeline.fits_look(2)  # a single frame gets a look fitted on it
+    assert pipeline.fits_look()  # a frame, or a sequence's key frames, get a look fitted on them
     unmatched = Pipeline(PipelineSettings(colour_match=False), stylizer=pipeline.stylizer)
     refinement = unmatched.refinement()
-    assert not unmatched.fits_look(1) and refinement.layer_steps > 0 and refinement.path_steps > 0
+    assert not unmatched.fits_look() and refinement.layer_steps > 0 and refinement.path_steps > 0
+    for named in ({"refine_steps": 0}, {"refine_path_steps": 2}, {"strength": 0.5}):
+        assert not Pipeline(PipelineSettings(**named), stylizer=pipeline.stylizer).fits_look()
 
 
 def test_stylize_refine_is_the_commands_default_output(mi, tmp_path, density_file, one_thread):
@@ -69,8 +71,26 @@ def test_stylize_refine_is_the_commands_default_output(mi, tmp_path, density_fil
     assert report["look_seconds"] > 0 and report["inputs"]["refine_steps"] == 0
     density = read_vol(density_file)
     assert np.array_equal(mistyle.stylize(density, STYLE, refine=True), read_vol(out / "albedo_refined.vol"))
-    # ...which is the benchmark's `look`: a look fitted on the frame with its defaults, applied.
-    assert np.array_equal(Pipeline().fit_look(density, STYLE).stylize(density), read_vol(out / "albedo_refined.vol"))
+
+
+def test_a_sequence_by_default_is_stylized_by_one_look_fitted_on_its_key_frames(mi, tmp_path, blob_density, one_thread):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    sequence = np.stack([np.roll(blob_density, index, axis=2) for index in range(4)])
+    for index, density in enumerate(sequence):
+        np.savez(frames / f"frame{index:04d}.npz", density=density)
+    out = render_cli(tmp_path, frames, "--look-steps", "2")
+    report = json.loads((out / "report.json").read_text())
+    assert report["look_seconds"] > 0 and report["inputs"]["refine_steps"] == 0
+    assert report["temporal_flicker_look_unwarped"] >= 0 and report["temporal_flicker_unwarped"] >= 0
+    look = Pipeline(PipelineSettings(look_steps=2)).fit_look(sequence, STYLE)
+    assert look.meta["key_frames"] == [0, 1, 3]  # the first, middle and last: frame 2 is not fitted on
+    for index, density in enumerate(sequence):
+        assert np.array_equal(look.stylize(density), read_vol(out / f"albedo_refined_frame{index:04d}.vol"))
+    # `--refine 0` keeps the feed-forward network's frames, as before.
+    feed_forward = render_cli(tmp_path / "ff", frames, "--refine", "0")
+    assert "look_seconds" not in json.loads((feed_forward / "report.json").read_text())
+    assert not (feed_forward / "albedo_refined_frame0000.vol").exists()
 
 
 def test_refinement_rule():

@@ -173,13 +173,15 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
             "2",
             "--coat",
             "dielectric:1.4",
+            "--look-steps",
+            "2",
         ]
     )
     assert code == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["inputs"]["frames"] == 2 and report["temporal_flicker"] >= 0
-    assert report["inputs"]["refine_steps"] == 0  # sequences are not refined by default (flicker)
-    assert (out / "albedo_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
+    assert report["inputs"]["frames"] == 2 and report["temporal_flicker"] >= 0 and report["temporal_flicker_look"] >= 0
+    assert report["inputs"]["refine_steps"] == 0  # a look instead: refined frames flicker
+    assert (out / "albedo_refined_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
 
 
 def test_refined_sequence_frames_start_from_the_warped_previous_frame(mi, checkpoint, inputs, tmp_path, blob_density):

@@ -198,7 +198,7 @@ METHODS = {
         Method(
             "default",
             "product",
-            "mistyle-render's default output (a single frame: a look fitted on it, Pipeline.fits_look)",
+            "mistyle-render's default output (a look fitted on the frame, Pipeline.fits_look)",
             _default,
             uses_network=True,
         ),

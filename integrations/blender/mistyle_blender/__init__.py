@@ -83,7 +83,7 @@ class MistyleSettings(bpy.types.PropertyGroup):
         name="Quality",
         items=(
             ("FAST", "Fast", "The feed-forward network and colour match: seconds a frame (--refine 0)"),
-            ("FULL", "Full", "mistyle-render's default for a single frame: a look fitted on it, about a minute"),
+            ("FULL", "Full", "mistyle-render's default: a look fitted on the frame or the sequence's key frames"),
         ),
         default="FAST",
     )

@@ -19,6 +19,11 @@ that the seed alone makes (their ``x look``).
 
     python experiments/look_speed_study.py --arms independent90,head60 --pairs 8 --seeds 0,1,2
 
+``--versus default`` adds a table of every arm against ``default`` fitted with the same seed on the same
+pair, with the structure distance beside the SWDs:
+
+    python experiments/look_speed_study.py --arms default,coarse60_fine30 --pairs 8 --versus default --out results/look_coarse
+
 Rows: ``<out>/rows.jsonl`` (a row per arm, pair and seed, replaced when rerun); table: ``<out>/table.md``.
 """
 
@@ -66,6 +71,8 @@ ARMS = {
             "stratified60": dict(steps=60, view_sampling="stratified"),
         }.items()
     },
+    # Against "default" (--versus default): a coarse stage first (LookSettings.coarse_steps), then fine steps.
+    "coarse60_fine30": dict(coarse_steps=60, steps=30),
 }
 
 
@@ -77,7 +84,7 @@ def seed_of(row: dict) -> int:
     return int(row.get("seed", row["settings"].get("seed", 0)))
 
 
-def write_table(out: Path, rows: list[dict]) -> None:
+def write_table(out: Path, rows: list[dict], versus: str | None = None) -> None:
     lines = [
         "Medians over the pairs (and seeds) each arm ran on of per-pair ratios (lower is better) to the "
         "benchmark's `look` row as it was when the row was made (seed 0) and its `smooth_noise` row; "
@@ -136,7 +143,39 @@ def write_table(out: Path, rows: list[dict]) -> None:
             better = sum(value[column] < 1 for value in means.values())
             cells += [f"{better} of {len(means)}", f"{means[worst][column]:.3f} ({worst[0]} x {worst[1]})"]
         lines.append(f"| {arm} | {len(means)} | " + " | ".join(cells) + " |")
+    if versus is not None:
+        lines += versus_table(rows, versus)
     (out / "table.md").write_text("\n".join(lines) + "\n")
+
+
+def versus_table(rows: list[dict], versus: str) -> list[str]:
+    """Each other arm against ``versus`` fitted with the same seed on the same pair: geometric means of
+    the per-pair ratios of RGB SWD, patch SWD and the structure distance, and the pairs where it is lower."""
+    lines = [
+        "",
+        f"Against `{versus}` fitted with the same seed on the same pair: geometric mean of the ratios (lower is "
+        "better) and the pair-seeds where the arm is lower.",
+        "",
+        "| arm | pair-seeds | RGB SWD | patch SWD | structure | fit s (median) |",
+        "|---|---|---|---|---|---|",
+    ]
+    base = {(row["density"], row["style"], seed_of(row)): row for row in rows if row["arm"] == versus}
+    for arm in dict.fromkeys(row["arm"] for row in rows if row["arm"] != versus):
+        mine = [
+            (row, base[key])
+            for row in rows
+            if row["arm"] == arm and "structure" in row and (key := (row["density"], row["style"], seed_of(row))) in base
+        ]
+        mine = [(row, other) for row, other in mine if "structure" in other]
+        if not mine:
+            continue
+        cells = []
+        for metric in ("rgb_swd", "patch_swd", "structure"):
+            ratios = np.array([row[metric] / other[metric] for row, other in mine])
+            cells.append(f"{float(np.exp(np.mean(np.log(ratios)))):.3f} ({int((ratios < 1).sum())} lower)")
+        seconds = float(np.median([row["fit_seconds"] for row, _ in mine]))
+        lines.append(f"| {arm} | {len(mine)} | " + " | ".join(cells) + f" | {seconds:.2f} |")
+    return lines
 
 
 def main() -> None:
@@ -146,6 +185,7 @@ def main() -> None:
     parser.add_argument("--arms", default="texture30")
     parser.add_argument("--pairs", type=int, default=0, help="N pairs spread over the held-out split (0: all)")
     parser.add_argument("--seeds", default="0", help="comma-separated seeds each arm is fitted with")
+    parser.add_argument("--versus", default=None, help="also compare every arm with this one (same pair and seed)")
     parser.add_argument("--against", type=Path, default=Path("results/benchmark"), help="the benchmark's rows")
     parser.add_argument("--out", type=Path, default=Path("results/look_speed"))
     add_metric_arguments(parser)
@@ -201,6 +241,7 @@ def main() -> None:
                 "patch_swd": metrics["patch_swd"],
                 "rgb_x_look": metrics["rgb_swd"] / look_row["rgb_swd"],
                 "patch_x_look": metrics["patch_swd"] / look_row["patch_swd"],
+                "structure": metrics["structure"],
                 "rgb_x_noise": metrics["rgb_swd"] / noise_row["rgb_swd"],
                 "patch_x_noise": metrics["patch_swd"] / noise_row["patch_swd"],
                 "fit_seconds": fitted,
@@ -213,7 +254,7 @@ def main() -> None:
                 if (old["arm"], old["density"], old["style"], seed_of(old)) != (arm, spec.name, style_name, seed)
             ]
             rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows + [row]))
-    write_table(args.out, read(rows_path))
+    write_table(args.out, read(rows_path), args.versus)
 
 
 if __name__ == "__main__":

@@ -84,11 +84,19 @@ class LookSettings:
     # "independent" (the default until 2026-12-03): stratified scored better on the held-out pairs in
     # RGB, patch and structure (docs/decisions/2026-12-03-look-fit-speed.md).
     view_sampling: str = "stratified"
+    # Steps before ``steps`` on the key frames at 1/coarse_factor of their resolution (``coarse_frame``):
+    # the head's convolution, the layer's renders and the objective each cost several times less there.
+    coarse_steps: int = 0
+    coarse_factor: int = 2
     seed: int = 0
 
     def __post_init__(self):
         if not 0 <= self.steps <= 10000:
             raise ValueError(f"A look's fit steps must lie in [0, 10000], got {self.steps}.")
+        if not 0 <= self.coarse_steps <= 10000:
+            raise ValueError(f"A look's coarse steps must lie in [0, 10000], got {self.coarse_steps}.")
+        if self.coarse_factor not in (2, 4):
+            raise ValueError(f"coarse_factor must be 2 or 4, got {self.coarse_factor}.")
         if not set(self.tune_decoder) <= {0, 1, 2}:
             raise ValueError(f"tune_decoder takes decoder convolutions 0, 1, 2; got {self.tune_decoder}.")
         if self.view_sampling not in VIEW_SAMPLINGS:
@@ -452,6 +460,60 @@ def prepare_frame(
     return {"grid": grid, "size": size, "window": window, "encoded": encoded, "noise": fields, **fixed}
 
 
+def coarse_frame(frame: dict, factor: int) -> dict | None:
+    """``frame`` (``prepare_frame`` with the head folded) at 1/``factor`` of its resolution, for a look's
+    coarse steps (``LookSettings.coarse_steps``), or None where its head is not folded.
+
+    The folded features are put back on the whole grid (repeating the crop's faces, as ``uncrop`` does
+    the albedo) and averaged over ``factor``^3 blocks, as is the density. The head's convolution then
+    runs on ``factor``^3 fewer voxels with the same weights. What it computes there is close to the
+    fine albedo averaged but not equal (its 3^3 kernel spans ``factor`` times the distance), so coarse
+    steps only start a fit that fine steps finish."""
+    import torch
+    import torch.nn.functional as F
+
+    from .model.skpn import FoldedBody, uncrop
+
+    folded = frame["folded"]
+    if folded is None:
+        return None
+    crop = frame["encoded"].size
+    features = folded.features[..., : crop[0], : crop[1], : crop[2]].contiguous()
+    whole = uncrop(features, frame["window"], frame["size"])
+    pooled = F.avg_pool3d(whole, factor, ceil_mode=True)
+    grid = torch.from_numpy(np.ascontiguousarray(frame["grid"], dtype=np.float32))[None, None]
+    coarse_grid = F.avg_pool3d(grid, factor, ceil_mode=True)[0, 0].numpy()
+    size = tuple(pooled.shape[2:])
+    encoded = frame["encoded"]._replace(size=size, noise=None)
+    return {
+        **frame,
+        "grid": coarse_grid,
+        "size": size,
+        "window": None,
+        "encoded": encoded,
+        "noise": None,
+        "folded": FoldedBody(pooled, folded.mean, folded.covariance),
+        "patches": patch_matrix(pooled[0]),
+    }
+
+
+def patch_matrix(features) -> torch.Tensor:
+    """``(D * H * W, C * 27)``: each voxel's 3^3 neighbourhood of ``features (C, D, H, W)`` (zero beyond the
+    grid), ordered as a ``(O, C, 3, 3, 3)`` convolution weight flattens, so that a 3^3 convolution with
+    padding 1 is one matrix product. Torch's CPU convolution takes a path about ten times slower for
+    some small grids (those whose channels x depth x height are at most 20480, such as 17 x 32 x 32); a
+    product with fixed features has no such case."""
+    import torch
+    import torch.nn.functional as F
+
+    channels, depth, height, width = features.shape
+    padded = F.pad(features, (1, 1, 1, 1, 1, 1))
+    shifted = [
+        padded[:, z : z + depth, y : y + height, x : x + width] for z in range(3) for y in range(3) for x in range(3)
+    ]
+    return torch.stack(shifted, dim=-1).permute(1, 2, 3, 0, 4).reshape(depth * height * width, channels * 27)
+
+
 def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None):
     """A look's albedo ``(3, Z, Y, X)`` of a ``prepare_frame`` frame (differentiable in ``kernels``, the
     tuned decoder layers, ``noise_weight (3, channels)`` and ``texture (3, tz, ty, tx)``, which is
@@ -463,7 +525,11 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
 
     encoded = frame["encoded"]
     logits = frame["logits"]
-    if logits is None and frame["folded"] is not None and network.folds_head(kernels):
+    if logits is None and frame.get("patches") is not None:
+        weight = network.folded_head_weight(frame["folded"], kernels)[0]
+        logits = torch.addmm(network.decoder[2].bias, frame["patches"], weight.reshape(weight.shape[0], -1).T)
+        logits = logits.T.reshape(1, -1, *frame["size"])
+    elif logits is None and frame["folded"] is not None and network.folds_head(kernels):
         logits = network.folded_head_logits(frame["folded"], kernels, encoded)
     elif logits is None:
         site = frame["site"]
@@ -478,8 +544,7 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
         stretched = F.interpolate(texture[None], size=frame["size"], mode="trilinear", align_corners=False)
         if frame["window"] is not None:
             stretched = stretched[(slice(None), slice(None), *frame["window"])]
-        padded = encoded.features[0].shape[2:]
-        pads = [p for n, m in reversed(list(zip(stretched.shape[2:], padded))) for p in (0, m - n)]
+        pads = [p for n, m in reversed(list(zip(stretched.shape[2:], logits.shape[2:]))) for p in (0, m - n)]
         stretched = F.pad(stretched, pads)
         offset = stretched if offset is None else offset + stretched
     albedo = head_albedo(logits if offset is None else logits + offset, encoded.size)
@@ -638,7 +703,15 @@ def fit_look(
         with torch.no_grad():
             first = frames[0]
             match = fit_match(albedo_of(first).permute(1, 2, 3, 0).cpu().numpy())
+    # Coarse steps first, on the key frames at a lower resolution (coarse_frame), where each frame allows it.
+    coarse = [coarse_frame(frame, settings.coarse_factor) for frame in frames] if settings.coarse_steps else []
+    coarse_steps = settings.coarse_steps if coarse and all(frame is not None for frame in coarse) else 0
+    if settings.coarse_steps and not coarse_steps and notes is not None:
+        notes.append("the look's coarse steps were skipped: they need the head folded (LookSettings' defaults)")
+    if coarse_steps:
+        coarse_densities = [prepare_density(frame["grid"], density_scale) for frame in coarse]
     insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in frames]
+    coarse_insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in coarse] if coarse_steps else []
 
     objective = SlicedObjective(rgb_weight=settings.rgb_weight, patch_weight=settings.patch_weight, seed=settings.seed)
     targets = objective.targets(square_style(target, SLICED_STYLE_SIZE).to(device)[None])
@@ -646,31 +719,37 @@ def fit_look(
     render = dict(steps=settings.layer_steps_per_ray, radiance=radiance)
     losses = []
     base_rates = [group["lr"] for group in optimizer.groups]
-    for step in range(settings.steps):
+    total = coarse_steps + settings.steps
+    for step in range(total):
         raise_if_requested()
         if settings.lr_schedule == "cosine":
             for group, rate in zip(optimizer.groups, base_rates):
-                group["lr"] = rate * 0.5 * (1.0 + math.cos(math.pi * step / settings.steps))
-        frame = frames[step % len(frames)]
+                group["lr"] = rate * 0.5 * (1.0 + math.cos(math.pi * step / total))
+        key = step % len(frames)
+        if step < coarse_steps:
+            frame, prepared, inside = coarse[key], coarse_densities[key], coarse_insides[key]
+            layer_res = max(8, settings.layer_res // settings.coarse_factor)
+        else:
+            frame, prepared, inside = frames[key], prepared_densities[key], insides[key]
+            layer_res = settings.layer_res
         if settings.view_sampling == "stratified":
             views = orbit.sample_stratified(settings.views_per_step, rng)
         else:
             views = orbit.sample(settings.views_per_step, rng)
-        prepared = prepared_densities[step % len(frames)]
         with torch.no_grad():
             white = torch.ones((3,) + frame["grid"].shape, device=device)
-            masks = body_mask(render_views(white, prepared, views, settings.layer_res, **render))
+            masks = body_mask(render_views(white, prepared, views, layer_res, **render))
         albedo = albedo_of(frame)
         if match is not None:
-            albedo = match.apply_torch(albedo, insides[step % len(frames)])
-        images = render_views(albedo, prepared, views, settings.layer_res, **render)
+            albedo = match.apply_torch(albedo, inside)
+        images = render_views(albedo, prepared, views, layer_res, **render)
         loss = objective.loss(images[None], targets, masks) + settings.tv_weight * tv_loss(albedo[None])
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
         losses.append(float(loss.detach()))
         if progress is not None:
-            progress(step + 1, settings.steps, losses[-1])
+            progress(step + 1, total, losses[-1])
 
     kernels = StylizingKernels(
         {site: {key: value.detach() for key, value in kernel.items()} for site, kernel in free.items()}

@@ -463,6 +463,22 @@ class SKPN(nn.Module):
         weight = kernels.sites.get(3, {}).get("weight")
         return weight is not None and tuple(weight.shape[-3:]) == (1, 1, 1)
 
+    def folded_head_weight(self, body: FoldedBody, kernels: StylizingKernels) -> torch.Tensor:
+        """The weights ``(B, O, C + 1, k, k, k)`` of the one convolution of ``folded_head_logits`` (its bias
+        is the last convolution's)."""
+        kernel = kernels.sites[3]
+        scale, shift = dain_of_mixed(
+            body.mean, body.covariance, kernel["weight"][..., 0, 0, 0].float(), kernel["gamma"], kernel["beta"]
+        )
+        convolution = self.decoder[2]
+        return torch.cat(
+            [
+                torch.einsum("oc...,bci->boi...", convolution.weight, scale),
+                torch.einsum("oc...,bc->bo...", convolution.weight, shift)[:, :, None],
+            ],
+            dim=2,
+        )
+
     def folded_head_logits(self, body: FoldedBody, kernels: StylizingKernels, encoded: EncodedDensity) -> torch.Tensor:
         """``head_logits(head_site(x, ...), ...)`` as one convolution of ``body = fold_head_input(x, ...)``.
 
@@ -471,20 +487,10 @@ class SKPN(nn.Module):
         shift into the weights of the input's channel of ones (zero outside the grid, as the plain path
         pads). Equal to the plain path up to rounding; a fit that holds ``x`` fixed and tunes the kernel or
         the convolution steps about twice as fast, as nothing of ``x``'s size needs a gradient."""
-        kernel = kernels.sites[3]
-        scale, shift = dain_of_mixed(
-            body.mean, body.covariance, kernel["weight"][..., 0, 0, 0].float(), kernel["gamma"], kernel["beta"]
-        )
         convolution = self.decoder[2]
         features = body.features
         batch, channels = features.shape[:2]
-        weight = torch.cat(
-            [
-                torch.einsum("oc...,bci->boi...", convolution.weight, scale),
-                torch.einsum("oc...,bc->bo...", convolution.weight, shift)[:, :, None],
-            ],
-            dim=2,
-        )
+        weight = self.folded_head_weight(body, kernels)
         if batch == 1:
             logits = F.conv3d(features, weight[0].contiguous(), convolution.bias, padding=convolution.padding)
         else:

@@ -1,8 +1,8 @@
 """``python -m mistyle.demo`` (``make demo``): the main job on bundled data.
 
 Stylizes the bundled smoke frame ``examples/smoke_64.vol`` with the bundled style
-``examples/style_marble.png`` using the bundled checkpoint (trained with ``configs/cpu.toml``),
-refines the albedo against the style (``--refine``), path-traces a small turntable
+``examples/style_marble.png`` with the bundled network as ``mistyle-render`` does by default (a look
+fitted on the frame and applied, ``Pipeline.fits_look``), path-traces a small turntable
 with Mitsuba's ``volpath`` (multiple scattering, the training light), and writes the albedo grid, EXR/PNG
 frames, an MP4 and a GIF, ``sheet.png``, ``scene.xml`` and ``report.json`` to ``out/demo`` (replacing an
 earlier demo). Any option of ``python -m mistyle.render_final`` can be appended, e.g.

@@ -831,11 +831,11 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
         return "-" if report[key] is None else f"{report[key]:.{digits}f}"
 
     refinement = stylized.refinement
-    stage = (
-        "a look fitted on the frame"
-        if stylized.look is not None
-        else f"refine {refinement.layer_steps}+{refinement.path_steps} steps"
-    )
+    if stylized.look is not None:
+        key_frames = ",".join(map(str, stylized.look.meta["key_frames"]))
+        stage = f"a look fitted on key frames {key_frames}" if job.sequence else "a look fitted on the frame"
+    else:
+        stage = f"refine {refinement.layer_steps}+{refinement.path_steps} steps"
     lines = [
         f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
         f"RGB SWD {shown('rgb_swd', 4)}   patch SWD {shown('patch_swd', 4)}   hue coverage {shown('hue_coverage', 2)}",

@@ -110,6 +110,43 @@ def test_the_fit_folds_the_head_and_fits_what_the_plain_head_fits(stylizer, blob
     np.testing.assert_allclose(folded.stylize(blob_density), plain.stylize(blob_density), atol=1e-4)
 
 
+def test_coarse_steps_fit_averaged_features_whose_head_is_one_matrix_product(stylizer, blob_density, style):
+    import copy
+
+    import torch.nn.functional as F
+
+    from mistyle.look import coarse_frame, frame_albedo, patch_matrix, prepare_frame
+
+    features, weight = torch.randn(5, 6, 7, 9), torch.randn(3, 5, 3, 3, 3)
+    product = (patch_matrix(features) @ weight.reshape(3, -1).T).T.reshape(3, 6, 7, 9)
+    torch.testing.assert_close(product, F.conv3d(features[None], weight, padding=1)[0], rtol=1e-4, atol=1e-4)
+
+    network = copy.deepcopy(stylizer.trained.model).float().eval()
+    kernels = stylizer.kernels(style).without_noise()
+    frame = coarse_frame(prepare_frame(network, blob_density, 1.0, None, kernels, "body"), 2)
+    assert frame["grid"].shape == (8, 9, 10)
+    with torch.no_grad():
+        by_product = frame_albedo(network, frame, kernels)
+        by_convolution = frame_albedo(network, {**frame, "patches": None}, kernels)
+    assert by_product.shape == (3, 8, 9, 10)
+    torch.testing.assert_close(by_product, by_convolution, rtol=1e-4, atol=1e-5)
+
+    seen = []
+    coarse = fit_look(
+        stylizer,
+        [blob_density],
+        style,
+        settings=LookSettings(steps=1, coarse_steps=2),
+        progress=lambda step, steps, loss: seen.append((step, steps)),
+    )
+    assert seen == [(1, 3), (2, 3), (3, 3)]
+    fine = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=1))
+    assert not torch.equal(coarse.kernels.sites[3]["gamma"], fine.kernels.sites[3]["gamma"])
+    assert np.isfinite(coarse.stylize(blob_density)).all()
+    with pytest.raises(ValueError, match="coarse_factor"):
+        LookSettings(coarse_factor=3)
+
+
 def test_a_cosine_schedule_fits_and_bad_schedules_or_view_samplings_are_refused(stylizer, blob_density, style):
     cosine = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS, lr_schedule="cosine"))
     constant = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS))

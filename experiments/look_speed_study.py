@@ -118,14 +118,7 @@ def write_table(out: Path, rows: list[dict], versus: str | None = None) -> None:
             f"{median('patch_x_noise'):.3f} | {against_reference('rgb_swd')} | {against_reference('patch_swd')} | "
             f"{median('fit_seconds'):.2f} |"
         )
-    lines += [
-        "",
-        f"Per pair, for the arms fitted with several seeds: the geometric mean over the seeds of the ratios to "
-        f"`{REFERENCE}` at the same seed; pairs below 1 (better), and the worst pair.",
-        "",
-        "| arm | pairs | RGB: pairs better | RGB: worst pair | patch: pairs better | patch: worst pair |",
-        "|---|---|---|---|---|---|",
-    ]
+    per_pair_lines = []
     for arm in dict.fromkeys(row["arm"] for row in rows if row["arm"] != REFERENCE):
         mine = [row for row in rows if row["arm"] == arm]
         if len({seed_of(row) for row in mine}) < 2:
@@ -142,7 +135,17 @@ def write_table(out: Path, rows: list[dict], versus: str | None = None) -> None:
             worst = max(means, key=lambda pair, column=column: means[pair][column])
             better = sum(value[column] < 1 for value in means.values())
             cells += [f"{better} of {len(means)}", f"{means[worst][column]:.3f} ({worst[0]} x {worst[1]})"]
-        lines.append(f"| {arm} | {len(means)} | " + " | ".join(cells) + " |")
+        per_pair_lines.append(f"| {arm} | {len(means)} | " + " | ".join(cells) + " |")
+    if per_pair_lines:
+        lines += [
+            "",
+            f"Per pair, for the arms fitted with several seeds: the geometric mean over the seeds of the ratios to "
+            f"`{REFERENCE}` at the same seed; pairs below 1 (better), and the worst pair.",
+            "",
+            "| arm | pairs | RGB: pairs better | RGB: worst pair | patch: pairs better | patch: worst pair |",
+            "|---|---|---|---|---|---|",
+            *per_pair_lines,
+        ]
     if versus is not None:
         lines += versus_table(rows, versus)
     (out / "table.md").write_text("\n".join(lines) + "\n")

@@ -23,8 +23,8 @@ What a look holds (``LOOK_VERSION`` 1), chosen by measurement (``experiments/loo
 * **A coarse texture over the medium's box** (``texture_side`` texels along the longest side), added
   before the head's tanh: strokes and grain where the density alone has no structure. It is fixed
   in box coordinates. Optionally (off by default) smooth-noise fields the head weighs.
-* **The colour match's map** (``colour_match.ColourMatch``), fitted on the first key frame's albedo
-  after the fit: a function of colour, shared by every frame like a sequence's.
+* **The colour match's map** (``colour_match.ColourMatch``), fitted after the fit on the albedo of the
+  first key frame the layer sees: a function of colour, shared by every frame like a sequence's.
 * The style's thumbnail (``THUMBNAIL_SIDE`` pixels), the density scale, the orbit and the fit's
   settings, so that a render from the look is measured against its style and lit as it was fitted.
 
@@ -681,28 +681,30 @@ def fit_look(
     def albedo_of(frame) -> torch.Tensor:
         return frame_albedo(network, frame, StylizingKernels(free), noise_weight, texture)
 
-    def fit_match(albedo):
-        first = densities[keys[0]]
-        try:
-            return fit_colour_match(
-                albedo,
-                first,
-                target,
-                density_scale=density_scale,
-                radiance=radiance,
-                camera_distance=camera_distance,
-                seed=settings.seed,
-            )
-        except InvisibleMedium:
-            if notes is not None:
-                notes.append("the look has no colour match: its key frame is too thin to be seen at this density scale")
-            return None
+    def fit_match(key_albedo):
+        """The colour match fitted on the first key frame the layer sees (``key_albedo(index)``: the albedo
+        of ``keys[index]``); a simulation's first frame can be a wisp too thin to see."""
+        for index, key in enumerate(keys):
+            try:
+                return fit_colour_match(
+                    key_albedo(index),
+                    densities[key],
+                    target,
+                    density_scale=density_scale,
+                    radiance=radiance,
+                    camera_distance=camera_distance,
+                    seed=settings.seed,
+                )
+            except InvisibleMedium:
+                continue
+        if notes is not None:
+            notes.append("the look has no colour match: its key frames are too thin to be seen at this density scale")
+        return None
 
     match = None
     if settings.colour_match == "through":
         with torch.no_grad():
-            first = frames[0]
-            match = fit_match(albedo_of(first).permute(1, 2, 3, 0).cpu().numpy())
+            match = fit_match(lambda index: albedo_of(frames[index]).permute(1, 2, 3, 0).cpu().numpy())
     # Coarse steps first, on the key frames at a lower resolution (coarse_frame), where each frame allows it.
     coarse = [coarse_frame(frame, settings.coarse_factor) for frame in frames] if settings.coarse_steps else []
     coarse_steps = settings.coarse_steps if coarse and all(frame is not None for frame in coarse) else 0
@@ -787,6 +789,6 @@ def fit_look(
         for key, frame in zip(keys, frames):
             look._prepared_frames[frame_key(densities[key])] = {**frame, "folded": None}
     if settings.colour_match == "after":
-        look.colour_match = fit_match(look.network_albedo(densities[keys[0]]))
+        look.colour_match = fit_match(lambda index: look.network_albedo(densities[keys[index]]))
     look.meta["fit_seconds"] = time.perf_counter() - started
     return look

@@ -11,7 +11,7 @@ The chain, each stage owned by one module and configured by ``PipelineSettings``
 1. **Network** (``Stylizer``): the SKPN's albedo for each frame, from the style's stylizing kernels
    (mixed and weakened on the kernels: ``Stylizer.kernels``, ``Stylizer.weakened``).
 2. **Colour match** (``mistyle.colour_match``): the network's arrangement with the style's colours;
-   a sequence shares the map fitted on its first frame.
+   a sequence shares the map fitted on its first frame the layer sees.
 3. **A look, or refinement.** By default (full strength, the colour match on, no refinement steps
    named) a look is fitted on the frame, or on a sequence's key frames, and applied to every frame
    (``Pipeline.fits_look``, ``mistyle.look``). Otherwise, when the settings name steps,

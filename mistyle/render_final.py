@@ -799,13 +799,19 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
 
     style = stylized.target
     started = time.perf_counter()
-    if any(foreground_mask(image).any() for image in images):
-        final = [style_distance(image, style) for image in images]
+    visible = [image for image in images if foreground_mask(image).any()]
+    if visible:
+        if len(visible) < len(images):
+            job.notes.append(
+                f"{len(images) - len(visible)} of {len(images)} image(s) see no medium (too thin at density scale "
+                f"{job.pipeline.density_scale:g}); the style metrics are of the others"
+            )
+        final = [style_distance(image, style) for image in visible]
         report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
         report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
         seen = [image for image in layer_images if foreground_mask(image).any()]
         report["swd_layer"] = float(np.mean([style_distance(image, style)["swd"] for image in seen])) if seen else None
-        report.update(style_fidelity(images, style))
+        report.update(style_fidelity(visible, style))
     else:
         report.update(dict.fromkeys(METRIC_KEYS))
         job.notes.append(

@@ -217,28 +217,31 @@ class Stylizer:
         self, albedos: list, grids: list, target: np.ndarray, strength: float = 1.0, notes: list | None = None
     ) -> list:
         """The frames' albedos ``[(Z, Y, X, 3)]`` on ``grids`` with the colours of the picture ``target (H, W, 3)``
-        (``colour_match``), through the map fitted on the first frame, moved ``strength`` of the way. A medium
-        too thin to be seen keeps its albedos (said in ``notes``)."""
+        (``colour_match``), through the map fitted on the first frame the layer sees (a simulation's first
+        frame can be a wisp), moved ``strength`` of the way. A medium too thin to be seen in every frame
+        keeps its albedos (said in ``notes``)."""
         from .colour_match import InvisibleMedium, fit_colour_match
 
         render = self.config.render
-        try:
-            match = fit_colour_match(
-                albedos[0],
-                grids[0],
-                target,
-                density_scale=self.density_scale,
-                radiance=render.radiance,
-                camera_distance=render.camera_distance,
-            )
-        except InvisibleMedium:
-            if notes is not None:
-                notes.append(
-                    "colour match skipped: the medium is too thin to be seen at this density scale, "
-                    "so the network's own colours are kept"
+        for albedo, grid in zip(albedos, grids):
+            try:
+                match = fit_colour_match(
+                    albedo,
+                    grid,
+                    target,
+                    density_scale=self.density_scale,
+                    radiance=render.radiance,
+                    camera_distance=render.camera_distance,
                 )
-            return albedos
-        return [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
+            except InvisibleMedium:
+                continue
+            return [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]
+        if notes is not None:
+            notes.append(
+                "colour match skipped: the medium is too thin to be seen at this density scale, "
+                "so the network's own colours are kept"
+            )
+        return albedos
 
     def network_albedo(self, grid: np.ndarray, inputs, scale_structures: float = 1.0, model=None) -> np.ndarray:
         """The network's albedo ``(Z, Y, X, 3)`` of one checked ``grid (Z, Y, X)`` for ``inputs`` (kernels or

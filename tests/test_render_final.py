@@ -184,6 +184,39 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
     assert (out / "albedo_refined_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
 
 
+def test_a_sequence_that_starts_as_a_wisp_is_matched_on_a_frame_the_layer_sees(
+    mi, checkpoint, inputs, tmp_path, blob_density
+):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    wisp = np.zeros_like(blob_density)
+    wisp[6:8, 6:8, 6:8] = 1e-4  # a simulation's first frame: too thin to be seen
+    for index, density in enumerate([wisp, blob_density, np.roll(blob_density, 1, axis=2)]):
+        np.savez(frames / f"frame{index:04d}.npz", density=density)
+    out = tmp_path / "out"
+    options = ["--res", "16", "--spp", "2", "--look-steps", "2"]
+    assert (
+        main(
+            [
+                "--checkpoint",
+                str(checkpoint),
+                "--density",
+                str(frames),
+                "--style",
+                str(inputs / "style.png"),
+                "--out",
+                str(out),
+                *options,
+            ]
+        )
+        == 0
+    )
+    report = json.loads((out / "report.json").read_text())
+    assert any("1 of 3 image(s) see no medium" in note for note in report["notes"])  # the wisp is invisible
+    assert not any("colour match" in note for note in report["notes"])  # the look's and the network's
+    assert report["rgb_swd"] is not None and report["patch_swd"] is not None  # of the frames that see the medium
+
+
 def test_refined_sequence_frames_start_from_the_warped_previous_frame(mi, checkpoint, inputs, tmp_path, blob_density):
     frames = two_moving_frames(tmp_path, blob_density)
     out = tmp_path / "out"

@@ -22,7 +22,8 @@ that the seed alone makes (their ``x look``).
 ``--versus default`` adds a table of every arm against ``default`` fitted with the same seed on the same
 pair, with the structure distance beside the SWDs:
 
-    python experiments/look_speed_study.py --arms default,coarse60_fine30 --pairs 8 --versus default --out results/look_coarse
+    python experiments/look_speed_study.py --arms default,coarse60_fine30 --pairs 8 --versus default \\
+        --out results/look_coarse
 
 Rows: ``<out>/rows.jsonl`` (a row per arm, pair and seed, replaced when rerun); table: ``<out>/table.md``.
 """
@@ -164,12 +165,10 @@ def versus_table(rows: list[dict], versus: str) -> list[str]:
     ]
     base = {(row["density"], row["style"], seed_of(row)): row for row in rows if row["arm"] == versus}
     for arm in dict.fromkeys(row["arm"] for row in rows if row["arm"] != versus):
+        keyed = [(row, (row["density"], row["style"], seed_of(row))) for row in rows if row["arm"] == arm]
         mine = [
-            (row, base[key])
-            for row in rows
-            if row["arm"] == arm and "structure" in row and (key := (row["density"], row["style"], seed_of(row))) in base
+            (row, base[key]) for row, key in keyed if key in base and "structure" in row and "structure" in base[key]
         ]
-        mine = [(row, other) for row, other in mine if "structure" in other]
         if not mine:
             continue
         cells = []

@@ -497,7 +497,7 @@ def coarse_frame(frame: dict, factor: int) -> dict | None:
     }
 
 
-def patch_matrix(features) -> torch.Tensor:
+def patch_matrix(features):
     """``(D * H * W, C * 27)``: each voxel's 3^3 neighbourhood of ``features (C, D, H, W)`` (zero beyond the
     grid), ordered as a ``(O, C, 3, 3, 3)`` convolution weight flattens, so that a 3^3 convolution with
     padding 1 is one matrix product. Torch's CPU convolution takes a path about ten times slower for

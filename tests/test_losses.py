@@ -97,6 +97,27 @@ def test_tone_map_is_bounded_monotone_and_smooth_at_zero():
     assert torch.isfinite(x.grad).all()
 
 
+def test_sliced_wasserstein_keeps_the_reference_sets_sorted_projections_and_gives_the_plain_value():
+    from mistyle.objective import metrics
+
+    rng = np.random.default_rng(1)
+    a, b = rng.random((500, 3)), rng.random((800, 3)) ** 2
+    directions = np.random.default_rng(0).normal(size=(128, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    levels = (np.arange(800) + 0.5) / 800
+
+    def quantiles(values):  # linear quantiles at `levels`, as numpy takes them
+        return np.quantile(values, levels, axis=0, method="hazen")
+
+    plain = np.sqrt(np.mean((quantiles(a @ directions.T) - quantiles(b @ directions.T)) ** 2))
+    metrics._SORTED_PROJECTIONS.clear()
+    first = sliced_wasserstein(a, b)
+    assert len(metrics._SORTED_PROJECTIONS) == 1  # b's sorted projections, kept
+    assert sliced_wasserstein(a, b) == first == pytest.approx(plain, rel=1e-9)
+    assert sliced_wasserstein(a, b + 0.1) != first  # other points are not taken for the kept ones
+    assert len(metrics._SORTED_PROJECTIONS) == 2
+
+
 def test_masks_threshold_and_max_pool():
     images = torch.zeros(1, 3, 8, 8)
     images[0, 1, 2, 3] = 0.01

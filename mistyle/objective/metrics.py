@@ -6,6 +6,8 @@ tone curve (``mistyle.display``) so they are compared with style images in displ
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import torch
 
@@ -49,10 +51,39 @@ def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, see
     count = max(len(a), len(b))
     levels = (np.arange(count) + 0.5) / count
     qa = _sorted_quantiles(np.sort(a @ directions.T, axis=0), levels)
-    qb = _sorted_quantiles(np.sort(b @ directions.T, axis=0), levels)
+    qb = _sorted_quantiles(_sorted_projections(b, directions), levels)
     if order == 1:
         return float(np.mean(np.abs(qa - qb)))
     return float(np.sqrt(np.mean((qa - qb) ** 2)))
+
+
+_SORTED_PROJECTIONS: dict = {}
+_SORTED_LOCK = threading.Lock()
+SORTED_CACHE_BYTES = 1 << 28
+"""What ``_sorted_projections`` keeps at most: the sorted projections of the last few reference sets."""
+
+
+def _sorted_projections(points: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """``points @ directions.T`` sorted down each column, kept for the next call with the same points and
+    directions: the second set of ``sliced_wasserstein`` is the style, the same for every frame and
+    view a run measures, and sorting it is most of a call's time."""
+    import hashlib
+
+    digest = hashlib.blake2b(np.ascontiguousarray(points).view(np.uint8), digest_size=16)
+    digest.update(np.ascontiguousarray(directions).view(np.uint8))
+    key = (points.shape, digest.hexdigest())
+    with _SORTED_LOCK:  # callers may measure from several threads
+        kept = _SORTED_PROJECTIONS.get(key)
+    if kept is not None:
+        return kept
+    sorted_values = np.sort(points @ directions.T, axis=0)
+    with _SORTED_LOCK:
+        held = sum(value.nbytes for value in _SORTED_PROJECTIONS.values())
+        while _SORTED_PROJECTIONS and held + sorted_values.nbytes > SORTED_CACHE_BYTES:
+            held -= _SORTED_PROJECTIONS.pop(next(iter(_SORTED_PROJECTIONS))).nbytes
+        if sorted_values.nbytes <= SORTED_CACHE_BYTES:
+            _SORTED_PROJECTIONS[key] = sorted_values
+    return sorted_values
 
 
 def bounded_points(points, rng: np.random.Generator, limit: int = MAX_METRIC_POINTS) -> np.ndarray:
@@ -66,7 +97,10 @@ def bounded_points(points, rng: np.random.Generator, limit: int = MAX_METRIC_POI
 
 
 def _sorted_quantiles(sorted_values: np.ndarray, levels: np.ndarray) -> np.ndarray:
-    """Quantiles at ``levels`` in (0, 1) of each column of column-sorted ``(N, P)`` values (linear)."""
+    """Quantiles at ``levels`` in (0, 1) of each column of column-sorted ``(N, P)`` values (linear): the
+    values themselves at their own count's levels."""
+    if len(levels) == len(sorted_values):
+        return sorted_values
     position = np.clip(levels * len(sorted_values) - 0.5, 0, len(sorted_values) - 1)
     low = np.floor(position).astype(np.int64)
     high = np.minimum(low + 1, len(sorted_values) - 1)

@@ -22,6 +22,12 @@ the ratios of their median stage times (this / baseline) to the table.
 
     python experiments/profile_default.py --runs 3 --baseline ../before
 
+``--sequence N`` profiles a sequence instead: the first ``N`` frames from frame 60 of the held-out smoke
+simulation (``data.heldout.held_out_sequence``, with its velocities), written as a folder of ``.npz``
+frames; the table then also gives the seconds per frame.
+
+    python experiments/profile_default.py --runs 1 --sequence 19 --out results/profile_default/sequence
+
 Writes ``rows.jsonl`` and ``table.md`` under ``--out``.
 """
 
@@ -71,6 +77,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=2)
     parser.add_argument("--cold", action="store_true", help="the first run with an empty Dr.Jit kernel cache")
     parser.add_argument("--baseline", type=Path, default=None, help="another checkout, run before each run of this one")
+    parser.add_argument("--sequence", type=int, default=0, help="profile N frames of the held-out smoke instead")
     parser.add_argument("extra", nargs="*", help="more mistyle-render options, after --")
     args = parser.parse_args()
 
@@ -79,6 +86,9 @@ def main() -> None:
     rows = []
     checkouts = ([("baseline", args.baseline.resolve())] if args.baseline else []) + [("this", REPO)]
     with tempfile.TemporaryDirectory() as scratch:
+        density, frames = "examples/smoke_64.vol", 1
+        if args.sequence:
+            density, frames = str(write_sequence(Path(scratch) / "frames", args.sequence)), args.sequence
         for run in range(args.runs):
             for code, checkout in checkouts:
                 env = dict(os.environ)
@@ -94,7 +104,7 @@ def main() -> None:
                     "-m",
                     "mistyle.render_final",
                     "--density",
-                    "examples/smoke_64.vol",
+                    density,
                     "--style",
                     "examples/style_marble.png",
                     "--out",
@@ -112,6 +122,7 @@ def main() -> None:
                     "commit": git_commit(checkout),
                     "cache": "cold" if cold else "warm",
                     "wall_seconds": wall,
+                    "frames": frames,
                     "start-up": imports,
                 }
                 for name, key in STAGES:
@@ -122,20 +133,29 @@ def main() -> None:
                 rows.append(row)
                 print(json.dumps(row), flush=True)
     (out / "rows.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+    write_table(out, rows, args)
+
+
+def write_table(out: Path, rows: list[dict], args) -> None:
+    """``table.md``: each run's stages, and with a baseline the ratios of the warm medians (none where
+    the baseline's stage took under 0.05 s, e.g. a look fit that the baseline did not run)."""
     names = ["start-up"] + [name for name, _ in STAGES] + ["other"]
+    frames = rows[0].get("frames", 1)
+    density = "FRAMES/" if args.sequence else "examples/smoke_64.vol"
     lines = [
-        "The default output of one 64^3 frame (`mistyle-render --density examples/smoke_64.vol --style "
+        f"The default output of {f'{frames} frames of the held-out smoke' if args.sequence else 'one 64^3 frame'} "
+        f"(`mistyle-render --density {density} --style "
         f"examples/style_marble.png{' ' + ' '.join(args.extra) if args.extra else ''}`), seconds from process "
         f"start to files written; {os.cpu_count()} cores, load average (1 min) per run as given.",
         "",
-        "| run | code | Dr.Jit kernels | total | " + " | ".join(names) + " | load |",
-        "|---|---|---|---|" + "---|" * len(names) + "---|",
+        "| run | code | Dr.Jit kernels | total | per frame | " + " | ".join(names) + " | load |",
+        "|---|---|---|---|---|" + "---|" * len(names) + "---|",
     ]
     for row in rows:
         cells = " | ".join(f"{row[name]:.1f}" for name in names)
         lines.append(
-            f"| {row['run']} | {row['code']} {row['commit']} | {row['cache']} | {row['wall_seconds']:.1f} | {cells} "
-            f"| {row['load_average']:.1f} |"
+            f"| {row['run']} | {row['code']} {row['commit']} | {row['cache']} | {row['wall_seconds']:.1f} | "
+            f"{row['wall_seconds'] / row.get('frames', 1):.1f} | {cells} | {row['load_average']:.1f} |"
         )
     if args.baseline:
         warm = [row for row in rows if row["cache"] == "warm"]
@@ -143,14 +163,31 @@ def main() -> None:
         def median(code, name):
             return statistics.median(row[name] for row in warm if row["code"] == code)
 
-        ratios = " | ".join(
-            f"{median('this', name) / max(median('baseline', name), 1e-9):.2f}" for name in ["wall_seconds"] + names
-        )
-        lines.append(f"| ratio of warm medians | this / baseline | | {ratios} | |")
+        def ratio(name):
+            base = median("baseline", name)
+            return f"{median('this', name) / base:.2f}" if base >= 0.05 else "-"
+
+        cells = " | ".join(ratio(name) for name in names)
+        lines.append(f"| ratio of warm medians | this / baseline | | {ratio('wall_seconds')} | | {cells} | |")
     command = f"python experiments/profile_default.py --runs {args.runs}{' --cold' if args.cold else ''}"
+    command += f" --sequence {args.sequence}" if args.sequence else ""
     lines += ["", f"`{command}{' --baseline DIR' if args.baseline else ''}`", ""]
     (out / "table.md").write_text("\n".join(lines))
     print((out / "table.md").read_text())
+
+
+def write_sequence(folder: Path, count: int) -> Path:
+    """The first ``count`` frames from frame 60 of the held-out smoke simulation, with their velocities, as
+    ``frameNNNN.npz`` files in ``folder`` (the simulation is cached under ``data/heldout``)."""
+    import numpy as np
+
+    from mistyle.data.heldout import held_out_sequence
+
+    densities, velocities = held_out_sequence(60, count, REPO / "data" / "heldout")
+    folder.mkdir(parents=True, exist_ok=True)
+    for index, (density, velocity) in enumerate(zip(densities, velocities)):
+        np.savez(folder / f"frame{index:04d}.npz", density=density, velocity=velocity)
+    return folder
 
 
 if __name__ == "__main__":

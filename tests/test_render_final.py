@@ -194,23 +194,8 @@ def test_a_sequence_that_starts_as_a_wisp_is_matched_on_a_frame_the_layer_sees(
     for index, density in enumerate([wisp, blob_density, np.roll(blob_density, 1, axis=2)]):
         np.savez(frames / f"frame{index:04d}.npz", density=density)
     out = tmp_path / "out"
-    options = ["--res", "16", "--spp", "2", "--look-steps", "2"]
-    assert (
-        main(
-            [
-                "--checkpoint",
-                str(checkpoint),
-                "--density",
-                str(frames),
-                "--style",
-                str(inputs / "style.png"),
-                "--out",
-                str(out),
-                *options,
-            ]
-        )
-        == 0
-    )
+    inputs_given = ["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png")]
+    assert main([*inputs_given, "--out", str(out), "--res", "16", "--spp", "2", "--look-steps", "2"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert any("1 of 3 image(s) see no medium" in note for note in report["notes"])  # the wisp is invisible
     assert not any("colour match" in note for note in report["notes"])  # the look's and the network's

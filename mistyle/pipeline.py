@@ -108,6 +108,7 @@ class PipelineSettings:
     density_scale: float | None = None
     camera_distance: float | None = None
     look_steps: int | None = None  # steps of a look's fit (None: look.LookSettings'); see Pipeline.fits_look
+    key_frames: str | None = None  # "0,40,80": the frames the default look is fitted on (None: look.default_key_frames)
     render: RenderSettings = field(default_factory=RenderSettings)
 
     def __post_init__(self):
@@ -315,10 +316,14 @@ class Pipeline:
 
         albedos, look = network, None
         if self.fits_look():
+            from .look import parse_key_frames
+
             started = time.perf_counter()
-            look = self.fit_look(frames, parts if len(parts) > 1 else parts[0][0], notes=notes)
+            keys = None if s.key_frames is None else parse_key_frames(s.key_frames, len(frames.densities))
+            look = self.fit_look(frames, parts if len(parts) > 1 else parts[0][0], key_frames=keys, notes=notes)
             albedos = [look.apply(grid) for grid in frames.densities]
             report["look_seconds"] = time.perf_counter() - started
+            report["look_key_frames"] = look.meta["key_frames"]
             report.update(flicker_report(albedos, frames, "_look"))
             fitted_on = f"key frames {', '.join(map(str, look.meta['key_frames']))}" if frames.sequence else "the frame"
             seconds = report["look_seconds"]

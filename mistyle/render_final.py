@@ -127,7 +127,8 @@ def parser() -> argparse.ArgumentParser:
         "--key-frames",
         default=None,
         metavar="I,J,...",
-        help="0-based frames the look is fitted on (default: the first, middle and last frame)",
+        help="0-based frames the look is fitted on, with --save-look or for the default output's look "
+        "(default: the first, middle and last frame)",
     )
     p.add_argument(
         "--look-steps",
@@ -277,6 +278,7 @@ def settings_from(args):
         density_scale=args.density_scale,
         camera_distance=args.camera_distance,
         look_steps=args.look_steps,
+        key_frames=args.key_frames if args.save_look is None else None,
         render=render,
     )
 
@@ -533,7 +535,16 @@ def check_look_options(args) -> None:
     if args.look is not None and args.strength != 1.0:
         raise ValueError("A look holds its style at full strength; --look does not take --strength.")
     if args.key_frames is not None and args.save_look is None:
-        raise ValueError("--key-frames chooses the frames a look is fitted on; it needs --save-look.")
+        unfitted = [option for option in ("look", "refine", "refine_path") if getattr(args, option) is not None]
+        unfitted = [f"--{option.replace('_', '-')}" for option in unfitted]
+        unfitted += (["--strength"] if args.strength != 1.0 else []) + (
+            [] if args.colour_match else ["--no-colour-match"]
+        )
+        if unfitted:
+            raise ValueError(
+                "--key-frames chooses the frames a look is fitted on (with --save-look, or the default output's look), "
+                f"but {' and '.join(unfitted)} render(s) without fitting one."
+            )
     if args.look_steps is not None and not 0 <= args.look_steps <= 10000:
         raise ValueError(f"--look-steps must lie in [0, 10000], got {args.look_steps}.")
     if args.save_look is not None:

@@ -181,7 +181,17 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
     report = json.loads((out / "report.json").read_text())
     assert report["inputs"]["frames"] == 2 and report["temporal_flicker"] >= 0 and report["temporal_flicker_look"] >= 0
     assert report["inputs"]["refine_steps"] == 0  # a look instead: refined frames flicker
+    assert report["look_key_frames"] == [0, 1]
     assert (out / "albedo_refined_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
+    chosen = tmp_path / "chosen"
+    inputs_given = ["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png")]
+    assert (
+        main(
+            [*inputs_given, "--out", str(chosen), "--res", "8", "--spp", "1", "--key-frames", "1", "--look-steps", "1"]
+        )
+        == 0
+    )
+    assert json.loads((chosen / "report.json").read_text())["look_key_frames"] == [1]
 
 
 def test_a_sequence_that_starts_as_a_wisp_is_matched_on_a_frame_the_layer_sees(

@@ -111,6 +111,21 @@ class PipelineSettings:
     key_frames: str | None = None  # "0,40,80": the frames the default look is fitted on (None: look.default_key_frames)
     render: RenderSettings = field(default_factory=RenderSettings)
 
+    @property
+    def fits_look(self) -> bool:
+        """Whether the frames are stylized by a look fitted on them (``look.fit_look`` on a single
+        frame, or on a sequence's key frames, ``key_frames`` or ``look.default_key_frames``; then applied
+        to every frame) instead of refined or left feed-forward: the default at full strength with the
+        colour match, when no refinement steps are named.
+
+        On the held-out split a look has the lowest medians of every metric the benchmark has, and
+        matches or beats the refinement it replaced at about the same time (``results/benchmark/``:
+        ``look`` against ``default``). Over a sequence, a look fitted on three key frames flickers
+        0.4-0.65x as much as the network's frames, and the frames it was not fitted on score within
+        1.05x of the key frames (``results/look_sequence/``)."""
+        named = self.refine_steps is not None or self.refine_path_steps is not None
+        return self.strength == 1.0 and self.colour_match and not named
+
     def __post_init__(self):
         validate_strength(self.strength)
         validate_scale_structures(self.scale_structures)
@@ -218,19 +233,8 @@ class Pipeline:
         return orbit.turntable(render.turntable, offset=render.view) if render.turntable else [orbit.view(render.view)]
 
     def fits_look(self) -> bool:
-        """Whether the frames are stylized by a look fitted on them (``look.fit_look`` on a single
-        frame, or on a sequence's key frames, ``look.default_key_frames``; then applied to every frame)
-        instead of refined or left feed-forward: the default at full strength with the colour match,
-        when no refinement steps are named.
-
-        On the held-out split a look has the lowest medians of every metric the benchmark has, and
-        matches or beats the refinement it replaced at about the same time (``results/benchmark/``:
-        ``look`` against ``default``). Over a sequence, a look fitted on three key frames flickers
-        0.4-0.65x as much as the network's frames, and the frames it was not fitted on score within
-        1.05x of the key frames (``results/look_sequence/``)."""
-        s = self.settings
-        named = s.refine_steps is not None or s.refine_path_steps is not None
-        return s.strength == 1.0 and s.colour_match and not named
+        """``PipelineSettings.fits_look`` of this pipeline's settings."""
+        return self.settings.fits_look
 
     def refinement(self, frames: int = 1):
         """The refinement schedule (``fit.RefineSettings``) for ``frames`` frames.

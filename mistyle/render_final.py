@@ -535,15 +535,10 @@ def check_look_options(args) -> None:
     if args.look is not None and args.strength != 1.0:
         raise ValueError("A look holds its style at full strength; --look does not take --strength.")
     if args.key_frames is not None and args.save_look is None:
-        unfitted = [option for option in ("look", "refine", "refine_path") if getattr(args, option) is not None]
-        unfitted = [f"--{option.replace('_', '-')}" for option in unfitted]
-        unfitted += (["--strength"] if args.strength != 1.0 else []) + (
-            [] if args.colour_match else ["--no-colour-match"]
-        )
-        if unfitted:
+        if args.look is not None or not settings_from(args).fits_look:
             raise ValueError(
-                "--key-frames chooses the frames a look is fitted on (with --save-look, or the default output's look), "
-                f"but {' and '.join(unfitted)} render(s) without fitting one."
+                "--key-frames chooses the frames a look is fitted on: with --save-look, or for the default output's "
+                "look, which --look, --refine, --refine-path, --strength below 1 and --no-colour-match leave out."
             )
     if args.look_steps is not None and not 0 <= args.look_steps <= 10000:
         raise ValueError(f"--look-steps must lie in [0, 10000], got {args.look_steps}.")

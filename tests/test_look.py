@@ -257,7 +257,7 @@ def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpo
     "arguments, message",
     [
         (["--look", "{look}", "--strength", "0.5", "--out", "{out}"], "full strength"),
-        (["--style", "{style}", "--key-frames", "0", "--refine", "0", "--out", "{out}"], "without fitting one"),
+        (["--style", "{style}", "--key-frames", "0", "--refine", "0", "--out", "{out}"], "leave out"),
         (["--look", "{look}", "--frames", "5-9", "--out", "{out}"], "outside"),
         (["--style", "{style}", "--frames", "0-1", "--out", "{out}"], "renders chunks from a look"),
         (["--look", "{look}", "--frames", "b-a", "--out", "{out}"], "--frames takes A-B"),

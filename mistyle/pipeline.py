@@ -320,11 +320,15 @@ class Pipeline:
 
         albedos, look = network, None
         if self.fits_look():
-            from .look import parse_key_frames
+            from .look import LookSettings, parse_key_frames
+            from .progress import bar, fit_progress
 
             started = time.perf_counter()
             keys = None if s.key_frames is None else parse_key_frames(s.key_frames, len(frames.densities))
-            look = self.fit_look(frames, parts if len(parts) > 1 else parts[0][0], key_frames=keys, notes=notes)
+            with bar(LookSettings().steps if s.look_steps is None else s.look_steps, "fitting a look") as progress_bar:
+                style_given = parts if len(parts) > 1 else parts[0][0]
+                progress = fit_progress(progress_bar)
+                look = self.fit_look(frames, style_given, key_frames=keys, notes=notes, progress=progress)
             albedos = [look.apply(grid) for grid in frames.densities]
             report["look_seconds"] = time.perf_counter() - started
             report["look_key_frames"] = look.meta["key_frames"]

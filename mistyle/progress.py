@@ -42,3 +42,15 @@ def bar(total: int, description: str, unit: str = "step", initial: int = 0) -> t
     if os.environ.get(PROGRESS_ENV) == "lines":
         return tqdm(**common, ncols=80, ascii=True, mininterval=1.0, disable=_quiet)
     return tqdm(**common, dynamic_ncols=True, leave=False, disable=True if _quiet else None)  # None: on a terminal
+
+
+def fit_progress(progress_bar: tqdm):
+    """A ``progress(step, steps, loss)`` callback (``look.fit_look``'s) that advances ``progress_bar``
+    and shows the loss; ``steps`` sets the bar's total, which a fit may change (coarse steps)."""
+
+    def progress(step: int, steps: int, loss: float) -> None:
+        progress_bar.total = steps
+        progress_bar.set_postfix_str(f"loss {loss:.4g}", refresh=False)
+        progress_bar.update(1)
+
+    return progress

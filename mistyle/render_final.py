@@ -419,7 +419,7 @@ def save_look(args, pipeline, styles: dict):
     """Fit the look of ``--save-look`` on the key frames of the one density, and write it."""
     from .io import load_density_frames
     from .look import LookSettings, parse_key_frames
-    from .progress import bar
+    from .progress import bar, fit_progress
 
     source = (args.density or args.mesh)[0]
     if args.mesh:
@@ -437,17 +437,12 @@ def save_look(args, pipeline, styles: dict):
     notes: list[str] = []
     steps = LookSettings().steps if args.look_steps is None else args.look_steps
     with bar(steps, "fitting the look") as progress_bar:
-
-        def progress(step, steps, loss):
-            progress_bar.set_postfix_str(f"loss {loss:.4g}", refresh=False)
-            progress_bar.update(1)
-
         look = pipeline.fit_look(
             frames,
             parts if len(parts) > 1 else parts[0][0],
             key_frames=keys,
             notes=notes,
-            progress=progress,
+            progress=fit_progress(progress_bar),
             style_names=names,
         )
     for note in notes:

@@ -194,6 +194,24 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
     assert json.loads((chosen / "report.json").read_text())["look_key_frames"] == [1]
 
 
+def test_the_default_outputs_look_fit_shows_its_progress(mi, checkpoint, inputs, tmp_path, monkeypatch, capsys):
+    """A look's fit takes tens of seconds: the default output shows it as a bar, which the Blender
+    add-on reads as lines (``MISTYLE_PROGRESS=lines``)."""
+    from mistyle.progress import PROGRESS_ENV
+
+    monkeypatch.setenv(PROGRESS_ENV, "lines")
+    given = [
+        "--checkpoint",
+        str(checkpoint),
+        "--density",
+        str(inputs / "blob.vol"),
+        "--style",
+        str(inputs / "style.png"),
+    ]
+    assert main([*given, "--out", str(tmp_path / "out"), "--res", "8", "--spp", "1", "--look-steps", "3"]) == 0
+    assert "fitting a look: 100%" in capsys.readouterr().err
+
+
 def test_a_sequence_that_starts_as_a_wisp_is_matched_on_a_frame_the_layer_sees(
     mi, checkpoint, inputs, tmp_path, blob_density
 ):

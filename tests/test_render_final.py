@@ -141,6 +141,11 @@ def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_pa
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
 
 
+def given(checkpoint, density, style) -> list[str]:
+    """The options naming a run's network and inputs."""
+    return ["--checkpoint", str(checkpoint), "--density", str(density), "--style", str(style)]
+
+
 def two_moving_frames(tmp_path, blob_density):
     """A folder of two frames: the density moved one voxel along x, with that velocity."""
     frames = tmp_path / "frames"
@@ -184,7 +189,7 @@ def test_render_final_sequence_with_velocity_reports_flicker(mi, checkpoint, inp
     assert report["look_key_frames"] == [0, 1]
     assert (out / "albedo_refined_frame0001.vol").is_file() and (out / "sequence.gif").is_file()
     chosen = tmp_path / "chosen"
-    inputs_given = ["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png")]
+    inputs_given = given(checkpoint, frames, inputs / "style.png")
     assert (
         main(
             [*inputs_given, "--out", str(chosen), "--res", "8", "--spp", "1", "--key-frames", "1", "--look-steps", "1"]
@@ -200,15 +205,8 @@ def test_the_default_outputs_look_fit_shows_its_progress(mi, checkpoint, inputs,
     from mistyle.progress import PROGRESS_ENV
 
     monkeypatch.setenv(PROGRESS_ENV, "lines")
-    given = [
-        "--checkpoint",
-        str(checkpoint),
-        "--density",
-        str(inputs / "blob.vol"),
-        "--style",
-        str(inputs / "style.png"),
-    ]
-    assert main([*given, "--out", str(tmp_path / "out"), "--res", "8", "--spp", "1", "--look-steps", "3"]) == 0
+    inputs_given = given(checkpoint, inputs / "blob.vol", inputs / "style.png")
+    assert main([*inputs_given, "--out", str(tmp_path / "out"), "--res", "8", "--spp", "1", "--look-steps", "3"]) == 0
     assert "fitting a look: 100%" in capsys.readouterr().err
 
 
@@ -222,7 +220,7 @@ def test_a_sequence_that_starts_as_a_wisp_is_matched_on_a_frame_the_layer_sees(
     for index, density in enumerate([wisp, blob_density, np.roll(blob_density, 1, axis=2)]):
         np.savez(frames / f"frame{index:04d}.npz", density=density)
     out = tmp_path / "out"
-    inputs_given = ["--checkpoint", str(checkpoint), "--density", str(frames), "--style", str(inputs / "style.png")]
+    inputs_given = given(checkpoint, frames, inputs / "style.png")
     assert main([*inputs_given, "--out", str(out), "--res", "16", "--spp", "2", "--look-steps", "2"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert any("1 of 3 image(s) see no medium" in note for note in report["notes"])  # the wisp is invisible

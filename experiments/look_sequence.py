@@ -15,7 +15,8 @@ its metric views), split into key frames and the others, with the fit's and the 
 seconds. The contact sheet shows per style: the style, the look's frames over time, ``mistyle-render``'s
 default output of the middle frame (since #32 a look fitted on that frame alone,
 ``Pipeline.fits_look``), smooth noise with the colour match, and the uniform baseline (the benchmark's
-``smooth_noise`` and ``uniform``).
+``smooth_noise`` and ``uniform``); the table also scores the middle frame by the network with the
+colour match and the density ramp with it (``density_ramp``).
 
     python experiments/look_sequence.py                      # 19 frames, 3 styles
     python experiments/look_sequence.py --quick              # 4 frames, 1 style, 3 fit steps
@@ -53,7 +54,7 @@ def main() -> None:
 
 
 def run(args) -> None:
-    from mistyle.benchmark.methods import Context, colour_matched, smooth_noise, uniform_albedo
+    from mistyle.benchmark.methods import Context, colour_matched, density_ramp, smooth_noise, uniform_albedo
     from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import held_out_sequence, held_out_styles
     from mistyle.display import display
@@ -96,8 +97,16 @@ def run(args) -> None:
         default = Pipeline(PipelineSettings(), stylizer=stylizer).stylize(density, style).albedos[0]
         uniform = uniform_albedo(context, density, style)
         noise = colour_matched(context, smooth_noise(density.shape, context.seed), density, style)
+        ramp = colour_matched(context, density_ramp(density), density, style)
         references = {}
-        for label, albedo in (("default (middle frame)", default), ("noise + match", noise), ("uniform", uniform)):
+        compared = (
+            ("default (middle frame)", default),
+            ("network", network[middle]),
+            ("noise + match", noise),
+            ("ramp + match", ramp),
+            ("uniform", uniform),
+        )
+        for label, albedo in compared:
             metrics, images = score(density, albedo, style, views, **options)
             references[label] = metrics
             tiles[label] = display(images[0])
@@ -111,6 +120,7 @@ def run(args) -> None:
             "apply_seconds_per_frame": float(np.mean(applied)),
             "network_seconds_per_frame": network_seconds,
             "per_frame": frames,
+            "look_middle_frame": frames[middle],
             "references_middle_frame": references,
         }
         for part, chosen in (("key", True), ("other", False)):
@@ -141,6 +151,25 @@ def table(rows: list[dict]) -> str:
             f"{row['other_rgb_swd'] / row['key_rgb_swd']:.2f}, {row['other_patch_swd'] / row['key_patch_swd']:.2f} | "
             f"{row['fit_seconds']:.0f} | {row['apply_seconds_per_frame']:.2f} |"
         )
+    labels = list(rows[0]["references_middle_frame"]) if rows else []
+    lines += [
+        "",
+        "The middle frame, RGB / patch SWD (lower is closer to the style): the sequence's look beside "
+        "`mistyle-render`'s default for that frame alone (a look fitted on it), the network with the colour match "
+        "(`--refine 0`) and the benchmark's baselines with the same colour match (smooth noise, the density "
+        "ramp) and the uniform fill.",
+        "",
+        "| style | look (sequence) | " + " | ".join(labels) + " |",
+        "|---|---|" + "---|" * len(labels),
+    ]
+    for row in rows:
+        look = row["look_middle_frame"]
+        cells = [f"{look['rgb_swd']:.4f} / {look['patch_swd']:.4f}"] + [
+            f"{row['references_middle_frame'][label]['rgb_swd']:.4f} / "
+            f"{row['references_middle_frame'][label]['patch_swd']:.4f}"
+            for label in labels
+        ]
+        lines.append(f"| {row['style']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 

@@ -40,7 +40,8 @@ def render_views(
     steps: int = 64,
     scheme: str = DEFAULT_SCHEME,
     radiance: float = DEFAULT_ENV_RADIANCE,
-) -> torch.Tensor:
+    white: bool = False,
+) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
     """Render albedo volumes with the fast layer from several views.
 
     Args:
@@ -52,10 +53,14 @@ def render_views(
         steps: N ray-marching segments per ray.
         scheme: per-segment weight, see ``mistyle.integrators.single_scatter``.
         radiance: constant environment radiance ``Le``.
+        white: also return the same views of a white albedo (1 everywhere), computed in the same
+            march (the integrator's ``white`` AOVs): what ``objective.masks.body_mask`` finds the
+            medium's body in, without a second render.
 
     Returns:
         ``(B, V, 3, height, width)`` float32 linear radiance (``(V, 3, height, width)`` for a 4D
-        ``albedo``), differentiable with respect to ``albedo``.
+        ``albedo``), differentiable with respect to ``albedo``; with ``white``, a pair ``(images,
+        white images)`` of that shape, the second without gradient.
 
     Raises:
         ValueError: wrong albedo rank, channel count, grid size, dtype, device or values; empty
@@ -70,14 +75,16 @@ def render_views(
         raise ValueError("views must be a non-empty list of mistyle.scenes.View.")
 
     renderer = _renderer(albedo_batch.device.type, densities[0], height, width, len(views), steps, scheme, radiance)
-    images = []
+    films = []
     for item in range(batch):
         # (3, D, H, W) -> the (Z, Y, X, 3) layout of mi.Texture3f; autograd undoes the permute.
         grid = albedo_batch[item].permute(1, 2, 3, 0).to(torch.float32).contiguous()
-        film = renderer.render(grid, _RenderState(densities[item], views))  # (height, V * width, 3)
-        images.append(film.reshape(height, len(views), width, 3).permute(1, 3, 0, 2))
-    out = torch.stack(images)
-    return out[0] if squeeze else out
+        film = renderer.render(grid, _RenderState(densities[item], views))  # (height, V * width, RGB + white RGB)
+        films.append(film.reshape(height, len(views), width, 6).permute(1, 3, 0, 2))
+    out = torch.stack(films)
+    out = out[0] if squeeze else out
+    images = out[..., :3, :, :]
+    return (images, out[..., 3:, :, :].detach()) if white else images
 
 
 class _RenderState:
@@ -105,7 +112,14 @@ class _LayerRenderer:
         self.mi = mi
         self.scene = mi.load_dict(
             layer_scene(
-                prepared, albedo, placeholder_views, res=(height, width), steps=steps, scheme=scheme, radiance=radiance
+                prepared,
+                albedo,
+                placeholder_views,
+                res=(height, width),
+                steps=steps,
+                scheme=scheme,
+                radiance=radiance,
+                white=True,  # every render also holds the white views (render_views' white): one channel sum more
             )
         )
         self.params = mi.traverse(self.scene)

@@ -135,9 +135,10 @@ def fit_albedo(
 class LayerViews:
     """The fast layer as a ``Renderer`` for one prepared density, and its body masks.
 
-    ``views(albedo (3, Z, Y, X), views, seed) -> (V, 3, res, res)``; ``body_masks(views)`` renders a
-    white albedo from the same views (no gradient) and keeps the medium's body
-    (``objective.masks.body_mask``), for this renderer or any other with the same cameras.
+    ``views(albedo (3, Z, Y, X), views, seed) -> (V, 3, res, res)``; ``body_masks(views)`` keeps the
+    medium's body (``objective.masks.body_mask``) in the views of a white albedo (no gradient), for this
+    renderer or any other with the same cameras. A render's march also gives its views' white images
+    (``render_views``' ``white``), so the masks of the views just rendered cost no second render.
     """
 
     def __init__(
@@ -145,19 +146,28 @@ class LayerViews:
     ):
         self.prepared, self.res, self.steps, self.radiance = prepared, int(res), int(steps), float(radiance)
         self.device = device
+        self._last_white: tuple[list[View], torch.Tensor] | None = None  # the views last rendered, their white images
 
     def __call__(self, albedo: torch.Tensor, views: Sequence[View], seed: int = 0) -> torch.Tensor:
         from .bridge_torch import render_views
 
-        return render_views(albedo, self.prepared, list(views), self.res, steps=self.steps, radiance=self.radiance)
+        views = list(views)
+        images, white = render_views(
+            albedo, self.prepared, views, self.res, steps=self.steps, radiance=self.radiance, white=True
+        )
+        self._last_white = (views, white)
+        return images
 
     def body_masks(self, views: Sequence[View], res: int | None = None) -> torch.Tensor:
         from .bridge_torch import render_views
 
+        views = list(views)
+        if self._last_white is not None and (res or self.res) == self.res and self._last_white[0] == views:
+            return body_mask(self._last_white[1])
         white = torch.ones((3,) + tuple(self.prepared.density.shape), dtype=torch.float32, device=self.device)
         with torch.no_grad():
             images = render_views(
-                white, self.prepared, list(views), res or self.res, steps=self.steps, radiance=self.radiance
+                white, self.prepared, views, res or self.res, steps=self.steps, radiance=self.radiance
             )
         return body_mask(images)
 

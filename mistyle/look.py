@@ -738,14 +738,11 @@ def fit_look(
             views = orbit.sample_stratified(settings.views_per_step, rng)
         else:
             views = orbit.sample(settings.views_per_step, rng)
-        with torch.no_grad():
-            white = torch.ones((3,) + frame["grid"].shape, device=device)
-            masks = body_mask(render_views(white, prepared, views, layer_res, **render))
         albedo = albedo_of(frame)
         if match is not None:
             albedo = match.apply_torch(albedo, inside)
-        images = render_views(albedo, prepared, views, layer_res, **render)
-        loss = objective.loss(images[None], targets, masks) + settings.tv_weight * tv_loss(albedo[None])
+        images, white = render_views(albedo, prepared, views, layer_res, white=True, **render)
+        loss = objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * tv_loss(albedo[None])
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()

@@ -51,6 +51,27 @@ def test_batch_items_use_their_own_density_and_views_in_backward(prepared, blob_
     torch.testing.assert_close(grads(True), grads(False), rtol=1e-5, atol=1e-7)
 
 
+def test_the_white_views_come_with_the_render_and_leave_its_image_and_gradient_as_they_were(prepared):
+    """``white=True`` gives a white albedo's views from the same march (the integrator's AOVs): equal to
+    rendering a white albedo, with the RGB image and its gradient as without them."""
+    albedo = torch.rand((3,) + prepared.shape, generator=torch.Generator().manual_seed(5))
+    weights = torch.rand((3, 3, 12, 12), generator=torch.Generator().manual_seed(6))
+    leaf = albedo.clone().requires_grad_()
+    images, white = render_views(leaf, prepared, VIEWS, 12, white=True)
+    (images * weights).sum().backward()
+    assert not white.requires_grad and white.shape == images.shape
+    with torch.no_grad():
+        torch.testing.assert_close(
+            white, render_views(torch.ones_like(albedo), prepared, VIEWS, 12), rtol=1e-5, atol=1e-6
+        )
+        assert float(white.amax()) > 0.1
+    plain = albedo.clone().requires_grad_()
+    plain_images = render_views(plain, prepared, VIEWS, 12)
+    (plain_images * weights).sum().backward()
+    torch.testing.assert_close(images, plain_images, rtol=0, atol=0)
+    torch.testing.assert_close(leaf.grad, plain.grad, rtol=0, atol=0)
+
+
 def test_a_cached_scene_takes_the_next_densitys_grids_and_march_box(mi, prepared, blob_density):
     from mistyle.integrators import layer_scene
     from mistyle.scenes import split_views

@@ -25,11 +25,14 @@ def layer_scene(
     steps: int = 64,
     scheme: str = DEFAULT_LAYER_SCHEME,
     radiance: float = DEFAULT_ENV_RADIANCE,
+    white: bool = False,
 ) -> dict:
     """Scene dictionary rendered by the fast layer: all ``views`` side by side in one batch film.
 
-    ``res`` is the image side, or ``(height, width)``, per view. Registers the integrator plugin for
-    the active variant (which must have been chosen with ``mistyle.backend.use_variant``).
+    ``res`` is the image side, or ``(height, width)``, per view. ``white``: the film also holds the
+    views of a white albedo (the integrator's ``white`` AOVs, three channels after the RGB). Registers
+    the integrator plugin for the active variant (which must have been chosen with
+    ``mistyle.backend.use_variant``).
     """
     from . import register
 
@@ -54,6 +57,7 @@ def layer_scene(
             "march_max": mi.ScalarPoint3f(march_max),
             "steps": int(steps),
             "scheme": scheme,
+            "white": bool(white),
         },
         "sensor": sensor,
         "environment": constant_environment(radiance),

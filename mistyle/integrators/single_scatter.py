@@ -33,6 +33,11 @@ Single-scattering ray marcher (:monosp:`mistyle_single_scatter`)
  * - scheme
    - |string|
    - Per-segment weight: ``exact`` (default), ``midpoint`` or ``riemann`` (the paper's Eq. 9).
+ * - white
+   - |bool|
+   - Also return, as the AOV channels ``white.R``, ``white.G``, ``white.B``, the same march with a
+     white albedo (:math:`\alpha = 1`): the medium's brightness, from which a render's body mask is
+     found, for the cost of one more sum. (Default: false)
 
 One ray through each pixel centre (box filter, no jitter) is clipped to the march box and cut into N
 segments of length :math:`\Delta t`. At each segment midpoint :math:`x_i` the layer looks up
@@ -78,6 +83,8 @@ import mitsuba as mi
 from ..conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
 from ..conventions import LAYER_SCHEMES as SCHEMES
 
+WHITE_AOVS = ("white.R", "white.G", "white.B")
+
 
 class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
     def __init__(self, props: mi.Properties):
@@ -98,6 +105,7 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         self.sigma_t = mi.Texture3f(_grid(props, "sigma_t", 1))
         self.ls = mi.Texture3f(_grid(props, "ls", 1))
         self.albedo = mi.Texture3f(_grid(props, "albedo", 3))
+        self.white = bool(props.get("white", False))
 
     def traverse(self, callback):
         callback.put("albedo", self.albedo.tensor(), mi.ParamFlags.Differentiable)
@@ -120,7 +128,19 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
             raise ValueError("march_min/march_max must lie inside the medium box bbox_min/bbox_max.")
 
     def aov_names(self):
-        return []
+        return list(WHITE_AOVS) if self.white else []
+
+    def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
+        """The adjoint pass of ``render``. The white AOVs do not depend on α, so their channels of
+        ``grad_in`` are dropped and the pass runs without them (Mitsuba's ``RBIntegrator`` cannot splat
+        AOVs in its adjoint pass: it weighs them by a spectrum)."""
+        if not self.white:
+            return super().render_backward(scene, params, grad_in, sensor, seed, spp)
+        self.white = False
+        try:
+            return super().render_backward(scene, params, grad_in[:, :, :3], sensor, seed, spp)
+        finally:
+            self.white = True
 
     def sample_rays(self, scene, sensor, sampler):
         """One ray through each pixel centre; the sampler is not consumed."""
@@ -150,6 +170,7 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
 
         # ------------------------------ Loop state ------------------------------
         L = mi.Spectrum(0.0)
+        white = mi.Spectrum(0.0)
         δL = mi.Spectrum(δL if δL is not None else 0.0)
         T = mi.Float(1.0)
         i = mi.UInt32(0)
@@ -178,6 +199,8 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
                     contribution = β * mi.Spectrum(α[0], α[1], α[2])
                     if dr.hint(primal, mode="scalar"):
                         L += contribution
+                        if dr.hint(self.white, mode="scalar"):
+                            white += β  # the same sum with α = 1: a white render's pixels, up to rounding
                     else:
                         dr.backward_from(δL * contribution)
 
@@ -185,7 +208,8 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
             i += 1
             active &= i < self.steps
 
-        return (L if primal else δL), hit, [], L
+        aovs = [white[0], white[1], white[2]] if self.white and primal else []
+        return (L if primal else δL), hit, aovs, L
 
     def _environment_radiance(self, scene) -> mi.Spectrum:
         environment = scene.environment()

@@ -202,11 +202,11 @@ class Trainer:
         if config.loss.colour_match:
             current, following = self._colour_matched(current, following, frames, batch["styles"])
         prepared = [prepare_density(f["density0"], self.data.density_scale, ls=f["ls0"]) for f in frames]
-        images = self._render(current, prepared, batch["views"])
+        images, white = self._render(current, prepared, batch["views"], white=True)
         loss_hist = self.objective.loss(
             images,
             self.objective.targets(batch["styles"], style.levels),
-            self._body_masks(prepared, batch["views"]) if config.loss.mask == "body" else None,
+            body_mask(white.flatten(0, 1)) if config.loss.mask == "body" else None,
         )
         loss_tv = tv_loss(current)
         loss_temp = temporal_loss(following, current, stack("velocity0"))
@@ -270,13 +270,6 @@ class Trainer:
             matched_following.append(match.apply_torch(following[item], inside_next))
         return torch.stack(matched_current), torch.stack(matched_following)
 
-    def _body_masks(self, prepared, views) -> torch.Tensor:
-        """``(B*V, 1, H, W)``: the medium's body in each view (a white albedo rendered, no gradient)."""
-        shape = (len(prepared), 3) + tuple(prepared[0].density.shape)
-        with torch.no_grad():
-            white = self._render(torch.ones(shape, device=self.device), prepared, views)
-        return body_mask(white.flatten(0, 1))
-
     def _style_inputs(self, styles: torch.Tensor):
         return self.model.encode_style(styles, self.extractor)
 
@@ -284,7 +277,7 @@ class Trainer:
         """The network's forward pass in ``run.precision`` (bfloat16 autocast, or plain float32)."""
         return torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.config.run.precision == "bf16")
 
-    def _render(self, albedo, prepared, views):
+    def _render(self, albedo, prepared, views, white: bool = False):
         from ..bridge_torch import render_views
 
         size = self.config.render.image_size
@@ -296,6 +289,7 @@ class Trainer:
             steps=self.config.render.steps,
             scheme=self.config.render.scheme,
             radiance=self.config.render.radiance,
+            white=white,
         )
 
     def train_step(self) -> tuple[dict, dict]:

@@ -514,6 +514,34 @@ def patch_matrix(features):
     return torch.stack(shifted, dim=-1).permute(1, 2, 3, 0, 4).reshape(depth * height * width, channels * 27)
 
 
+def stretch_texture(texture, frame: dict, padded: tuple):
+    """A look's ``texture (C, tz, ty, tx)`` stretched over the box of ``frame`` (``prepare_frame``) as
+    trilinear interpolation (``align_corners=False``) to the frame's grid would, cut to its crop window
+    and zero-padded to ``padded`` (the head's grid): ``(C, *padded)``.
+
+    Trilinear interpolation is separable, so it runs as one small matrix product per axis, each of
+    whose rows holds one voxel's two interpolation weights; a fit step's interpolation and its gradient
+    cost several times less than ``F.interpolate`` of the whole grid. The matrices are kept in
+    ``frame`` (per texture shape)."""
+    import torch
+    import torch.nn.functional as F
+
+    channels, *texels = texture.shape
+    key = ("stretch", tuple(texels), padded)
+    matrices = frame.get(key)
+    if matrices is None:
+        window = frame["window"] or tuple(slice(0, n) for n in frame["size"])
+        matrices = []
+        for count, size, rows, length in zip(texels, frame["size"], window, padded):
+            identity = torch.eye(count, dtype=torch.float32, device=texture.device)[None]
+            weights = F.interpolate(identity, size=size, mode="linear", align_corners=False)[0].T[rows]
+            matrices.append(F.pad(weights, (0, 0, 0, length - weights.shape[0])))
+        frame[key] = matrices
+    along_z, along_y, along_x = matrices
+    values = torch.matmul(along_y, torch.matmul(texture, along_x.T))  # (C, tz, Y, X)
+    return torch.matmul(along_z, values.reshape(channels, texels[0], -1)).reshape(channels, *padded)
+
+
 def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None):
     """A look's albedo ``(3, Z, Y, X)`` of a ``prepare_frame`` frame (differentiable in ``kernels``, the
     tuned decoder layers, ``noise_weight (3, channels)`` and ``texture (3, tz, ty, tx)``, which is
@@ -541,11 +569,7 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
     if noise_weight is not None and frame["noise"] is not None:
         offset = torch.einsum("oc,bcdhw->bodhw", noise_weight, frame["noise"])
     if texture is not None:
-        stretched = F.interpolate(texture[None], size=frame["size"], mode="trilinear", align_corners=False)
-        if frame["window"] is not None:
-            stretched = stretched[(slice(None), slice(None), *frame["window"])]
-        pads = [p for n, m in reversed(list(zip(stretched.shape[2:], logits.shape[2:]))) for p in (0, m - n)]
-        stretched = F.pad(stretched, pads)
+        stretched = stretch_texture(texture, frame, tuple(logits.shape[2:]))[None]
         offset = stretched if offset is None else offset + stretched
     albedo = head_albedo(logits if offset is None else logits + offset, encoded.size)
     albedo = uncrop(albedo, frame["window"], frame["size"])

@@ -147,6 +147,39 @@ def test_coarse_steps_fit_averaged_features_whose_head_is_one_matrix_product(sty
         LookSettings(coarse_factor=3)
 
 
+def test_a_texture_is_stretched_over_the_crop_as_trilinear_interpolation_would():
+    """``stretch_texture`` (three small matrix products) gives what ``F.interpolate`` of the whole grid,
+    cut to the crop window and padded to the head's grid, gives, and the same gradient."""
+    import torch.nn.functional as F
+
+    from mistyle.look import stretch_texture
+
+    texture = torch.randn(3, 5, 4, 6, generator=torch.Generator().manual_seed(2))
+    frame = {"size": (13, 10, 16), "window": (slice(4, 12), slice(0, 10), slice(2, 15))}
+    padded = (8, 12, 16)
+    weights = torch.randn((3,) + padded, generator=torch.Generator().manual_seed(3))
+
+    def by_interpolation(values):
+        whole = F.interpolate(values[None], size=frame["size"], mode="trilinear", align_corners=False)[0]
+        cut = whole[(slice(None), *frame["window"])]
+        return F.pad(cut, [p for n, m in reversed(list(zip(cut.shape[1:], padded))) for p in (0, m - n)])
+
+    expected, leaf = by_interpolation(texture), texture.clone().requires_grad_()
+    stretched = stretch_texture(leaf, frame, padded)
+    torch.testing.assert_close(stretched, expected, rtol=1e-5, atol=1e-6)
+    (stretched * weights).sum().backward()
+    reference = texture.clone().requires_grad_()
+    (by_interpolation(reference) * weights).sum().backward()
+    torch.testing.assert_close(leaf.grad, reference.grad, rtol=1e-5, atol=1e-5)
+    uncropped = {"size": (13, 10, 16), "window": None}
+    torch.testing.assert_close(
+        stretch_texture(texture, uncropped, (13, 10, 16)),
+        F.interpolate(texture[None], size=(13, 10, 16), mode="trilinear", align_corners=False)[0],
+        rtol=1e-5,
+        atol=1e-6,
+    )
+
+
 def test_a_cosine_schedule_fits_and_bad_schedules_or_view_samplings_are_refused(stylizer, blob_density, style):
     cosine = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS, lr_schedule="cosine"))
     constant = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS))

@@ -288,10 +288,11 @@ def correlation_length(field: np.ndarray, mask: np.ndarray) -> float:
     values = np.where(mask > 0, np.asarray(field, np.float64), 0.0)
     values = (values - values.sum() / mask.sum()) * mask
     padded = [2 * n for n in values.shape]
+    axes = list(range(values.ndim))
 
     def autocorrelation(x):
-        spectrum = np.fft.rfftn(x, padded)
-        return np.fft.irfftn(spectrum * np.conj(spectrum), padded)
+        spectrum = np.fft.rfftn(x, padded, axes=axes)
+        return np.fft.irfftn(spectrum * np.conj(spectrum), padded, axes=axes)
 
     products, pairs = autocorrelation(values), autocorrelation(mask)
     lags = np.sqrt(

@@ -74,6 +74,8 @@ ARMS = {
     },
     # Against "default" (--versus default): a coarse stage first (LookSettings.coarse_steps), then fine steps.
     "coarse60_fine30": dict(coarse_steps=60, steps=30),
+    # Against "default": each step's projections drawn from a pool of 1024, the style's sorted once.
+    "pool1024": dict(direction_pool=1024),
 }
 
 

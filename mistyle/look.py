@@ -88,11 +88,16 @@ class LookSettings:
     # the head's convolution, the layer's renders and the objective each cost several times less there.
     coarse_steps: int = 0
     coarse_factor: int = 2
+    # > 0: the sliced objective draws each step's directions from this many, along which the style's
+    # projections are sorted once (objective.losses.ProjectedTarget); 0: fresh directions every step.
+    direction_pool: int = 0
     seed: int = 0
 
     def __post_init__(self):
         if not 0 <= self.steps <= 10000:
             raise ValueError(f"A look's fit steps must lie in [0, 10000], got {self.steps}.")
+        if not 0 <= self.direction_pool <= 65536:
+            raise ValueError(f"direction_pool must lie in [0, 65536], got {self.direction_pool}.")
         if not 0 <= self.coarse_steps <= 10000:
             raise ValueError(f"A look's coarse steps must lie in [0, 10000], got {self.coarse_steps}.")
         if self.coarse_factor not in (2, 4):
@@ -739,7 +744,12 @@ def fit_look(
     insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in frames]
     coarse_insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in coarse] if coarse_steps else []
 
-    objective = SlicedObjective(rgb_weight=settings.rgb_weight, patch_weight=settings.patch_weight, seed=settings.seed)
+    objective = SlicedObjective(
+        rgb_weight=settings.rgb_weight,
+        patch_weight=settings.patch_weight,
+        seed=settings.seed,
+        direction_pool=settings.direction_pool,
+    )
     targets = objective.targets(square_style(target, SLICED_STYLE_SIZE).to(device)[None])
     orbit, rng = CameraPath(distance=camera_distance), np.random.default_rng(settings.seed)
     render = dict(steps=settings.layer_steps_per_ray, radiance=radiance)

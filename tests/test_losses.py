@@ -118,6 +118,23 @@ def test_sliced_wasserstein_keeps_the_reference_sets_sorted_projections_and_give
     assert len(metrics._SORTED_PROJECTIONS) == 2
 
 
+def test_a_pool_of_projected_target_directions_gives_the_plain_loss_along_the_directions_drawn():
+    from mistyle.objective.losses import _quantiles, project_target, sliced_wasserstein_loss
+
+    generator = torch.Generator().manual_seed(0)
+    points, target = torch.rand(300, 5, generator=generator), torch.rand(700, 5, generator=generator) ** 2
+    pooled = project_target(target, 16, generator)
+    assert pooled.shape == (700, 5) and pooled.sorted.shape == (16, 700)
+    theirs = _quantiles(torch.sort(target @ pooled.directions, dim=0).values.T, 300).T
+    plain = ((torch.sort(points @ pooled.directions, dim=0).values - theirs) ** 2).mean() * 5
+    # Drawing all 16 of the pool, in any order, gives the plain loss along them.
+    torch.testing.assert_close(sliced_wasserstein_loss(points, pooled, 16, generator), plain)
+    part = sliced_wasserstein_loss(points, pooled, 4, generator)
+    assert 0 < float(part) and not torch.isclose(part, plain)
+    with pytest.raises(ValueError, match="dimension"):
+        sliced_wasserstein_loss(points[:, :3], pooled)
+
+
 def test_masks_threshold_and_max_pool():
     images = torch.zeros(1, 3, 8, 8)
     images[0, 1, 2, 3] = 0.01

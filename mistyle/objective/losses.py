@@ -7,6 +7,8 @@ Feature maps are ``(B, C, H, W)`` with a foreground mask ``(B, 1, H, W)`` in {0,
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import torch
 import torch.nn.functional as F
@@ -91,8 +93,32 @@ def _per_item(features, mask, loss_of_values):
     return total / batch
 
 
+class ProjectedTarget(NamedTuple):
+    """A target point set ``(M, D)`` projected once on a pool of random unit directions ``(D, P)``, each
+    projection sorted ``(P, M)`` (``project_target``): what ``sliced_wasserstein_loss`` compares with
+    when the directions of every call are drawn from the pool rather than afresh."""
+
+    directions: torch.Tensor
+    sorted: torch.Tensor
+
+    @property
+    def shape(self) -> tuple:
+        return self.sorted.shape[1], self.directions.shape[0]
+
+
+@torch.no_grad()
+def project_target(target: torch.Tensor, pool: int, generator: torch.Generator | None = None) -> ProjectedTarget:
+    """``target (M, D)``'s sorted projections on ``pool`` random unit directions."""
+    directions = torch.randn(target.shape[1], pool, generator=generator).to(target)
+    directions = directions / directions.norm(dim=0, keepdim=True)
+    return ProjectedTarget(directions, _sorted_rows((target @ directions).T.contiguous()))
+
+
 def sliced_wasserstein_loss(
-    points: torch.Tensor, target: torch.Tensor, projections: int = 64, generator: torch.Generator | None = None
+    points: torch.Tensor,
+    target: torch.Tensor | ProjectedTarget,
+    projections: int = 64,
+    generator: torch.Generator | None = None,
 ) -> torch.Tensor:
     """Squared sliced 2-Wasserstein distance between point sets ``(N, D)`` and ``(M, D)`` (Heitz et al. 2021).
 
@@ -100,17 +126,23 @@ def sliced_wasserstein_loss(
     ``points`` is compared with the target's quantiles at the same ranks (the target carries no
     gradient, so the sets need not have equal sizes). Unlike a per-channel histogram loss, random
     directions couple the channels: a render with the style's red and blue but not its purple
-    pixels is penalised.
+    pixels is penalised. A ``ProjectedTarget`` gives the directions a pool to be drawn from (without
+    repeats within a call) and its sorted projections, which are then not sorted again.
     """
     if points.shape[1] != target.shape[1]:
         raise ValueError(f"Point sets of dimension {points.shape[1]} and {target.shape[1]}.")
     if points.shape[0] == 0:
         return points.new_zeros(())
-    directions = torch.randn(points.shape[1], projections, generator=generator).to(points)
-    directions = directions / directions.norm(dim=0, keepdim=True)
+    if isinstance(target, ProjectedTarget):
+        chosen = torch.randperm(target.directions.shape[1], generator=generator)[:projections]
+        directions, theirs = target.directions[:, chosen].to(points), target.sorted[chosen].to(points)
+    else:
+        directions = torch.randn(points.shape[1], projections, generator=generator).to(points)
+        directions = directions / directions.norm(dim=0, keepdim=True)
+        with torch.no_grad():
+            theirs = _sorted_rows((target.to(points) @ directions).T.contiguous())
     ours = torch.sort(points @ directions, dim=0).values
     with torch.no_grad():
-        theirs = _sorted_rows((target.to(points) @ directions).T.contiguous())
         theirs = _quantiles(theirs, ours.shape[0]).T
     return ((ours - theirs) ** 2).mean() * points.shape[1]
 

@@ -13,7 +13,14 @@ import torch.nn as nn
 
 from ..conventions import STYLE_LOSSES
 from ..display import tone_map
-from .losses import gram_loss, histogram_loss, mean_std_loss, scaled_patches, sliced_wasserstein_loss
+from .losses import (
+    gram_loss,
+    histogram_loss,
+    mean_std_loss,
+    project_target,
+    scaled_patches,
+    sliced_wasserstein_loss,
+)
 from .masks import pool_mask, render_mask
 
 FEATURE_LOSSES = dict(zip(STYLE_LOSSES, (histogram_loss, gram_loss, mean_std_loss)))
@@ -100,6 +107,7 @@ class SlicedObjective:
         max_target_points: int = 8192,
         max_render_patches: int = 4096,
         seed: int = 0,
+        direction_pool: int = 0,
     ):
         self.rgb_weight, self.patch_weight, self.patch_size = rgb_weight, patch_weight, patch_size
         self.patch_scales, self.projections, self.max_target_points = (
@@ -108,6 +116,7 @@ class SlicedObjective:
             max_target_points,
         )
         self.max_render_patches = max_render_patches
+        self.direction_pool = int(direction_pool)
         self.generator = torch.Generator().manual_seed(seed)
 
     def _subsample(self, points: torch.Tensor, limit: int | None = None) -> torch.Tensor:
@@ -119,12 +128,17 @@ class SlicedObjective:
     @torch.no_grad()
     def targets(self, styles: torch.Tensor, levels=None) -> list[list[torch.Tensor]]:
         """Per style of ``styles (B, 3, S, S)``: ``[pixels (N, 3), patches at each scale (N_s, 75)]``
-        (``levels``, the extractor's output, is not used: the same call as ``StyleObjective``'s)."""
+        (``levels``, the extractor's output, is not used: the same call as ``StyleObjective``'s). With
+        ``direction_pool`` > 0 each set comes projected on that many directions and sorted
+        (``losses.ProjectedTarget``): each step then draws its directions from the pool and sorts only
+        the render's projections."""
         result = []
         for style in styles:
             entry = [self._subsample(style.reshape(3, -1).T)]
             for scale in self.patch_scales if self.patch_weight else ():
                 entry.append(self._subsample(scaled_patches(style[None], None, scale, self.patch_size)))
+            if self.direction_pool:
+                entry = [project_target(points, self.direction_pool, self.generator) for points in entry]
             result.append(entry)
         return result
 

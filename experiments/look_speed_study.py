@@ -76,6 +76,9 @@ ARMS = {
     "coarse60_fine30": dict(coarse_steps=60, steps=30),
     # Against "default": each step's projections drawn from a pool of 1024, the style's sorted once.
     "pool1024": dict(direction_pool=1024),
+    # Against "default": fewer or smaller views a step (#35's "fewer or smaller views per step").
+    "views2": dict(views_per_step=2),
+    "res48": dict(layer_res=48),
 }
 
 

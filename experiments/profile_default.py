@@ -61,16 +61,6 @@ def timed(command: list[str], env: dict, cwd: Path = REPO) -> float:
     return time.perf_counter() - started
 
 
-def git_commit(checkout: Path) -> str:
-    done = subprocess.run(
-        ["git", "-C", str(checkout), "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True
-    )
-    changed = subprocess.run(
-        ["git", "-C", str(checkout), "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True
-    )
-    return (done.stdout.strip() or "unknown") + ("+changes" if changed.stdout.strip() else "")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="results/profile_default")
@@ -80,6 +70,7 @@ def main() -> None:
     parser.add_argument("--sequence", type=int, default=0, help="profile N frames of the held-out smoke instead")
     parser.add_argument("extra", nargs="*", help="more mistyle-render options, after --")
     args = parser.parse_args()
+    from mistyle.benchmark.runner import code_commit
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -119,7 +110,7 @@ def main() -> None:
                 row = {
                     "run": run,
                     "code": code,
-                    "commit": git_commit(checkout),
+                    "commit": code_commit(checkout),
                     "cache": "cold" if cold else "warm",
                     "wall_seconds": wall,
                     "frames": frames,

@@ -90,16 +90,6 @@ def profile(steps: int) -> dict:
     return {"steps": steps, "fit_seconds": fit, "setup_seconds": fit - sum(per_step.values()) * steps, **per_step}
 
 
-def git_commit(checkout: Path) -> str:
-    done = subprocess.run(
-        ["git", "-C", str(checkout), "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True
-    )
-    changed = subprocess.run(
-        ["git", "-C", str(checkout), "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True
-    )
-    return (done.stdout.strip() or "unknown") + ("+changes" if changed.stdout.strip() else "")
-
-
 def run_in(checkout: Path, steps: int) -> dict:
     """``profile`` in a fresh process on ``checkout``'s code."""
     env = {**os.environ, "PYTHONPATH": str(checkout)}
@@ -172,13 +162,15 @@ def main() -> None:
     if args.child is not None:
         print(json.dumps(profile(args.child)))
         return
+    from mistyle.benchmark.runner import code_commit
+
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for run in range(args.runs):
         checkouts = ([("baseline", args.baseline.resolve())] if args.baseline else []) + [("this", REPO)]
         for code, checkout in checkouts:
-            row = {"run": run, "code": code, "commit": git_commit(checkout), **run_in(checkout, args.steps)}
+            row = {"run": run, "code": code, "commit": code_commit(checkout), **run_in(checkout, args.steps)}
             row["load_average"] = os.getloadavg()[0]
             rows.append(row)
             print(json.dumps(row), flush=True)

@@ -71,9 +71,11 @@ def checkpoint_id(path) -> str:
     return f"{Path(path).name}:{digest}"
 
 
-def code_commit() -> str:
-    """The git commit of the package's checkout, or "unknown" outside one."""
-    root = Path(__file__).resolve().parent  # git finds the checkout the package sits in, if any
+def code_commit(checkout=None) -> str:
+    """The git commit of ``checkout`` (default: the package's own checkout), with ``+changes`` where
+    tracked files differ from it, or "unknown" outside a checkout."""
+    # git finds the checkout the package sits in, if any
+    root = Path(__file__).resolve().parent if checkout is None else Path(checkout)
     try:
         commit = subprocess.run(
             ["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],

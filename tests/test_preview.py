@@ -4,16 +4,21 @@ The browser itself is ``tests/test_preview_browser.py`` (``make test-browser``).
 """
 
 import asyncio
+import contextlib
 import io
 import json
+import re
 import struct
+import subprocess
+import sys
+import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from mistyle.preview.server import build_app, controls_from
+from mistyle.preview.server import Jobs, build_app, controls_from
 from mistyle.preview.session import (
     PASS_SPP,
     Camera,
@@ -65,10 +70,12 @@ def test_controls_are_clamped_to_what_the_session_has(session):
         False,
     )
     assert checked.camera.elevation <= 1.45 and checked.camera.distance <= 8.0
-    moved = controls_from(Controls(), {"camera": [1, 0.5, 3], "mix_with": None, "strength": "0.5"})
+    moved = controls_from(Controls(), {"camera": [1, 0.5, 3], "mix_with": None, "strength": 0.5})
     assert moved.camera == Camera(1.0, 0.5, 3.0) and moved.strength == 0.5
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="camera"):
         controls_from(Controls(), {"camera": [1, 2]})
+    with pytest.raises(ValueError, match="strength '0.5' is not a number"):
+        controls_from(Controls(), {"strength": "0.5"})
 
 
 def test_an_upload_goes_through_the_style_decoder(tmp_path):
@@ -84,49 +91,287 @@ def test_an_upload_goes_through_the_style_decoder(tmp_path):
         decode_upload("tiny.png", tiny.getvalue())
 
 
-def test_the_server_serves_the_page_frames_and_only_its_styles(mi, session, tmp_path):
+TOKEN = re.compile(r'<meta name="mistyle-token" content="([^"]*)">')
+
+
+def png(value: int = 90, side: int = 16) -> bytes:
+    buffer = io.BytesIO()
+    Image.fromarray(np.full((side, side, 3), value, np.uint8)).save(buffer, format="PNG")
+    return buffer.getvalue()
+
+
+def picture_form(data: bytes, name: str = "grey.png"):
     from aiohttp import FormData
+
+    form = FormData()
+    form.add_field("style", data, filename=name)
+    return form
+
+
+@pytest.fixture
+def jobs_started(monkeypatch):
+    """``Jobs.start`` records its kind and runs an empty Python instead of ``mistyle-render``."""
+    kinds = []
+
+    def start(self, kind, controls, session, style_paths):
+        kinds.append(kind)
+        self.process = subprocess.Popen(
+            [sys.executable, "-I", "-c", "pass"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        )
+        return self.out / kind
+
+    monkeypatch.setattr(Jobs, "start", start)
+    return kinds
+
+
+@contextlib.asynccontextmanager
+async def served(session, tmp_path, **options):
+    """The preview's app on a real server on an ephemeral loopback port: its client, the token its page
+    carries (``None`` when it carries none) and the style paths the server was given."""
     from aiohttp.test_utils import TestClient, TestServer
 
     paths = [tmp_path / style.name for style in session.styles]
-
-    async def scenario():
-        app = build_app(session, style_paths=list(paths), density=tmp_path / "d.vol", out=tmp_path / "out", look=None)
+    app = build_app(session, style_paths=paths, density=tmp_path / "d.vol", out=tmp_path / "out", look=None, **options)
+    try:
         async with TestClient(TestServer(app)) as client:
+            match = TOKEN.search(await (await client.get("/")).text())
+            yield client, (match.group(1) if match else None), paths
+    finally:
+        del session.styles[2:]
+
+
+def own_origin(client) -> str:
+    return f"http://127.0.0.1:{client.port}"
+
+
+async def next_message(socket, wanted, timeout: float = 60.0):
+    """The next websocket message for which ``wanted(type_name, data)`` holds (JSON decoded for text)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        message = await asyncio.wait_for(socket.receive(), max(deadline - time.monotonic(), 0.01))
+        data = json.loads(message.data) if message.type.name == "TEXT" else message.data
+        if wanted(message.type.name, data):
+            return data
+
+
+def is_error(kind, data):
+    return kind == "TEXT" and data["type"] == "error"
+
+
+def is_state(kind, data):
+    return kind == "TEXT" and data["type"] == "state"
+
+
+def is_frame(kind, data):
+    return kind == "BINARY"
+
+
+async def refused(answer, *words: str) -> str:
+    """``answer`` is a 403 whose JSON error names ``words``: its error."""
+    assert answer.status == 403, (answer.status, await answer.text())
+    error = (await answer.json())["error"]
+    for word in words:
+        assert word in error, (word, error)
+    return error
+
+
+def test_the_server_serves_the_page_frames_and_only_its_styles(mi, session, tmp_path):
+    async def scenario():
+        async with served(session, tmp_path) as (client, token, _):
             page = await client.get("/")
             assert page.status == 200 and "mistyle preview" in await page.text()
+            assert page.headers["Cache-Control"] == "no-store" and "frame-ancestors 'none'" in str(page.headers)
             assert (await client.get("/thumb/1.jpg")).status == 200
             assert (await client.get("/thumb/2.jpg")).status == 404
             assert (await client.get("/thumb/..%2F..%2Fetc%2Fpasswd")).status == 404
-            socket = await client.ws_connect("/ws")
+            socket = await client.ws_connect("/ws", origin=own_origin(client), params={"token": token})
             state = await socket.receive_json()
             assert state["styles"] == ["red.png", "blue.png"] and state["frames"] == 2
-            while True:
-                message = await asyncio.wait_for(socket.receive(), 120)
-                if message.type.name == "BINARY":
-                    break
-            kind, samples = struct.unpack("<B3xI", message.data[:8])
-            assert kind == 0 and samples == 0 and message.data[8:10] == b"\xff\xd8"
+            message = await next_message(socket, is_frame, 120)
+            kind, samples = struct.unpack("<B3xI", message[:8])
+            assert kind == 0 and samples == 0 and message[8:10] == b"\xff\xd8"
             await socket.send_str("not json")
-            assert "bad control message" in json.dumps(await next_json(socket))
-            form = FormData()
-            form.add_field("style", b"garbage", filename="bad.png")
-            answer = await client.post("/upload", data=form)
+            assert "bad control message" in (await next_message(socket, is_error))["message"]
+            headers = {"X-Mistyle-Token": token, "Origin": own_origin(client)}
+            answer = await client.post("/upload", data=picture_form(b"garbage", "bad.png"), headers=headers)
             assert answer.status == 400 and "bad.png" in (await answer.json())["error"]
-            buffer = io.BytesIO()
-            Image.fromarray(np.full((16, 16, 3), 90, np.uint8)).save(buffer, format="PNG")
-            form = FormData()
-            form.add_field("style", buffer.getvalue(), filename="grey.png")
-            answer = await client.post("/upload", data=form)
+            answer = await client.post("/upload", data=picture_form(png()), headers=headers)
             assert answer.status == 200 and (await answer.json())["index"] == 2
             assert (await client.get("/thumb/2.jpg")).status == 200
             await socket.close()
 
-    async def next_json(socket):
-        while True:
-            message = await asyncio.wait_for(socket.receive(), 120)
-            if message.type.name == "TEXT" and json.loads(message.data)["type"] == "error":
-                return json.loads(message.data)
+    asyncio.run(scenario())
+
+
+def test_a_page_of_another_site_cannot_open_the_websocket(session, tmp_path):
+    from aiohttp import WSServerHandshakeError
+
+    async def scenario():
+        async with served(session, tmp_path) as (client, token, _):
+            foreign = ("http://evil.example", "null", "http://127.0.0.1:1", f"https://127.0.0.1:{client.port}")
+            for origin in foreign:
+                with pytest.raises(WSServerHandshakeError) as error:
+                    await client.ws_connect("/ws", origin=origin, params={"token": token or "x"})
+                assert error.value.status == 403, origin
 
     asyncio.run(scenario())
-    del session.styles[2:]
+
+
+def test_a_page_of_another_site_cannot_upload_nor_start_a_render(session, tmp_path, jobs_started):
+    async def scenario():
+        async with served(session, tmp_path) as (client, token, paths):
+            headers = {"Origin": "http://evil.example", "X-Mistyle-Token": token or "x"}
+            answer = await client.post("/upload", data=picture_form(png()), headers=headers)
+            await refused(answer, "Origin 'http://evil.example'", own_origin(client))
+            for kind in ("final", "look"):
+                await refused(await client.post(f"/job/{kind}", headers=headers), "evil.example")
+            assert len(session.styles) == 2 and len(paths) == 2 and jobs_started == []
+
+    asyncio.run(scenario())
+
+
+def test_another_host_gets_nothing_not_even_the_page(session, tmp_path, jobs_started):
+    """DNS rebinding: another site's name resolving to loopback sends that name as Host (and Origin)."""
+    from aiohttp import WSServerHandshakeError
+
+    async def scenario():
+        async with served(session, tmp_path) as (client, token, _):
+            rebound = f"evil.example:{client.port}"
+            headers = {"Host": rebound, "Origin": f"http://{rebound}", "X-Mistyle-Token": token or "x"}
+            page = await client.get("/", headers={"Host": rebound})
+            error = await refused(page, f"Host '{rebound}'", f"127.0.0.1:{client.port}")
+            assert token is None or token not in error
+            await refused(await client.get("/thumb/0.jpg", headers={"Host": rebound}), "Host")
+            await refused(await client.post("/upload", data=picture_form(png()), headers=headers), "Host")
+            await refused(await client.post("/job/final", headers=headers), "Host")
+            with pytest.raises(WSServerHandshakeError) as refusal:
+                await client.ws_connect("/ws", headers=headers, params={"token": token or "x"})
+            assert refusal.value.status == 403
+            assert len(session.styles) == 2 and jobs_started == []
+
+    asyncio.run(scenario())
+
+
+def test_the_websocket_and_posts_need_the_server_runs_token(session, tmp_path, jobs_started):
+    from aiohttp import WSServerHandshakeError
+
+    async def scenario():
+        async with served(session, tmp_path) as (client, token, _):
+            for origin in (None, own_origin(client)):  # a script sends no Origin; the page its own
+                for params in ({}, {"token": "wrong"}):
+                    with pytest.raises(WSServerHandshakeError) as refusal:
+                        await client.ws_connect("/ws", origin=origin, params=params)
+                    assert refusal.value.status == 403, (origin, params)
+                for headers in ({}, {"X-Mistyle-Token": "wrong"}):
+                    headers = headers | ({"Origin": origin} if origin else {})
+                    answer = await client.post("/upload", data=picture_form(png()), headers=headers)
+                    await refused(answer, "token")
+                    await refused(await client.post("/job/final", headers=headers), "token")
+            assert len(session.styles) == 2 and jobs_started == []
+
+    asyncio.run(scenario())
+
+
+def test_the_page_with_its_origin_and_token_still_drives_the_preview(mi, session, tmp_path, jobs_started):
+    async def scenario():
+        async with served(session, tmp_path) as (client, token, _):
+            assert token and len(token) >= 32, "the page carries the server run's token"
+            socket = await client.ws_connect("/ws", origin=own_origin(client), params={"token": token})
+            assert (await next_message(socket, is_state))["styles"] == ["red.png", "blue.png"]
+            await next_message(socket, is_frame, 120)
+            headers = {"Origin": own_origin(client), "X-Mistyle-Token": token}
+            answer = await client.post("/upload", data=picture_form(png()), headers=headers)
+            assert answer.status == 200 and (await answer.json())["index"] == 2
+            assert (await next_message(socket, is_state))["styles"][2] == "grey.png"
+            answer = await client.post("/job/final", headers=headers)
+            assert answer.status == 200 and jobs_started == ["final"]
+            done = await next_message(socket, lambda kind, data: kind == "TEXT" and data["type"] == "job")
+            assert done["done"] and done["kind"] == "final"
+            await socket.close()
+            local = f"localhost:{client.port}"  # the other name of loopback, as typed in the address bar
+            page = await client.get("/", headers={"Host": local, "Origin": f"http://{local}"})
+            assert page.status == 200
+            answer = await client.post("/job/final", headers={"Host": local, "X-Mistyle-Token": token})
+            assert answer.status == 200, await answer.text()
+
+    asyncio.run(scenario())
+
+
+def test_a_server_run_keeps_a_bounded_number_and_size_of_uploads(session, tmp_path):
+    picture = png()
+
+    async def scenario(limits, refusal_words):
+        async with served(session, tmp_path, **limits) as (client, token, paths):
+            headers = {"X-Mistyle-Token": token}
+            for number in range(2):
+                answer = await client.post("/upload", data=picture_form(picture, f"{number}.png"), headers=headers)
+                assert answer.status == 200, await answer.text()
+            answer = await client.post("/upload", data=picture_form(picture, "third.png"), headers=headers)
+            assert answer.status == 413, await answer.text()
+            error = (await answer.json())["error"]
+            assert all(word in error for word in refusal_words), error
+            assert len(session.styles) == 4 and len(paths) == 4
+            kept = paths[2:]
+            assert all(path.is_file() for path in kept)
+        assert not any(path.exists() for path in kept) and not kept[0].parent.exists(), "removed at exit"
+
+    asyncio.run(scenario({"max_uploads": 2}, ["2 uploads at most", "--styles"]))
+    bytes_cap = {"max_uploads": 10, "max_uploads_bytes": 2 * len(picture) + len(picture) // 2}
+    asyncio.run(scenario(bytes_cap, ["third.png", "MB", "--styles"]))
+
+
+BAD_CONTROLS = [
+    ('{"strength": NaN}', "strength nan is not a finite number"),
+    ('{"mix": Infinity}', "mix inf"),
+    ('{"strength": 2}', "strength 2 is outside 0 to 1"),
+    ('{"style": 7}', "style 7 is not one of the styles (0 to 1)"),
+    ('{"style": "1"}', "style '1' is not an integer"),
+    ('{"mix_with": -1}', "mix_with -1"),
+    ('{"frame": 1.5}', "frame 1.5 is not an integer"),
+    ('{"frame": 2}', "frame 2 is not one of the frames (0 to 1)"),
+    ('{"look": true}', "no look"),
+    ('{"look": "false"}', "look 'false' is not true or false"),
+    ('{"camera": [0, Infinity, 2]}', "camera elevation"),
+    ('{"camera": [0, 0.1, -2]}', "camera distance -2"),
+    ('{"camera": "far"}', "camera 'far'"),
+    ('{"colour": 1}', "unknown control 'colour'"),
+    ("[1, 2]", "a control message is a JSON object"),
+    ('{"strength": 0.5, "style": 9}', "style 9"),  # nothing of a bad message is applied
+    ("[" * 100_000 + "]" * 100_000, "bad control message"),
+]
+
+
+def test_a_bad_control_message_is_answered_to_its_page_only_and_changes_nothing(mi, session, tmp_path):
+    async def scenario():
+        async with served(session, tmp_path) as (client, token, _):
+            connect = dict(origin=own_origin(client), params={"token": token})
+            sender, other = await client.ws_connect("/ws", **connect), await client.ws_connect("/ws", **connect)
+            seen = []  # everything the other page gets
+
+            async def collect():
+                async for message in other:
+                    seen.append(message)
+
+            collector = asyncio.get_running_loop().create_task(collect())
+            before = (await next_message(sender, is_state))["controls"]
+            for text, words in BAD_CONTROLS:
+                await sender.send_str(text)
+                error = await next_message(sender, is_error, 10)
+                assert words in error["message"] and "bad control message" in error["message"], (text, error)
+                assert (await next_message(sender, is_state, 10))["controls"] == before, text
+            mark = len(seen)
+            await sender.send_str(json.dumps({"strength": 0.5, "style": 1}))
+            await sender.send_str('{"style": -1}')  # answered after the good one: its state shows it applied
+            controls = (await next_message(sender, is_state, 10))["controls"]
+            assert (controls["strength"], controls["style"]) == (0.5, 1)
+            deadline = time.monotonic() + 60
+            while not any(message.type.name == "BINARY" and message.data[0] == 0 for message in seen[mark:]):
+                assert time.monotonic() < deadline, "the other page gets the new fast-layer frame"
+                await asyncio.sleep(0.02)
+            texts = [json.loads(message.data) for message in seen if message.type.name == "TEXT"]
+            assert texts and not [text for text in texts if text["type"] == "error"], texts
+            await sender.close()
+            await other.close()
+            await collector
+
+    asyncio.run(scenario())

@@ -8,7 +8,8 @@ the styles' thumbnails and takes uploads (the decoder and limits of ``--style``)
 sliders, a frame slider for sequences, orbit by dragging and zoom by scrolling: the fast layer's
 image while you interact, refining into a progressive path-traced image when the view is still.
 *Render final output* and *Save look* run ``mistyle-render`` for the current settings and write
-under ``--out``. ``session`` holds what is shown; ``server`` the web side and why it is built so.
+under ``--out``. Only the page it serves can drive it: other sites' pages are refused (``server``
+says how). ``session`` holds what is shown; ``server`` the web side and why it is built so.
 """
 
 from __future__ import annotations
@@ -118,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
             out=args.out,
             look=args.look,
             render_options=render_options(args),
+            host=args.host,
         )
         port = listener.getsockname()[1]
         print(f"mistyle preview: http://{args.host}:{port}/  (Ctrl-C to stop)", flush=True)

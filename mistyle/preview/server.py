@@ -17,13 +17,51 @@ frames and status out).
 
 Frames: header ``kind (1 byte: 0 fast layer, 1 path traced) | 3 bytes 0 | samples (uint32, little
 endian)`` then the JPEG.
+
+Who may drive it: only the page this server run served. Listening on loopback is not enough, since any
+web page the user opens can send requests to loopback, and DNS rebinding can give another site's
+name a loopback address. So every request is checked (``refusal``), and a refused one gets a 403 with
+a JSON ``error`` naming what was wrong:
+
+* ``Host`` must name the address the request arrived on, with its port: ``127.0.0.1:PORT``,
+  ``localhost:PORT`` or ``[::1]:PORT`` on loopback, else that address or ``--host`` as given. A
+  rebinding page's ``Host`` is its own domain name, so it gets nothing, not even the page and its
+  token.
+* ``Origin``, when present, must be the server's own origin (``http://`` and an allowed ``Host``).
+  Browsers send it on every websocket handshake and on every ``fetch`` POST, so a page on another
+  site is refused by it alone.
+* The websocket, every POST and any route but ``/`` and the thumbnails carry the server run's token
+  (``secrets.token_urlsafe``), in the ``X-Mistyle-Token`` header or a ``token`` query parameter (the
+  websocket's way: a browser cannot set its headers). The page gets it in its
+  ``<meta name="mistyle-token">``, filled in when served with ``Cache-Control: no-store`` (a page
+  left open from an earlier run is refused until reloaded) and in no frame of another site
+  (``frame-ancestors 'none'``). ``/`` and the thumbnails need no token: another site's page may show
+  a thumbnail but never read its pixels, nor read the page.
+* A request without ``Origin``, the websocket's included, is not a browser page's (every browser
+  sends one on a handshake and on a ``fetch`` POST) but curl's or a script's. It is not refused for
+  that alone, since the token is what it must carry: a script gets the token by reading ``/`` as the
+  page does, which only a client that reaches the server at its own address can.
+
+Uploads are written to a temporary folder (``mistyle-render`` reads them by path) removed when the
+server stops. A run keeps at most ``MAX_UPLOADS`` of them and ``MAX_UPLOADS_BYTES`` in all; an upload
+past either is refused with 413 rather than dropping older ones, since styles are addressed by
+index: dropping one would renumber the styles under every open page and its cached images.
+
+Controls arrive as JSON objects and are checked per message (``controls_from``): a message with an
+unknown key, a value of the wrong type, a non-finite number or an index past the session's styles or
+frames is answered with an ``error`` (and the current ``state``) to its page only, and none of it is
+applied; the other pages and the renders go on with the controls as they were.
 """
 
 from __future__ import annotations
 
 import asyncio
+import html
+import ipaddress
 import json
+import math
 import re
+import secrets
 import shutil
 import struct
 import subprocess
@@ -39,6 +77,13 @@ from .session import Camera, Controls, PreviewSession, jpeg
 
 IDLE_BEFORE_PATH_TRACING_S = 0.35
 FAST, PATH_TRACED = 0, 1
+TOKEN_HEADER = "X-Mistyle-Token"
+TOKEN_PLACEHOLDER = "{{MISTYLE_TOKEN}}"
+MAX_UPLOADS = 20
+"""Uploads one server run keeps (module docstring: more are refused with 413)."""
+MAX_UPLOADS_BYTES = 128 * 1024 * 1024
+"""Bytes of the uploads one server run keeps, in all (each one is limited by ``session.MAX_UPLOAD_BYTES``)."""
+CONTROL_NAMES = ("style", "mix_with", "mix", "strength", "frame", "look", "camera")
 
 
 def safe_name(name: str) -> str:
@@ -48,6 +93,105 @@ def safe_name(name: str) -> str:
 
 def frame_message(kind: int, samples: int, image) -> bytes:
     return struct.pack("<B3xI", kind, samples) + jpeg(image)
+
+
+def url_host(address: str) -> str:
+    """``address`` as a URL writes it: an IPv6 address in brackets."""
+    return f"[{address}]" if ":" in address and not address.startswith("[") else address
+
+
+def is_loopback(address: str) -> bool:
+    try:
+        ip = ipaddress.ip_address(address.split("%")[0])
+    except ValueError:
+        return False
+    mapped = getattr(ip, "ipv4_mapped", None)  # ::ffff:127.0.0.1 on a dual-stack socket
+    return ip.is_loopback or (mapped is not None and mapped.is_loopback)
+
+
+def allowed_hosts(local: tuple | None, host: str | None) -> set[str]:
+    """The ``Host`` values of a request that arrived on the socket address ``local`` (``(address, port,
+    ...)``): that address, localhost's names when it is loopback, and ``host`` (``--host``), each with
+    the port (and without it on port 80, as browsers send it)."""
+    if not local:
+        return set()
+    address, port = str(local[0]), int(local[1])
+    names = {url_host(address)}
+    if is_loopback(address):
+        names |= {"127.0.0.1", "localhost", "[::1]"}
+    if host:
+        names.add(url_host(host))
+    allowed = {f"{name}:{port}".lower() for name in names}
+    if port == 80:
+        allowed |= {name.lower() for name in names}
+    return allowed
+
+
+def refusal(*, method: str, path: str, headers, query, local: tuple | None, host: str | None, token: str) -> str | None:
+    """Why a request may not reach the preview (module docstring: Host, Origin, token), or ``None``."""
+    hosts = allowed_hosts(local, host)
+    shown = ", ".join(sorted(hosts)) or "none"
+    sent_host = headers.get("Host")
+    if sent_host is None:
+        return f"The request has no Host header; send the server's address ({shown})."
+    if sent_host.lower() not in hosts:
+        return (
+            f"Host {sent_host[:100]!r} is not this server's address ({shown}); "
+            "open the page at the URL mistyle-preview printed."
+        )
+    origin = headers.get("Origin")
+    if origin is not None and origin.lower() not in {f"http://{name}" for name in hosts}:
+        own = f"http://{sent_host.lower()}"
+        return f"Origin {origin[:100]!r} is not this preview's page ({own}); only the page it serves may drive it."
+    public = method in ("GET", "HEAD") and (path == "/" or path.startswith("/thumb/"))
+    if not public:  # the page and thumbnails only: a route added later needs the token from the start
+        sent = headers.get(TOKEN_HEADER) or query.get("token")
+        if not sent:
+            return (
+                f"{method} {path} needs this server run's token, in the {TOKEN_HEADER} header or a 'token' "
+                'query parameter; the page carries it in <meta name="mistyle-token">.'
+            )
+        if not secrets.compare_digest(sent.encode(), token.encode()):
+            return (
+                f"The token of {method} {path} is not this server run's; reload the page "
+                "(a page from an earlier run of mistyle-preview holds an old one)."
+            )
+    return None
+
+
+class Uploads:
+    """The pictures uploaded in one server run, kept in a temporary folder for ``mistyle-render``'s
+    ``--style``: at most ``max_count`` files and ``max_bytes`` in all (module docstring)."""
+
+    def __init__(self, max_count: int = MAX_UPLOADS, max_bytes: int = MAX_UPLOADS_BYTES):
+        self.max_count, self.max_bytes = int(max_count), int(max_bytes)
+        self.folder: Path | None = None  # made at the first upload
+        self.sizes: list[int] = []
+
+    def refusal(self, size: int = 0, name: str = "the upload") -> str | None:
+        """Why one more upload of ``size`` bytes may not be kept, or ``None``."""
+        used = sum(self.sizes)
+        advice = "restart mistyle-preview to upload more, or put the pictures in a folder given to --styles."
+        if len(self.sizes) >= self.max_count:
+            return f"This preview keeps {self.max_count} uploads at most and has {len(self.sizes)}; {advice}"
+        if used + size > self.max_bytes:
+            return (
+                f"{name} ({size / 2**20:.1f} MB) would take the uploads past {self.max_bytes / 2**20:.0f} MB "
+                f"({used / 2**20:.1f} MB kept); {advice}"
+            )
+        return None
+
+    def keep(self, index: int, name: str, data: bytes) -> Path:
+        if self.folder is None:
+            self.folder = Path(tempfile.mkdtemp(prefix="mistyle-preview-styles-"))
+        path = self.folder / f"{index:03d}_{safe_name(name)}"
+        path.write_bytes(data)
+        self.sizes.append(len(data))
+        return path
+
+    def remove(self) -> None:
+        if self.folder is not None:
+            shutil.rmtree(self.folder, ignore_errors=True)
 
 
 class Worker(threading.Thread):
@@ -149,14 +293,21 @@ def build_app(
     out: Path,
     look: Path | None,
     render_options: list[str] = (),
+    host: str | None = None,
+    max_uploads: int = MAX_UPLOADS,
+    max_uploads_bytes: int = MAX_UPLOADS_BYTES,
 ):
     """The aiohttp application of the preview (module docstring). ``render_options``: more
-    ``mistyle-render`` options for the page's jobs."""
+    ``mistyle-render`` options for the page's jobs; ``host``: the address it was told to listen on
+    (``--host``), a ``Host`` it answers besides the socket's own address; ``max_uploads`` and
+    ``max_uploads_bytes``: what a run keeps of uploads."""
     from aiohttp import WSMsgType, web
 
     sockets: set = set()
     loop_holder: dict = {}
-    uploads = Path(tempfile.mkdtemp(prefix="mistyle-preview-styles-"))
+    token = secrets.token_urlsafe(32)
+    uploads = Uploads(max_uploads, max_uploads_bytes)
+    upload_lock = asyncio.Lock()  # one upload at a time: the caps are checked and kept together
     jobs = Jobs(out, density, look, list(render_options))
 
     def send(message) -> None:
@@ -191,9 +342,31 @@ def build_app(
             },
         }
 
+    @web.middleware
+    async def guard(request, handler):
+        transport = request.transport
+        why = refusal(
+            method=request.method,
+            path=request.path,
+            headers=request.headers,
+            query=request.query,
+            local=transport.get_extra_info("sockname") if transport is not None else None,
+            host=host,
+            token=token,
+        )
+        if why is not None:
+            return web.json_response({"error": why}, status=403)
+        return await handler(request)
+
     async def page(request):
         text = resources.files("mistyle.preview").joinpath("page.html").read_text()
-        return web.Response(text=text, content_type="text/html")
+        text = text.replace(TOKEN_PLACEHOLDER, html.escape(token))
+        headers = {
+            "Cache-Control": "no-store",  # the token is this run's: a cached page would hold a stale one
+            "Content-Security-Policy": "frame-ancestors 'none'",  # no other site may frame it and click it
+            "X-Frame-Options": "DENY",
+        }
+        return web.Response(text=text, content_type="text/html", headers=headers)
 
     async def thumbnail(request):
         index = int(request.match_info["index"])
@@ -202,23 +375,32 @@ def build_app(
         return web.Response(body=session.styles[index].thumbnail, content_type="image/jpeg")
 
     async def upload(request):
+        async with upload_lock:
+            return await upload_one(request)
+
+    async def upload_one(request):
         from .session import decode_upload
 
+        full = uploads.refusal()
+        if full is not None:  # before reading the body: a full server does no work for it
+            return web.json_response({"error": full}, status=413)
         try:
             reader = await request.multipart()
             part = await reader.next()
             if part is None or part.name != "style":
                 raise ValueError("The upload holds no picture (a form field named 'style').")
             name = part.filename or "upload.png"
-            data = await part.read(decode=False)
-            style = await asyncio.get_running_loop().run_in_executor(None, decode_upload, name, bytes(data))
+            data = bytes(await part.read(decode=False))
+            full = uploads.refusal(len(data), name)
+            if full is not None:
+                return web.json_response({"error": full}, status=413)
+            style = await asyncio.get_running_loop().run_in_executor(None, decode_upload, name, data)
         except ValueError as error:
             return web.json_response({"error": str(error)}, status=400)
         except Exception as error:  # a malformed request: the page says so, the server goes on
             return web.json_response({"error": f"The upload could not be read ({error})."}, status=400)
         index = len(session.styles)
-        path = uploads / f"{index:03d}_{safe_name(style.name)}"
-        path.write_bytes(bytes(data))
+        path = uploads.keep(index, style.name, data)
         style_paths.append(path)
         session.styles.append(style)
         worker.update(replace(worker.controls, style=index, look=False))
@@ -266,9 +448,13 @@ def build_app(
                     continue
                 try:
                     fields = json.loads(message.data)
-                    worker.update(session.checked(controls_from(worker.controls, fields)))
-                except (ValueError, TypeError, KeyError) as error:
+                    controls = session.checked(controls_from(worker.controls, fields, session))
+                except (ValueError, TypeError, RecursionError) as error:
+                    # To this page only, with the state it should show again: nothing of the message was applied.
                     await socket.send_json({"type": "error", "message": f"bad control message: {error}"})
+                    await socket.send_json(state())
+                    continue
+                worker.update(controls)
         finally:
             sockets.discard(socket)
         return socket
@@ -281,9 +467,9 @@ def build_app(
         worker.stop()
         # A daemon thread killed inside Mitsuba at exit aborts the process: let it finish its pass.
         await asyncio.get_running_loop().run_in_executor(None, worker.join, 60)
-        shutil.rmtree(uploads, ignore_errors=True)
+        uploads.remove()
 
-    app = web.Application(client_max_size=80 * 1024 * 1024)
+    app = web.Application(client_max_size=80 * 1024 * 1024, middlewares=[guard])
     app.router.add_get("/", page)
     app.router.add_get(r"/thumb/{index:\d+}.jpg", thumbnail)
     app.router.add_post("/upload", upload)
@@ -294,16 +480,87 @@ def build_app(
     return app
 
 
-def controls_from(current: Controls, fields: dict) -> Controls:
-    """``current`` with the fields a page sent (``style``, ``mix_with``, ``mix``, ``strength``, ``frame``,
-    ``look``, ``camera``: ``[azimuth, elevation, distance]``)."""
+def shown(value) -> str:
+    """``value`` as a JSON-ish text short enough for a message."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def checked_number(name: str, value) -> float:
+    """``value`` as a finite float; ``ValueError`` naming ``name`` otherwise (a bool is not a number)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{name} {shown(value)} is not a number; send a JSON number.")
+    try:
+        result = float(value)
+    except OverflowError:
+        result = math.inf
+    if not math.isfinite(result):
+        raise ValueError(f"{name} {shown(value)} is not a finite number; send a finite JSON number.")
+    return result
+
+
+def checked_index(name: str, value, count: int | None, what: str) -> int:
+    """``value`` as an index into ``count`` things (``None``: any from 0); ``ValueError`` otherwise."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f"{name} {shown(value)} is not an integer; send the index of one of the {what}.")
+    if value < 0 or (count is not None and value >= count):
+        bounds = f"0 to {count - 1}" if count is not None else "0 or more"
+        raise ValueError(f"{name} {shown(value)} is not one of the {what} ({bounds}).")
+    return value
+
+
+def controls_from(current: Controls, fields, session: PreviewSession | None = None) -> Controls:
+    """``current`` with the fields a page sent (a JSON object of ``style``, ``mix_with``, ``mix``,
+    ``strength``, ``frame``, ``look``, ``camera``: ``[azimuth, elevation, distance]``).
+
+    Every field is checked, and against ``session``'s styles, frames and look when given; the camera is
+    then clamped to the orbit by ``session.checked``, as the page clamps it.
+
+    Raises:
+        ValueError: an unknown field or a bad value, named with what it takes; nothing of the message
+            is applied."""
+    if not isinstance(fields, dict):
+        raise ValueError(f"a control message is a JSON object of {', '.join(CONTROL_NAMES)}; got {shown(fields)}.")
+    unknown = sorted(str(name) for name in fields if name not in CONTROL_NAMES)
+    if unknown:
+        raise ValueError(f"unknown control {shown(unknown[0])}; the controls are {', '.join(CONTROL_NAMES)}.")
+    styles = len(session.styles) if session is not None else None
     changes = {}
-    for name, kind in (("style", int), ("mix", float), ("strength", float), ("frame", int), ("look", bool)):
+    if "style" in fields:
+        changes["style"] = checked_index("style", fields["style"], styles, "styles")
+    if "mix_with" in fields and fields["mix_with"] is not None:
+        try:
+            changes["mix_with"] = checked_index("mix_with", fields["mix_with"], styles, "styles")
+        except ValueError as error:
+            raise ValueError(f"{error} Send null for no second style.") from None
+    elif "mix_with" in fields:
+        changes["mix_with"] = None
+    for name in ("mix", "strength"):
         if name in fields:
-            changes[name] = kind(fields[name])
-    if "mix_with" in fields:
-        changes["mix_with"] = None if fields["mix_with"] is None else int(fields["mix_with"])
+            value = checked_number(name, fields[name])
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{name} {shown(fields[name])} is outside 0 to 1.")
+            changes[name] = value
+    if "frame" in fields:
+        frames = len(session.frames) if session is not None else None
+        changes["frame"] = checked_index("frame", fields["frame"], frames, "frames")
+    if "look" in fields:
+        value = fields["look"]
+        if not isinstance(value, bool):
+            raise ValueError(f"look {shown(value)} is not true or false.")
+        if value and session is not None and session.look is None:
+            raise ValueError("look true: this preview has no look; start it with --look or save one (Save look).")
+        changes["look"] = value
     if "camera" in fields:
-        azimuth, elevation, distance = (float(value) for value in fields["camera"])
+        camera = fields["camera"]
+        if not isinstance(camera, (list, tuple)) or len(camera) != 3:
+            raise ValueError(f"camera {shown(camera)} is not [azimuth, elevation, distance].")
+        azimuth, elevation, distance = (
+            checked_number(f"camera {part}", value) for part, value in zip(("azimuth", "elevation", "distance"), camera)
+        )
+        if distance <= 0:
+            raise ValueError(f"camera distance {shown(camera[2])} is not positive.")
         changes["camera"] = Camera(azimuth, elevation, distance)
     return replace(current, **changes)

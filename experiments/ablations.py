@@ -437,12 +437,12 @@ def region_fidelity(images: list, opacities: list, style) -> dict:
     ``dense_...``, and each region's share of the foreground."""
     import numpy as np
 
-    from mistyle.display import display
     from mistyle.objective.metrics import (
         foreground_mask,
         hue_coverage,
         sliced_wasserstein,
     )
+    from mistyle.tone import display
 
     style = np.asarray(style, dtype=np.float32)
     masks = [foreground_mask(image) for image in images]

@@ -48,10 +48,10 @@ def main() -> None:
     from mistyle.benchmark.study import metric_views, score
     from mistyle.colour_match import fit_colour_match
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.display import display
     from mistyle.io import load_style
     from mistyle.objective.metrics import style_fidelity
     from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
+    from mistyle.tone import display
     from mistyle.train.dataset import validation_paintings
 
     lines = Path(args.reference).read_text().splitlines()

@@ -182,9 +182,9 @@ def report(rows: list[dict], out: Path, args) -> None:
     from mistyle.api import Stylizer
     from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.display import display
     from mistyle.io import load_style
     from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
+    from mistyle.tone import display
     from mistyle.train.dataset import validation_paintings
 
     stylizer = Stylizer(args.checkpoint)

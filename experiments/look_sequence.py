@@ -57,11 +57,11 @@ def run(args) -> None:
     from mistyle.benchmark.methods import Context, colour_matched, density_ramp, smooth_noise, uniform_albedo
     from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import held_out_sequence, held_out_styles
-    from mistyle.display import display
     from mistyle.io import load_style
     from mistyle.look import LookSettings
     from mistyle.objective.metrics import temporal_flicker
     from mistyle.pipeline import Pipeline, PipelineSettings
+    from mistyle.tone import display
 
     densities, velocities = held_out_sequence(args.first, args.count, Path(args.cache))
     pipeline = Pipeline(PipelineSettings(refine_steps=0, refine_path_steps=0))

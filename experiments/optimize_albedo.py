@@ -44,7 +44,6 @@ def main() -> None:
     from mistyle.bridge_torch import render_views
     from mistyle.conventions import DEFAULT_ENV_RADIANCE
     from mistyle.data.styles import material_texture, offline_style_set
-    from mistyle.display import tone_map
     from mistyle.fit import FitSettings, fit_albedo
     from mistyle.integrators import PreparedDensity, prepare_density
     from mistyle.io import load_density
@@ -52,6 +51,7 @@ def main() -> None:
     from mistyle.objective.metrics import sliced_wasserstein, style_distance
     from mistyle.objective.style import StyleObjective
     from mistyle.scenes import CameraPath
+    from mistyle.tone import tone_map
 
     if args.radiance is None:
         args.radiance = DEFAULT_ENV_RADIANCE

@@ -55,8 +55,8 @@ def main() -> None:
     from mistyle.api import Stylizer
     from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.display import display
     from mistyle.io import load_style
+    from mistyle.tone import display
     from mistyle.train.dataset import validation_paintings
 
     stylizer = Stylizer(args.checkpoint)

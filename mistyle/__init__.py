@@ -2,15 +2,32 @@
 
 ``mistyle.stylize(density, style_image) -> albedo``, ``mistyle.render(density, albedo, view=u) ->
 image``, ``mistyle.display(image)`` (the PNGs' tone curve) and ``mistyle.load_density(path)`` (see
-``mistyle.api``), ``mistyle.fit_look`` and ``mistyle.Look`` (``mistyle.look``: a style fitted once on
-key frames, applied to every frame), and ``mistyle.Pipeline`` / ``mistyle.PipelineSettings``
-(``mistyle.pipeline``: every setting and every stage's result); they load torch and Mitsuba on first
-use, so ``import mistyle`` stays light.
+``mistyle.api``), ``mistyle.fit_look``, ``mistyle.Look`` and ``mistyle.LookSettings`` (``mistyle.look``: a
+style fitted once on key frames, applied to every frame), and ``mistyle.Pipeline`` /
+``mistyle.PipelineSettings`` / ``mistyle.RenderSettings`` (``mistyle.pipeline``: every setting and every
+stage's result); they load torch and Mitsuba on first use, so ``import mistyle`` stays light. Each checks
+its arguments first and names the one that is wrong.
 """
 
 __version__ = "0.1.0"
 
-_PUBLIC = ("stylize", "render", "display", "load_density", "fit_look", "Look", "Pipeline", "PipelineSettings")
+# ``api.__all__``, named here so that ``import mistyle`` does not load torch and Mitsuba to learn it
+# (tests/test_api_checks.py keeps the two equal).
+_PUBLIC = (
+    "stylize",
+    "render",
+    "display",
+    "load_density",
+    "load_style",
+    "fit_look",
+    "Look",
+    "LookSettings",
+    "Pipeline",
+    "PipelineSettings",
+    "RenderSettings",
+    "Stylizer",
+    "path_trace",
+)
 
 
 def __getattr__(name):

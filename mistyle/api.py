@@ -30,6 +30,10 @@ the final images), use ``mistyle.Pipeline`` with ``mistyle.PipelineSettings``.
 
 ``render`` path-traces the heterogeneous medium with Mitsuba's ``volpath`` in ``llvm_ad_rgb`` on the
 CPU (``cuda_ad_rgb`` with ``device="cuda"``).
+
+Every function checks its arguments before any work, with the command line's ranges: a ``TypeError``
+or ``ValueError`` of one line that names the argument and what it takes, and a ``BackendError`` for
+``device="cuda"`` on a machine without a usable GPU.
 """
 
 from __future__ import annotations
@@ -40,18 +44,32 @@ from pathlib import Path
 
 import numpy as np
 
+from . import io as _io
+from . import tone as _tone
+from .backend import check_device
 from .conventions import DEFAULT_DENSITY_SCALE, HELD_OUT_VIEW, ORBIT_DISTANCE
-from .display import display
-from .io import load_density, load_style
 from .look import Look, LookSettings
 from .pathtrace import path_trace
-from .pipeline import Pipeline, PipelineSettings, Stylizer
+from .pipeline import (
+    Pipeline,
+    PipelineSettings,
+    RenderSettings,
+    Stylizer,
+    checked_frames,
+    described,
+    style_parts,
+    validate_flag,
+    validate_int,
+    validate_path,
+    validate_real,
+)
 
 __all__ = [
     "Look",
     "LookSettings",
     "Pipeline",
     "PipelineSettings",
+    "RenderSettings",
     "Stylizer",
     "display",
     "fit_look",
@@ -62,10 +80,94 @@ __all__ = [
     "stylize",
 ]
 
+MAX_SEED = (1 << 31) - 1
+"""The largest ``render(seed=...)``: Mitsuba takes 32-bit unsigned seeds, and a render derives more from
+``seed`` (one per further view, and per sample pass of large renders), which must fit too."""
 
+
+# ---------------------------------------------------------------------------- argument checks
+# Each raises one line naming the argument and what it takes, before any work (the command line's
+# own checks are render_final.check_options; the ranges shared with it live in pipeline.RenderSettings).
+def _device(device) -> str:
+    return check_device(device, cpu_option='device="cpu"')
+
+
+def _frame_count(density) -> int:
+    """How many frames ``density`` (a frame, a sequence ``(T, Z, Y, X)`` or a list of frames) holds, each
+    checked (a valid density holding some medium); ``ValueError`` for none."""
+    if isinstance(density, (list, tuple)):
+        count = len(density)
+    else:
+        density = np.asarray(density)
+        count = density.shape[0] if density.ndim == 4 and density.shape[-1] != 1 else 1
+    if count == 0:
+        raise ValueError(
+            f"density holds no frames ({described(density)}); give a frame (Z, Y, X), a sequence (T, Z, Y, X) "
+            "with T >= 1, a list of frames or a density file's path."
+        )
+    return len(checked_frames(density)[0])
+
+
+def _style(style_image, name: str = "style_image", mixes: bool = True) -> None:
+    """The style's form: a path, an ``(H, W, C)`` array or (``mixes``) a mix ``[(style, weight), ...]``."""
+    accepted = "an image's path or an (H, W, 3) array" + (" or a mix [(style, weight), ...]" if mixes else "")
+    for image, _ in style_parts(style_image) if mixes else [(style_image, 1.0)]:
+        if not isinstance(image, (str, os.PathLike, np.ndarray)):
+            raise TypeError(f"{name} must be {accepted}; got {described(image)}.")
+
+
+def _key_frames(key_frames, frame_count: int):
+    if key_frames is None:
+        return None
+    if isinstance(key_frames, (str, bytes)) or not hasattr(key_frames, "__iter__"):
+        raise TypeError(f"key_frames must be a list of frame indices such as [0, 40, 80], got {described(key_frames)}.")
+    keys = [validate_int(key, "each of key_frames") for key in key_frames]
+    outside = [key for key in keys if not 0 <= key < frame_count]
+    if outside:
+        raise ValueError(
+            f"key_frames must index the density's {frame_count} frame(s), 0 to {frame_count - 1}; got {outside}."
+        )
+    return keys
+
+
+# ---------------------------------------------------------------------------- the API
 @functools.lru_cache(maxsize=2)
 def _stylizer(checkpoint, device, vgg_weights) -> Stylizer:
     return Stylizer(checkpoint, device, vgg_weights)
+
+
+def load_density(path, grid: str | None = None) -> np.ndarray:
+    """``io.load_density``: a density ``(Z, Y, X)`` from a ``.vol``, ``.vdb``, ``.npy`` or ``.npz`` file."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path must be a density file's path (a str or Path), got {described(path)}.")
+    if grid is not None and not isinstance(grid, str):
+        raise TypeError(f"grid must be a .vdb grid's name (a str) or None, got {described(grid)}.")
+    return _io.load_density(path, grid)
+
+
+def load_style(style, notes: list | None = None) -> np.ndarray:
+    """``io.load_style``: a style picture as float32 ``(H, W, 3)`` display RGB in [0, 1], from a path or an
+    array; ``notes`` (a list) collects the conversions made."""
+    _style(style, "style", mixes=False)
+    if notes is not None and not isinstance(notes, list):
+        raise TypeError(f"notes must be a list (the conversions are appended) or None, got {described(notes)}.")
+    return _io.load_style(style, notes)
+
+
+def display(image) -> np.ndarray:
+    """Linear radiance ``(..., 3)`` -> float32 display values in [0, 1]: the tone curve of mistyle's PNGs
+    (``tone.display``). ``ValueError`` for NaN or inf, which have no display value."""
+    array = np.asarray(image)
+    if not (np.issubdtype(array.dtype, np.number) or array.dtype == np.bool_) or np.iscomplexobj(array):
+        raise TypeError(f"image must hold real numbers (linear RGB radiance), got dtype {array.dtype}.")
+    bad = ~np.isfinite(array)
+    if bad.any():
+        raise ValueError(
+            f"image holds {int(bad.sum())} NaN/inf value(s) of {array.size} (first at index "
+            f"{tuple(int(i) for i in np.argwhere(bad)[0])}), which have no display value; clean it first, "
+            "e.g. np.nan_to_num(image, nan=0.0) (inf then shows white)."
+        )
+    return _tone.display(array)
 
 
 def stylize(
@@ -100,8 +202,10 @@ def stylize(
     Returns:
         ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) float32 albedo in [0, 1].
     """
-    if isinstance(density, (str, os.PathLike)):
-        density = load_density(density)
+    validate_path(checkpoint, "checkpoint", "a mistyle-train checkpoint's path")
+    validate_flag(match_colours, "match_colours")
+    validate_flag(refine, "refine")
+    _device(device)
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
     steps = {} if refine else {"refine_steps": 0, "refine_path_steps": 0}
     settings = PipelineSettings(
@@ -113,6 +217,10 @@ def stylize(
         colour_match=match_colours,
         **steps,
     )
+    _style(style_image)
+    if isinstance(density, (str, os.PathLike)):
+        density = load_density(density)
+    _frame_count(density)
     stylized = Pipeline(settings, stylizer=_stylizer(key, device, vgg_weights)).stylize(density, style_image)
     return np.stack(stylized.albedos) if stylized.frames.sequence else stylized.albedos[0]
 
@@ -131,15 +239,21 @@ def fit_look(
     ``density`` (a frame ``(Z, Y, X)``, a sequence ``(T, Z, Y, X)``, a list of frames, or a path), as
     ``mistyle-render --save-look`` fits it; ``look.stylize(frame)`` applies it, ``look.save(path)``
     writes it and ``Look.load(path)`` reads it back. ``density_scale``: the scale the frames will be
-    rendered at (default: the checkpoint's)."""
-    if isinstance(density, (str, os.PathLike)):
-        from .io import load_density_frames
-
-        density = load_density_frames(density).densities
+    rendered at (default: the checkpoint's); ``settings``: a ``LookSettings`` (default: ``--save-look``'s)."""
+    validate_path(checkpoint, "checkpoint", "a mistyle-train checkpoint's path")
+    _device(device)
+    if settings is not None and not isinstance(settings, LookSettings):
+        raise TypeError(
+            f"settings must be a LookSettings (e.g. mistyle.LookSettings(steps=30)) or None, got {described(settings)}."
+        )
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
     pipeline_settings = PipelineSettings(
         checkpoint=key, device=device, density_scale=density_scale, scale_structures=scale_structures
     )
+    _style(style_image)
+    if isinstance(density, (str, os.PathLike)):
+        density = _io.load_density_frames(density).densities
+    key_frames = _key_frames(key_frames, _frame_count(density))
     pipeline = Pipeline(pipeline_settings, stylizer=_stylizer(key, device, None))
     return pipeline.fit_look(density, style_image, key_frames=key_frames, look_settings=settings)
 
@@ -169,13 +283,35 @@ def render(
         light: ``constant[:Le]``, ``envmap:<file.exr>[:scale]``, ``point:x,y,z[:I]`` or ``area[:L]``.
         coat_ior: a smooth dielectric boundary of this index of refraction (e.g. 1.5); ``None``: none.
         camera_distance: the orbit's radius (the medium box's longest side is 1).
+        seed: the sampler's seed, in [0, ``MAX_SEED``].
     """
-    from .scenes import CameraPath, View
-    from .scenes.cameras import validate_orbit_position
+    from .scenes import CameraPath, LightSpec, View, validate_density_scale
+    from .scenes.cameras import validate_camera_distance, validate_orbit_position
+    from .volume import validate_albedo, validate_density
 
-    camera = (
-        view if isinstance(view, View) else CameraPath(distance=camera_distance).view(validate_orbit_position(view))
-    )
+    RenderSettings(res=res, spp=spp, max_depth=max_depth, coat_ior=coat_ior)  # mistyle-render's ranges
+    validate_density_scale(validate_real(density_scale, "density_scale"))
+    validate_int(seed, "seed", 0, MAX_SEED)
+    if not isinstance(light, (str, LightSpec)):
+        raise TypeError(
+            "light must be a string: constant[:Le], envmap:<file.exr>[:scale], point:x,y,z[:intensity] or "
+            f"area[:radiance] (default 'constant'); got {described(light)}."
+        )
+    if isinstance(light, str):
+        try:
+            light = LightSpec.parse(light)
+        except ValueError as error:  # the parser's messages name the command line's option
+            raise ValueError(str(error).replace("--light", "light", 1)) from None
+    _device(device)
+    if isinstance(view, View):
+        camera = view
+    else:
+        position = validate_real(view, "view", "an orbit position in [0, 1) or a mistyle.scenes.View")
+        distance = validate_real(camera_distance, "camera_distance")
+        camera = CameraPath(distance=validate_camera_distance(distance, "camera_distance")).view(
+            validate_orbit_position(position)
+        )
+    validate_albedo(albedo, validate_density(density).shape)
     images, _ = path_trace(
         density,
         albedo,

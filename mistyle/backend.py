@@ -49,7 +49,7 @@ def use_variant(device: str = "cpu"):
     if name.startswith("llvm"):
         check_llvm_backend()
     else:
-        _check_cuda_backend()
+        check_cuda_backend()
     import mitsuba as mi
 
     if mi.variant() != name:
@@ -152,11 +152,32 @@ def _llvm_kernel_runs_in_subprocess() -> bool:
     return result.returncode == 0
 
 
-def _check_cuda_backend() -> None:
+def check_cuda_backend(cpu_option: str = "--device cpu") -> None:
+    """``BackendError`` unless Dr.Jit's CUDA backend is active; the message says to use ``cpu_option``
+    (the command line's ``--device cpu``, the API's ``device="cpu"``) instead."""
     import drjit as dr
 
     if not dr.has_backend(dr.JitBackend.CUDA):
         raise BackendError(
-            "Dr.Jit's CUDA backend is inactive (no NVIDIA driver/GPU visible). Run with "
-            "--device cpu to use the llvm_ad_rgb variant instead."
+            f"Dr.Jit's CUDA backend is inactive (no NVIDIA driver/GPU visible). Run with "
+            f"{cpu_option} to use the llvm_ad_rgb variant instead."
         )
+
+
+def check_device(device, cpu_option: str = "--device cpu") -> str:
+    """``device`` (``conventions.DEVICES``) if this machine can run mistyle on it, before any work.
+
+    ``ValueError`` for another device; for ``cuda``, ``BackendError`` when Dr.Jit (the path tracer) or
+    torch (the network) sees no GPU, naming ``cpu_option`` as the way around."""
+    if device not in DEVICES:
+        raise ValueError(f"device must be one of {', '.join(map(repr, DEVICES))}, got {device!r}.")
+    if device == "cuda":
+        check_cuda_backend(cpu_option)
+        import torch
+
+        if not torch.cuda.is_available():
+            raise BackendError(
+                f"torch {torch.__version__} sees no CUDA GPU (a CPU-only build, or no NVIDIA driver). "
+                f"Run with {cpu_option}, or install a CUDA build of torch."
+            )
+    return device

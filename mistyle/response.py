@@ -85,7 +85,7 @@ def uniform_display_response(
 
     ``pack_channels``: render three levels at a time, one in each colour channel, for the same
     expectation from a third of the renders (the noise of the levels in one render is correlated)."""
-    from .display import display
+    from .tone import display
 
     levels = np.asarray(levels, dtype=np.float64)
     if pack_channels:

@@ -74,8 +74,8 @@ def agreement(mistyle_exr, blender_exr) -> dict:
     """Luminance correlation over either image's foreground, foreground IoU and the mean foreground
     colour of each, in mistyle's display space."""
     from mistyle.conventions import FOREGROUND_THRESHOLD
-    from mistyle.display import display
     from mistyle.io import read_exr
+    from mistyle.tone import display
 
     ours, theirs = read_exr(mistyle_exr)[..., :3], read_blender_exr(blender_exr)
     shown_ours, shown_theirs = display(ours), display(theirs)

@@ -75,7 +75,7 @@ def test_patches_are_only_taken_wholly_inside_the_mask():
 
 def linear_from_display(display_values):
     """Invert the tone curve, so a render shows exactly ``display_values``."""
-    from mistyle.display import TONE_EPSILON
+    from mistyle.tone import TONE_EPSILON
 
     compressed = (np.asarray(display_values, np.float64) + TONE_EPSILON ** (1 / 2.2)) ** 2.2 - TONE_EPSILON
     return (compressed / (1 - compressed)).astype(np.float32)
@@ -155,10 +155,10 @@ def test_refinement_brings_a_path_traced_render_closer_to_the_style(mi, blob_den
 
 def test_matched_uniform_albedo_reproduces_the_style_mean(mi, blob_density):
     from mistyle.api import path_trace
-    from mistyle.display import display
     from mistyle.objective.metrics import foreground_mask
     from mistyle.response import matched_uniform_albedo
     from mistyle.scenes import CameraPath
+    from mistyle.tone import display
 
     style = np.broadcast_to(np.float32([0.7, 0.45, 0.2]), (16, 16, 3))
     views = CameraPath(distance=2.0).turntable(2)

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import torch
 
-from mistyle.display import tone_map
 from mistyle.objective.losses import (
     gram_loss,
     histogram_loss,
@@ -20,6 +19,7 @@ from mistyle.objective.metrics import (
     style_distance,
     temporal_flicker,
 )
+from mistyle.tone import tone_map
 from mistyle.warp import semi_lagrangian_warp
 
 GEN = torch.Generator().manual_seed(0)

@@ -175,8 +175,8 @@ def test_embedded_colour_profiles_are_applied_and_broken_ones_noted(tmp_path):
 
 
 def test_exr_styles_are_read_with_the_display_curve(tmp_path):
-    from mistyle.display import display
     from mistyle.io import write_exr
+    from mistyle.tone import display
 
     radiance = np.random.default_rng(2).random((12, 12, 3)).astype(np.float32) * 4
     notes = []

@@ -4,6 +4,6 @@
 body masks, ``style`` the objectives (``StyleObjective``: the paper's "tone-map -> mask -> extractor
 -> style loss"; ``SlicedObjective``: RGB and pixel-patch sliced Wasserstein, used by refinement and
 selectable for training), and ``metrics`` the distances reported by experiments and ``render_final``
-(``style_fidelity``: the fidelity benchmark's). Imports ``mistyle.display``
+(``style_fidelity``: the fidelity benchmark's). Imports ``mistyle.tone``
 and ``mistyle.warp``; imported by ``fit``, ``train`` and the inference path.
 """

@@ -10,7 +10,7 @@ import torch
 import torch.nn.functional as F
 
 from ..conventions import FOREGROUND_THRESHOLD
-from ..display import tone_map
+from ..tone import tone_map
 
 
 def render_mask(images: torch.Tensor, threshold: float = FOREGROUND_THRESHOLD) -> torch.Tensor:

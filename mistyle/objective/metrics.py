@@ -1,7 +1,7 @@
 """Style-match metrics for experiments and training logs.
 
 Images are numpy or torch ``(H, W, 3)``. Renders are linear radiance and go through the training
-tone curve (``mistyle.display``) so they are compared with style images in display space.
+tone curve (``mistyle.tone``) so they are compared with style images in display space.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from ..conventions import FOREGROUND_THRESHOLD
-from ..display import display
+from ..tone import display
 from ..warp import semi_lagrangian_warp
 from .losses import scaled_patches
 

@@ -1,6 +1,6 @@
 """The style objective on renders, shared by SKPN training and the direct-optimisation baseline.
 
-Renders (linear radiance from the fast layer) are tone-mapped (``mistyle.display.tone_map``), masked where
+Renders (linear radiance from the fast layer) are tone-mapped (``mistyle.tone.tone_map``), masked where
 they see the medium, passed through the feature extractor, and compared with the style: the
 histogram loss (or, for ablations, Gram or mean-std) on every feature level plus the histogram
 loss in RGB (paper Sec. 4.4).
@@ -12,7 +12,7 @@ import torch
 import torch.nn as nn
 
 from ..conventions import STYLE_LOSSES
-from ..display import tone_map
+from ..tone import tone_map
 from .losses import (
     gram_loss,
     histogram_loss,

@@ -107,7 +107,7 @@ def jpeg(image: np.ndarray) -> bytes:
     """A linear ``(H, W, 3)`` radiance image on the renders' display curve, as JPEG bytes."""
     from PIL import Image
 
-    from ..display import display
+    from ..tone import display
 
     buffer = io.BytesIO()
     Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8)).save(buffer, format="JPEG", quality=JPEG_QUALITY)

@@ -2,6 +2,9 @@
 
 One curve serves the losses (on torch tensors, differentiable), the metrics, the PNGs that
 mistyle writes and the EXR styles it reads, so "what a render looks like" means one thing.
+
+The module is ``tone``, not ``display``: ``mistyle.display`` is the public function (``api.display``),
+and importing a submodule of that name would replace it on the package.
 """
 
 from __future__ import annotations

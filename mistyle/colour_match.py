@@ -315,10 +315,12 @@ def distinct_colours(colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def grey_response(density: np.ndarray, *, density_scale: float, radiance: float, camera_distance: float) -> np.ndarray:
     """Step 1 of the module docstring: the display value ``f(a)`` the medium shows at each of
     ``RESPONSE_LEVELS``, strictly increasing (so that it inverts). ``InvisibleMedium`` when no pixel
-    of the response render sees the medium."""
+    of the response render sees the medium; ``ValueError`` above ``conventions.MAX_EXTINCTION``."""
     from .response import uniform_display_response
     from .scenes import CameraPath
+    from .volume import validate_extinction
 
+    validate_extinction(density, density_scale, "The density")  # a render's time grows with the extinction
     try:
         shown_levels = uniform_display_response(
             np.asarray(density, dtype=np.float32),
@@ -353,12 +355,15 @@ def fit_colour_match(
     depend on the albedo or the style).
 
     Raises:
-        ValueError: an albedo of another shape than the density's.
+        ValueError: an albedo of another shape than the density's, or a density whose extinction (max
+            density times ``density_scale``) exceeds ``conventions.MAX_EXTINCTION``, beyond which the
+            renders' time has no useful bound.
         InvisibleMedium: a medium no pixel of the response render sees, even at albedo 1."""
     from .conventions import FOREGROUND_THRESHOLD
-    from .display import display
     from .response import albedo_renders
     from .scenes import CameraPath
+    from .tone import display
+    from .volume import validate_extinction
 
     density = np.asarray(density, dtype=np.float32)
     albedo = np.asarray(albedo, dtype=np.float32)
@@ -366,6 +371,7 @@ def fit_colour_match(
         raise ValueError(
             f"albedo must be the density's shape plus 3 channels {density.shape + (3,)}, got {albedo.shape}."
         )
+    validate_extinction(density, density_scale, "The density")
     orbit = CameraPath(distance=camera_distance)
     if response is None:
         response = grey_response(

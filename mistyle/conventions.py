@@ -29,6 +29,15 @@ ORBIT_DISTANCE = 2.5
 MIN_CAMERA_DISTANCE = 0.9  # cameras stay outside the medium box (half-diagonal of the unit cube: 0.87)
 MAX_DENSITY = 1e6  # above this, float32 statistics of the network (DAIN variances) overflow
 MAX_DENSITY_SCALE = 1e6  # extinction per unit density; beyond it a voxel is opaque many times over
+MAX_EXTINCTION = 1e4
+"""Largest extinction (max density x density scale, per unit of the box's longest side) mistyle renders.
+Mitsuba's volpath crosses a medium in free flights against its majorant, so a path's steps, and a render's
+time, grow in proportion to it: the colour match of a 16^3 blob takes 2 s at 20 (training's) and 65 s at
+1e4 on two CPU cores, and would take over a day at the 1.7e7 of density 8.4e5 at scale 20. At 1e4 the mean free
+path is a ten-thousandth of the box (a voxel of a 1024^3 grid is ten free paths deep): denser looks the same."""
+MAX_GRID_VOXELS = 2**30
+"""Largest grid mistyle reads into memory (4 GiB as float32); file readers refuse larger declared sizes
+before allocating (``mistyle.io``; ``vdb_convert.MAX_DENSE_VOXELS`` is the same bound)."""
 HELD_OUT_VIEW = 0.0625
 REFINE_LAYER_STEPS, REFINE_PATH_STEPS = 120, 16  # fit.RefineSettings' steps (here: --help needs no torch)
 FOREGROUND_THRESHOLD = 1e-3
@@ -62,3 +71,5 @@ COLOUR_MATCH_GRADIENTS = ("map", "fit")
 (``colour_match.fit_colour_match_torch``)."""
 PRECISIONS = ("fp32", "bf16")
 """The network's training precision: float32, or bfloat16 autocast (``run.precision``)."""
+STYLE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".gif", ".exr")
+"""The picture files a style may be: ``io.load_style`` reads them; a ``--style`` folder stands for these files."""

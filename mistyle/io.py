@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import io
+import math
 import os
 import struct
 import tempfile
@@ -22,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .conventions import MAX_GRID_VOXELS
 from .volume import validate_density
 
 
@@ -70,119 +72,6 @@ def check_writable_dir(directory) -> Path:
     return directory
 
 
-@contextlib.contextmanager
-def output_lock(directory, wait: bool = False):
-    """Hold the lock file beside ``directory`` for the block; yield ``(directory, parent)``. A second run
-    into the same output is refused while it is held (``wait``: waits for it instead), and staging
-    folders left beside it by a killed run are removed."""
-    import fcntl
-    import shutil
-
-    directory = Path(directory).absolute()  # "--out ." has no name of its own to stage beside
-    if directory.name in ("", ".", ".."):
-        directory = directory.resolve()
-    parent = directory.parent
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        lock = open(parent / f".{directory.name}.lock", "w")  # noqa: SIM115 - held for the whole block
-    except OSError as error:
-        raise ValueError(
-            f"Cannot write to the output directory {directory} ({error.strerror or error}); choose another --out."
-        ) from None
-    try:
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise ValueError(
-                f"Another mistyle run is writing to {directory}; wait for it to finish or choose another --out."
-            ) from None
-        if directory.exists() and not directory.is_dir():
-            raise ValueError(f"The output path {directory} is a file; choose a folder for --out.")
-        # Holding the lock, no other run writes this output: staging folders beside it are a killed run's.
-        stale = [p for kind in ("partial", "replaced") for p in parent.glob(f".{directory.name}.{kind}-*")]
-        for folder in stale:
-            shutil.rmtree(folder, ignore_errors=True)
-        if stale:
-            from .progress import status
-
-            status(f"note: removed {len(stale)} unfinished staging folder(s) of an earlier run beside {directory}")
-        yield directory, parent
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(parent / f".{directory.name}.lock")
-        lock.close()
-
-
-def _staging_folder(directory: Path, parent: Path) -> Path:
-    staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.partial-", dir=parent))
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(staging, 0o777 & ~umask)  # mkdtemp makes 0700 folders; the output gets the usual mode
-    return staging
-
-
-@contextlib.contextmanager
-def staged_directory(directory):
-    """Yield an empty staging folder; when the block succeeds, it becomes ``directory`` whole.
-
-    The staging folder is a hidden sibling of ``directory``, so the final rename stays on one file
-    system. An existing ``directory`` is replaced only once the new one is complete; a failure or an
-    interrupt removes the staging folder and leaves ``directory`` as it was. A lock file beside it
-    refuses a second run into the same ``directory`` while one is in progress, so a finished folder
-    always comes from one run.
-    """
-    import shutil
-
-    with output_lock(directory) as (directory, parent):
-        staging = _staging_folder(directory, parent)
-        try:
-            yield staging
-            if directory.exists():
-                retired = Path(tempfile.mkdtemp(prefix=f".{directory.name}.replaced-", dir=parent))
-                os.replace(directory, retired / directory.name)
-                os.replace(staging, directory)
-                shutil.rmtree(retired, ignore_errors=True)
-            else:
-                os.replace(staging, directory)
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
-
-
-@contextlib.contextmanager
-def chunk_staging(directory):
-    """Yield an empty staging folder beside ``directory`` for one chunk of a sequence, removed after the
-    block. It takes no lock: chunks render side by side (on a farm, at once) and each merges its
-    files into ``directory`` under ``output_lock(directory, wait=True)`` (``merge_files``)."""
-    import shutil
-
-    directory = Path(directory).absolute()
-    if directory.name in ("", ".", ".."):
-        directory = directory.resolve()
-    try:
-        directory.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{directory.name}.chunk-", dir=directory.parent))
-    except OSError as error:
-        raise ValueError(
-            f"Cannot write to the output directory {directory} ({error.strerror or error}); choose another --out."
-        ) from None
-    try:
-        yield staging
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-
-
-def merge_files(staging: Path, directory: Path) -> list[str]:
-    """Move every file of ``staging`` (``chunk_staging``) into ``directory``, each replacing its namesake
-    atomically and keeping the others; returns the names moved. Hold ``output_lock(directory)``."""
-    Path(directory).mkdir(parents=True, exist_ok=True)
-    moved = []
-    for path in sorted(Path(staging).iterdir()):
-        if path.is_file():
-            os.replace(path, Path(directory) / path.name)
-            moved.append(path.name)
-    return moved
-
-
 def atomic_write_bytes(path, data: bytes) -> Path:
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as handle:
@@ -215,14 +104,120 @@ def write_exr(path, image) -> Path:
 
 
 def read_exr(path) -> np.ndarray:
-    """Read an RGB OpenEXR file as a float32 ``(H, W, 3)`` array."""
+    """Read an RGB OpenEXR file as a float32 ``(H, W, 3)`` array.
+
+    Raises:
+        ValueError: naming the file, for a truncated or damaged file (``check_exr_layout``) or one
+            without R, G and B channels.
+    """
     import OpenEXR
 
-    with OpenEXR.File(str(path)) as exr:
-        channels = exr.channels()
-        if "RGB" in channels:
-            return np.asarray(channels["RGB"].pixels, dtype=np.float32)
-        return np.stack([np.asarray(channels[c].pixels, dtype=np.float32) for c in "RGB"], axis=-1)
+    check_exr_layout(path)
+    try:
+        with OpenEXR.File(str(path)) as exr:
+            channels = exr.channels()
+            if "RGB" in channels:
+                return np.asarray(channels["RGB"].pixels, dtype=np.float32)
+            return np.stack([np.asarray(channels[c].pixels, dtype=np.float32) for c in "RGB"], axis=-1)
+    except KeyError as error:
+        raise ValueError(f"{path} is not an RGB OpenEXR image (it has no {error.args[0]} channel).") from None
+    except (RuntimeError, ValueError, OSError) as error:  # OpenEXR's kinds for damaged files
+        raise ValueError(f"{path} is not a readable RGB OpenEXR image ({_one_line(error)}).") from None
+
+
+def _one_line(error: BaseException) -> str:
+    text = error.args[0] if error.args and isinstance(error.args[0], str) else str(error)
+    return " ".join(text.split()) or type(error).__name__
+
+
+# Scanlines per chunk of each OpenEXR compression (the header's "compression" byte).
+_EXR_LINES_PER_CHUNK = {0: 1, 1: 1, 2: 1, 3: 16, 4: 32, 5: 16, 6: 32, 7: 32, 8: 32, 9: 256}
+
+
+def check_exr_layout(path) -> None:
+    """``ValueError`` naming ``path`` unless it starts as an OpenEXR file and, for a single-part scanline
+    image (what mistyle and most tools write), every chunk its offset table lists lies inside the file.
+
+    OpenEXR reads a truncated file's chunk table with a page of messages on stderr and then a bare "file has 0
+    parts"; this reads the header and the table (a few hundred bytes) first. Tiled, multi-part and deep
+    files, and compressions this table does not list, are left to OpenEXR."""
+    path = Path(path)
+    size = path.stat().st_size
+    fix = "it is truncated or damaged (an interrupted copy or render?); write or export it again"
+    with open(path, "rb") as handle:
+        head = handle.read(8)
+        if len(head) < 8 or head[:4] != b"\x76\x2f\x31\x01":
+            raise ValueError(f"{path} is not an OpenEXR file (it does not start with OpenEXR's magic number).")
+        if int.from_bytes(head[4:8], "little") & 0x1A00:  # tiled, deep or multi-part
+            return
+        header = handle.read(1 << 20)  # a megabyte holds the attributes of all but files with large previews
+        attributes, position = {}, 0
+        while position < len(header) and header[position] != 0:  # attributes: name, type, int32 size, value
+            name_end = header.find(b"\x00", position)
+            kind_end = header.find(b"\x00", name_end + 1) if name_end >= 0 else -1
+            if kind_end < 0 or kind_end + 5 > len(header):
+                break
+            length = int.from_bytes(header[kind_end + 1 : kind_end + 5], "little", signed=True)
+            if length < 0 or kind_end + 5 + length > len(header):
+                break
+            attributes[header[position:name_end]] = header[kind_end + 5 : kind_end + 5 + length]
+            position = kind_end + 5 + length
+        if position >= len(header) or header[position] != 0:  # no empty name ended the header in what was read
+            if len(header) < size - 8:
+                return  # it goes on past the megabyte read: OpenEXR reads it
+            raise ValueError(f"{path} ends inside its OpenEXR header at byte {size}; {fix}.")
+        position += 1
+        compression, window = attributes.get(b"compression"), attributes.get(b"dataWindow")
+        if compression is None or window is None or len(window) != 16 or compression[0] not in _EXR_LINES_PER_CHUNK:
+            return
+        y_min, y_max = (int.from_bytes(window[i : i + 4], "little", signed=True) for i in (4, 12))
+        chunks = -(-(y_max - y_min + 1) // _EXR_LINES_PER_CHUNK[compression[0]])
+        table = 8 + position
+        if chunks < 1 or table + 8 * chunks > size:
+            raise ValueError(f"{path} ends inside its table of {max(chunks, 0)} pixel chunks at byte {size}; {fix}.")
+        handle.seek(table)
+        offsets = np.frombuffer(handle.read(8 * chunks), dtype="<u8")
+        for number, offset in enumerate(offsets.tolist()):
+            leader = b""
+            if table + 8 * chunks <= offset <= size - 8:
+                handle.seek(offset)
+                leader = handle.read(8)
+            packed = int.from_bytes(leader[4:], "little", signed=True) if len(leader) == 8 else -1
+            if packed < 0 or offset + 8 + packed > size:
+                raise ValueError(
+                    f"{path} holds {size} bytes, but its pixel chunk {number + 1} of {chunks} "
+                    f"{'starts' if packed < 0 else 'ends'} beyond them; {fix}."
+                )
+
+
+def load_envmap(path) -> np.ndarray:
+    """An environment map (``--light envmap:<file.exr>``) as float32 ``(H, W, 3)`` linear radiance.
+
+    Raises:
+        ValueError: one line naming the file for a missing file, a symbolic link loop or a broken link,
+            a truncated or damaged EXR (Mitsuba would fail mid-scene with a bare "read 0 out of 1
+            bytes"), or pixels that are NaN, infinite or negative (each would turn the whole render
+            into NaN or a wrong light), with their count.
+    """
+    path = Path(path)
+    what = "The environment map"
+    check_link(path, what, "point envmap: at an OpenEXR file")
+    if not path.is_file():
+        raise ValueError(f"{what} {path} does not exist.")
+    if path.suffix.lower() != ".exr":
+        raise ValueError(f"{what} {path} is not an OpenEXR (.exr) file; save it as linear OpenEXR.")
+    try:
+        pixels = read_exr(path)
+    except ValueError as error:
+        raise ValueError(f"{what} {error}") from None
+    checks = (("NaN", np.isnan(pixels)), ("infinite", np.isinf(pixels)), ("negative", pixels < 0))
+    bad = [f"{int(mask.any(axis=-1).sum())} {kind}" for kind, mask in checks if mask.any()]
+    if bad:
+        raise ValueError(
+            f"{what} {path} holds {' and '.join(bad)} pixels (of {pixels.shape[1]}x{pixels.shape[0]}); an "
+            "environment's radiance must be finite and >= 0: repair them (e.g. np.nan_to_num) and save it again."
+        )
+    return pixels
 
 
 def linear_to_srgb(image: np.ndarray) -> np.ndarray:
@@ -312,11 +307,26 @@ def write_vol(path, grid: np.ndarray, bbox_min=(0.0, 0.0, 0.0), bbox_max=(1.0, 1
 
 
 def read_vol(path) -> np.ndarray:
-    """Read a float32 Mitsuba ``.vol`` file; returns ``(Z, Y, X)`` for one channel, else ``(Z, Y, X, C)``."""
-    raw = Path(path).read_bytes()
-    if len(raw) < _VOL_HEADER.size or raw[:3] != b"VOL":
-        raise ValueError(f"{path} is not a Mitsuba .vol file (missing the 'VOL' header).")
-    magic, version, encoding, x, y, z, c, *_bbox = _VOL_HEADER.unpack_from(raw)
+    """Read a float32 Mitsuba ``.vol`` file; returns ``(Z, Y, X)`` for one channel, else ``(Z, Y, X, C)``.
+
+    The header's sizes are checked against the file's length and ``conventions.MAX_GRID_VOXELS`` before
+    the voxels are read."""
+    with open(path, "rb") as handle:
+        raw = handle.read(_VOL_HEADER.size)
+        held = os.fstat(handle.fileno()).st_size - _VOL_HEADER.size
+        if len(raw) < _VOL_HEADER.size or raw[:3] != b"VOL":
+            raise ValueError(f"{path} is not a Mitsuba .vol file (missing the 'VOL' header).")
+        magic, version, encoding, x, y, z, c, *_bbox = _VOL_HEADER.unpack_from(raw)
+        _check_vol_header(path, version, encoding, (x, y, z, c), held)
+        data = np.fromfile(handle, dtype="<f4", count=x * y * z * c)
+    data = np.asarray(data, dtype=np.float32).reshape(z, y, x, c)
+    return data[..., 0] if c == 1 else data
+
+
+def _check_vol_header(path, version: int, encoding: int, size_xyzc: tuple, held: int) -> None:
+    """``ValueError`` unless a ``.vol`` header describes float32 data of exactly the ``held`` bytes after it,
+    in a grid of at most ``MAX_GRID_VOXELS``."""
+    x, y, z, c = size_xyzc
     if version != 3 or encoding != 1:
         raise ValueError(
             f"{path}: only .vol version 3 with float32 data is supported (got version {version}, encoding {encoding})."
@@ -326,13 +336,16 @@ def read_vol(path) -> np.ndarray:
             f"{path}: the header gives the grid size {x}x{y}x{z} with {c} channels; every size must be >= 1."
         )
     count = x * y * z * c
-    if len(raw) - _VOL_HEADER.size != 4 * count:
+    if held != 4 * count:
         raise ValueError(
-            f"{path}: header says {x}x{y}x{z}x{c} floats but the file holds {(len(raw) - _VOL_HEADER.size) // 4}."
+            f"{path}: header says {x}x{y}x{z}x{c} floats but the file holds {held // 4}; it is truncated or "
+            "its header is wrong: write it again."
         )
-    data = np.frombuffer(raw, dtype="<f4", offset=_VOL_HEADER.size, count=count).reshape(z, y, x, c)
-    data = np.array(data, dtype=np.float32)
-    return data[..., 0] if c == 1 else data
+    if x * y * z > MAX_GRID_VOXELS:
+        raise ValueError(
+            f"{path} is a {x}x{y}x{z} grid ({x * y * z} voxels); mistyle reads grids of up to {MAX_GRID_VOXELS} "
+            f"voxels (conventions.MAX_GRID_VOXELS, {MAX_GRID_VOXELS * 4 >> 30} GiB as float32): crop or downsample it."
+        )
 
 
 DENSITY_SUFFIXES = (".vol", ".vdb", ".npy", ".npz")
@@ -359,7 +372,10 @@ def density_frame_files(path) -> list[Path]:
     path = Path(path)
     if not path.is_dir():
         return [path]
-    files = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES and p.is_file())
+    candidates = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES)
+    for candidate in candidates:  # a frame left out of a sequence would go unnoticed in the render
+        check_link(candidate, "The frame", "restore the frame or remove the link; a sequence renders every frame")
+    files = [p for p in candidates if p.is_file()]
     if not files:
         raise ValueError(f"The folder {path} holds no {', '.join(DENSITY_SUFFIXES)} density frames.")
     return files
@@ -395,7 +411,23 @@ def load_density_frames(path, grid: str | None = None, up: str | None = None) ->
     )
 
 
+def check_link(path: Path, what: str, fix: str) -> None:
+    """``ValueError`` naming ``what`` when ``path`` is a symbolic link that leads nowhere: a loop, or a
+    link to a file that is gone (``path.exists()`` would only say False, and ``Path.resolve`` raises
+    RuntimeError on a loop, so code that resolves an input first should call this before)."""
+    try:
+        os.stat(path)
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            raise ValueError(f"{what} {path} is a symbolic link loop (it leads back to itself); {fix}.") from None
+        if os.path.islink(path):
+            raise ValueError(
+                f"{what} {path} is a broken symbolic link (to {os.readlink(path)}, which does not exist); {fix}."
+            ) from None
+
+
 def _read_density_file(path: Path, grid: str | None = None, up: str | None = None) -> dict:
+    check_link(path, "Density", "point --density at a density file")
     if not path.exists():
         raise ValueError(f"Density {path} does not exist.")
     if path.is_dir():
@@ -427,15 +459,7 @@ def _read_density_file(path: Path, grid: str | None = None, up: str | None = Non
         array, velocity = read_vol(path), None  # read_vol names the file in its own errors
     else:
         try:
-            if suffix == ".npy":
-                array, velocity = np.load(path, allow_pickle=False), None
-            else:
-                with np.load(path, allow_pickle=False) as data:
-                    arrays = {key: data[key] for key in ("density", "velocity") if key in data.files}
-                    held = ", ".join(data.files) or "nothing"
-                if "density" not in arrays:
-                    raise ValueError(f"it has no 'density' array (it holds {held})")
-                array, velocity = arrays["density"], arrays.get("velocity")
+            array, velocity = _read_npy(path) if suffix == ".npy" else _read_npz(path)
         except (OSError, EOFError, ValueError) as error:
             reason = "not a numpy file of numbers" if "pickle" in str(error) else str(error)
             raise ValueError(f"{path} cannot be read as a density ({reason}).") from None
@@ -447,6 +471,100 @@ def _read_density_file(path: Path, grid: str | None = None, up: str | None = Non
                 f"{path}: velocity {velocity.shape} does not match the density grid {density.shape} (+ 3)."
             )
     return {"density": density, "velocity": velocity}
+
+
+def _npy_header(stream, held: int, limit: int, what: str = "its .npy header") -> tuple[tuple, bool, np.dtype]:
+    """The ``(shape, fortran_order, dtype)`` of the ``.npy`` data in ``stream``, of ``held`` bytes, read from
+    its header alone; ``ValueError`` when the header is damaged, declares more bytes than the stream holds
+    (a truncated file, or a lying header: numpy allocates what it declares before reading), or more than
+    ``limit`` values (``conventions.MAX_GRID_VOXELS``)."""
+    import tokenize
+
+    from numpy.lib import format as npy
+
+    start = stream.tell()
+    try:
+        version = npy.read_magic(stream)
+        if version == (1, 0):
+            shape, fortran, dtype = npy.read_array_header_1_0(stream)
+        elif version == (2, 0):
+            shape, fortran, dtype = npy.read_array_header_2_0(stream)
+        else:  # 3.0 exists for structured arrays' non-latin-1 field names, never for a grid of numbers
+            raise ValueError(f"format version {version[0]}.{version[1]} holds no grid of numbers")
+    except (ValueError, SyntaxError, TypeError, tokenize.TokenError) as error:  # what numpy's parser raises
+        text = error.args[0] if error.args and isinstance(error.args[0], str) else str(error)
+        reason = " ".join(text.split()) or type(error).__name__
+        raise ValueError(f"{what} is damaged ({reason}); save the array again with np.save") from None
+    if dtype.hasobject:
+        raise ValueError("it holds Python objects, which would need pickle")
+    count = math.prod(shape)
+    declared, left = count * dtype.itemsize, held - (stream.tell() - start)
+    if declared > left:
+        raise ValueError(
+            f"{what} declares a {'x'.join(map(str, shape))} array of {dtype} ({declared} bytes), but only "
+            f"{left} bytes follow it; the file is truncated or its header is wrong: save the array again"
+        )
+    if count > limit:
+        raise ValueError(
+            f"it holds a {'x'.join(map(str, shape))} array ({count} values); mistyle reads grids of up to "
+            f"{MAX_GRID_VOXELS} voxels (conventions.MAX_GRID_VOXELS, {MAX_GRID_VOXELS * 4 >> 30} GiB as float32): "
+            "crop or downsample it"
+        )
+    return shape, fortran, dtype
+
+
+def _read_npy(path: Path) -> tuple[np.ndarray, None]:
+    with open(path, "rb") as handle:
+        shape, fortran, dtype = _npy_header(handle, os.fstat(handle.fileno()).st_size, MAX_GRID_VOXELS)
+        data = np.fromfile(handle, dtype=dtype, count=math.prod(shape))
+    return data.reshape(shape, order="F" if fortran else "C"), None
+
+
+# The largest ratio of deflate's output to its input (RFC 1951: 258 bytes from each 2-bit code, ~1032:1).
+_DEFLATE_RATIO = 1032
+
+
+def _read_npz(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """The ``density`` array and the ``velocity`` array (or None) of an ``.npz``, each member's declared
+    sizes checked (``_npy_header``) before its data is read."""
+    import zipfile
+    import zlib
+
+    size = path.stat().st_size
+    try:
+        archive = zipfile.ZipFile(path)
+    except zipfile.BadZipFile as error:
+        raise ValueError(
+            f"it is not a complete .npz archive ({error}; a truncated file?): save it again with np.savez"
+        ) from None
+    arrays = {}
+    with archive:
+        names = archive.namelist()
+        for key, limit in (("density", MAX_GRID_VOXELS), ("velocity", 3 * MAX_GRID_VOXELS)):
+            member = f"{key}.npy"
+            if member not in names:
+                continue
+            info = archive.getinfo(member)
+            stored = info.compress_type == zipfile.ZIP_STORED and info.file_size == info.compress_size
+            deflated = info.compress_type == zipfile.ZIP_DEFLATED and info.file_size <= (
+                _DEFLATE_RATIO * info.compress_size + 1024
+            )
+            if info.compress_size > size or not (stored or deflated):
+                raise ValueError(
+                    f"its member {member} declares {info.file_size} bytes from {info.compress_size} stored in a "
+                    f"{size}-byte file; the archive is damaged: save it again with np.savez"
+                )
+            try:
+                with archive.open(member) as stream:
+                    _npy_header(stream, info.file_size, limit, f"the .npy header of its member {member}")
+                with archive.open(member) as stream:  # numpy reads its checked header again, then the data
+                    arrays[key] = np.lib.format.read_array(stream, allow_pickle=False)
+            except (zipfile.BadZipFile, zlib.error, EOFError) as error:
+                raise ValueError(f"its member {member} is damaged ({error}): save it again with np.savez") from None
+    if "density" not in arrays:
+        held = ", ".join(name.removesuffix(".npy") for name in names) or "nothing"
+        raise ValueError(f"it has no 'density' array (it holds {held})")
+    return arrays["density"], arrays.get("velocity")
 
 
 def write_npz(path, **arrays) -> Path:
@@ -462,7 +580,6 @@ MIN_STYLE_SIZE = 8
 MAX_STYLE_SIDE = 256
 """Styles are reduced to this many pixels on their longer side when decoded, before any metric or objective
 sees them: the size of the benchmark's styles, twice what the network and the refinement read (128)."""
-STYLE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".gif", ".exr")
 
 
 def load_style(style, notes: list | None = None) -> np.ndarray:
@@ -487,12 +604,13 @@ def load_style(style, notes: list | None = None) -> np.ndarray:
 def _style_file(path: Path, notes: list) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
 
+    check_link(path, "Style image", "point --style at an image file")
     if path.is_dir():
         raise ValueError(f"Style {path} is a folder; give one image file.")
     if not path.is_file():
         raise ValueError(f"Style image {path} does not exist.")
     if path.suffix.lower() == ".exr":
-        from .display import display
+        from .tone import display
 
         notes.append(f"{path}: linear EXR shown with the renders' display curve")
         try:

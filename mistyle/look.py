@@ -54,6 +54,13 @@ SIZE_RATIO_NOTE = 2.0
 """A frame more than this many times larger or smaller (longest side) than the key frames gets a note."""
 DENSITY_SCALE_TOLERANCE = 1e-6
 COLOUR_MATCH_MODES = ("through", "after", "none")
+PAYLOAD_DIGEST_KEY = "payload_sha256"
+"""Where a saved look records ``payload_digest`` of its tensors and meta; ``Look.load`` checks it (looks saved
+before it was recorded load without, checked for shape, finiteness and magnitude only)."""
+MAX_LOOK_VALUE = 1e4
+"""The largest magnitude a look's numbers may have. A fit moves the network's kernels and convolutions, the
+texture and the colour tables by amounts of order one; a value beyond this is damage, and it would overflow
+the network's float32 statistics (DAIN) into NaN albedos."""
 LR_SCHEDULES = ("constant", "cosine")
 VIEW_SAMPLINGS = ("independent", "stratified")
 
@@ -290,6 +297,7 @@ class Look:
             "thumbnail": torch.from_numpy(np.ascontiguousarray(self.thumbnail, np.uint8)),
             "meta": {key: value for key, value in self.meta.items() if key != "file_sha256"},
         }
+        record[PAYLOAD_DIGEST_KEY] = payload_digest(record)
         buffer = io.BytesIO()
         torch.save(record, buffer)
         return buffer.getvalue()
@@ -303,6 +311,10 @@ class Look:
             raise ValueError(f"--save-look {path} is a folder; give a file name such as {path / 'style.look'}.")
         if not path.parent.is_dir():
             raise ValueError(f"The folder of --save-look {path} does not exist; create it or choose another path.")
+        if (path.exists() or path.is_symlink()) and not is_look_file(path):
+            raise ValueError(
+                f"{path} already exists and is not a mistyle look; a look replaces only a look. Choose another path."
+            )
         data = self.to_bytes()
         atomic_write_bytes(path, data)
         self.meta["file_sha256"] = hashlib.sha256(data).hexdigest()
@@ -312,7 +324,9 @@ class Look:
     def load(cls, path, stylizer=None, checkpoint=None, device: str = "cpu") -> Look:
         """The look in ``path``, bound to ``stylizer`` (a ``stylizer.Stylizer``) or to ``checkpoint``'s
         network (None: the bundled one). ``ValueError`` (one line) for a file that is not a look, a
-        look of another format version, or a look fitted with another network."""
+        look of another format version, a look fitted with another network, or a damaged look: one whose
+        tensors or meta no longer match the digest recorded at save (``payload_digest``), or whose tensors
+        have the wrong shape for the network, NaN or infinite values, or values beyond ``MAX_LOOK_VALUE``."""
         import torch
 
         from .colour_match import ColourMatch
@@ -326,7 +340,10 @@ class Look:
             data = path.read_bytes()
             record = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
         except Exception as error:  # torch raises many types for a damaged or foreign file
-            reason = str(error).strip().splitlines()[0][:120] if str(error).strip() else type(error).__name__
+            text = str(error)
+            if "WeightsUnpickler error:" in text:  # past torch's advice to unpickle unsafely, no fix for damage
+                text = text.split("WeightsUnpickler error:", 1)[1].split("Check the documentation", 1)[0]
+            reason = " ".join(text.split())[:120] or type(error).__name__
             raise ValueError(
                 f"{path} is not a readable mistyle look ({reason}); fit it again with mistyle-render --save-look."
             ) from None
@@ -337,6 +354,7 @@ class Look:
                 f"{path} is a look of format version {record.get('version')}, and this mistyle reads version "
                 f"{LOOK_VERSION}; fit it again with this mistyle (mistyle-render --style S --save-look {path})."
             )
+        check_look_record(record, path)
         try:
             meta = dict(record["meta"])
             kernels = StylizingKernels(
@@ -370,6 +388,7 @@ class Look:
                 f"{meta['checkpoint_sha256'][:12]}), not {stylizer.path.name} ({digest[:12]}); pass that "
                 "checkpoint with --checkpoint, or fit the look again with this one."
             )
+        _check_network_shapes(kernels, decoder, stylizer.trained.model, path)
         kernels = StylizingKernels(
             {
                 site: {key: value.to(stylizer.device) for key, value in parts.items()}
@@ -380,6 +399,148 @@ class Look:
         noise_weight = None if noise_weight is None else noise_weight.float().to(stylizer.device)
         texture = None if texture is None else texture.float().to(stylizer.device)
         return cls(kernels, decoder, match, thumbnail, meta, noise_weight, texture, stylizer=stylizer)
+
+
+def _record_tensors(value, name: str = ""):
+    """``(name, tensor)`` of every tensor in a look record (nested dicts and lists), in a fixed order; the
+    name is the path, e.g. ``kernels/3/gamma``."""
+    import torch
+
+    if torch.is_tensor(value):
+        yield name, value
+    elif isinstance(value, dict):
+        for key in sorted(value, key=str):
+            yield from _record_tensors(value[key], f"{name}/{key}".lstrip("/"))
+    elif isinstance(value, (list, tuple)):
+        for index, item in enumerate(value):
+            yield from _record_tensors(item, f"{name}/{index}".lstrip("/"))
+
+
+def payload_digest(record: dict) -> str:
+    """SHA-256 of a look record's tensors (each one's name, type, shape and bytes, in ``_record_tensors``'
+    order) and of its meta: what ``to_bytes`` records under ``PAYLOAD_DIGEST_KEY``. torch's archives keep
+    no checksum of their data, so without it a changed byte loads as a changed number."""
+    import json
+
+    import torch
+
+    digest = hashlib.sha256()
+    for name, tensor in _record_tensors({k: v for k, v in record.items() if k not in ("meta", PAYLOAD_DIGEST_KEY)}):
+        data = tensor.detach().cpu().contiguous().reshape(-1)
+        digest.update(f"{name}|{data.dtype}|{tuple(tensor.shape)}|".encode())
+        digest.update(data.view(torch.uint8).numpy().tobytes())
+    digest.update(json.dumps(record.get("meta"), sort_keys=True, default=str).encode())
+    return digest.hexdigest()
+
+
+def check_look_record(record: dict, path) -> None:
+    """``ValueError`` (one line naming ``path``) for a look record that is damaged: a digest that does
+    not match (``payload_digest``), a tensor with NaN, infinite or implausibly large values
+    (``MAX_LOOK_VALUE``), a tensor of the wrong shape, or meta the renders cannot use. Shapes that depend on
+    the network are checked once it is known (``Look.load``)."""
+    import torch
+
+    def damaged(what: str) -> ValueError:
+        return ValueError(f"{path} is a damaged mistyle look ({what}); fit it again with --save-look.")
+
+    recorded = record.get(PAYLOAD_DIGEST_KEY)
+    if recorded is not None and recorded != payload_digest(record):
+        raise damaged("its tensors or meta differ from the SHA-256 recorded when it was saved: the file changed")
+    for name, tensor in _record_tensors({k: v for k, v in record.items() if k != "meta"}):
+        if not (tensor.is_floating_point() or tensor.dtype == torch.uint8):
+            raise damaged(f"its tensor {name} holds {tensor.dtype} values")
+        if not tensor.is_floating_point():
+            continue
+        values = tensor.detach().double()
+        bad = int((~torch.isfinite(values)).sum())
+        if bad:
+            raise damaged(f"its tensor {name} {tuple(tensor.shape)} holds {bad} NaN or infinite values")
+        largest = float(values.abs().max()) if values.numel() else 0.0
+        if largest > MAX_LOOK_VALUE:
+            raise damaged(
+                f"its tensor {name} holds values up to {largest:.4g}; a fitted look's stay within {MAX_LOOK_VALUE:g}"
+            )
+
+    def shaped(name: str, value, rank: int, first: int | None = None):
+        if not torch.is_tensor(value) or value.dim() != rank or (first is not None and value.shape[0] != first):
+            shape = tuple(value.shape) if torch.is_tensor(value) else type(value).__name__
+            raise damaged(f"{name} has the shape {shape}, not {rank}-D{'' if first is None else f' of {first}'}")
+        return value
+
+    thumbnail = record.get("thumbnail")
+    if thumbnail is not None:
+        shaped("its thumbnail", thumbnail, 3)
+        if thumbnail.dtype != torch.uint8 or thumbnail.shape[2] != 3 or min(thumbnail.shape[:2]) < 1:
+            raise damaged(f"its thumbnail is {tuple(thumbnail.shape)} {thumbnail.dtype}, not (H, W, 3) uint8")
+    match = record.get("colour_match")
+    if isinstance(match, dict):
+        levels = shaped("its colour match's response", match.get("shown_levels"), 1)
+        if shaped("its colour match's albedo levels", match.get("log_levels"), 1).shape != levels.shape:
+            raise damaged("its colour match's albedo and response levels differ in number")
+        if len(levels) < 2 or bool((levels[1:] < levels[:-1]).any()):
+            raise damaged("its colour match's response does not increase with the albedo")
+        for number, stage in enumerate(match.get("stages") or []):
+            if not isinstance(stage, (list, tuple)) or len(stage) != 3:
+                raise damaged(f"its colour match's stage {number} is not (direction, source, target)")
+            shaped(f"its colour match's stage {number} direction", stage[0], 1, 3)
+            source = shaped(f"its colour match's stage {number} source", stage[1], 1)
+            target = shaped(f"its colour match's stage {number} target", stage[2], 1)
+            if target.shape != source.shape or len(source) < 2 or bool((source[1:] < source[:-1]).any()):
+                raise damaged(f"its colour match's stage {number} is not a monotone map")
+    if record.get("texture") is not None:
+        shaped("its texture", record["texture"], 4, 3)
+    meta = record.get("meta")
+    if isinstance(meta, dict):
+        noise_weight = record.get("noise_weight")
+        if noise_weight is not None:
+            shaped("its noise weights", noise_weight, 2, 3)
+            if noise_weight.shape[1] != int(meta.get("noise_channels", noise_weight.shape[1])):
+                raise damaged(f"its noise weights {tuple(noise_weight.shape)} do not match its noise channels")
+        for key in ("density_scale", "camera_distance"):
+            value = meta.get(key)
+            if value is not None and not (isinstance(value, (int, float)) and 0 < value < math.inf):
+                raise damaged(f"its {key.replace('_', ' ')} is {value!r}, not a finite number > 0")
+        frame_shape = meta.get("key_frame_shape")
+        if frame_shape is not None and not (
+            isinstance(frame_shape, (list, tuple))
+            and len(frame_shape) == 3
+            and all(isinstance(n, int) and n >= 1 for n in frame_shape)
+        ):
+            raise damaged(f"its key frame shape is {frame_shape!r}, not three sizes >= 1")
+
+
+def _check_network_shapes(kernels, decoder: dict, model, path) -> None:
+    """``ValueError`` when a look's kernels or tuned convolutions do not have the shapes ``model`` (the
+    checkpoint's SKPN) gives and takes."""
+    from .model.skpn import NOISE_SITE
+
+    def damaged(what: str) -> ValueError:
+        return ValueError(f"{path} is a damaged mistyle look ({what}); fit it again with --save-look.")
+
+    expected = {}
+    for site in model.sites:
+        predictor = model.predictors[str(site)]
+        c, k = predictor.channels, predictor.kernel_size
+        expected[site] = {"gamma": (1, c), "beta": (1, c)}
+        if predictor.with_kernel:
+            expected[site].update(weight=(1, c, c, k, k, k), bias=(1, c))
+    noise = getattr(model, "noise_predictor", None)
+    if noise is not None:
+        expected[NOISE_SITE] = {"weight": (1, 3, noise.channels)}
+    found = {site: {key: tuple(value.shape) for key, value in parts.items()} for site, parts in kernels.sites.items()}
+    if found != expected:
+        wrong = sorted(
+            f"{site}/{key} {found.get(site, {}).get(key)}"
+            for site in set(found) | set(expected)
+            for key in set(found.get(site, {})) | set(expected.get(site, {}))
+            if found.get(site, {}).get(key) != expected.get(site, {}).get(key)
+        )
+        raise damaged(f"its kernels {', '.join(wrong)} do not have the shapes the network gives")
+    parameters = model.decoder.state_dict()
+    for key, value in decoder.items():
+        if key not in parameters or tuple(value.shape) != tuple(parameters[key].shape):
+            shape = tuple(parameters[key].shape) if key in parameters else "no such parameter"
+            raise damaged(f"its decoder {key} is {tuple(value.shape)}; the network's is {shape}")
 
 
 NOISE_SCALES = (1 / 64, 2 / 64)
@@ -823,3 +984,19 @@ def fit_look(
         look.colour_match = fit_match(lambda index: look.network_albedo(densities[keys[index]]))
     look.meta["fit_seconds"] = time.perf_counter() - started
     return look
+
+
+def is_look_file(path) -> bool:
+    """Whether ``path`` is a file mistyle saved as a look (the only file ``--save-look`` may replace)."""
+    import zipfile
+
+    import torch
+
+    path = Path(path)
+    if not path.is_file() or path.is_symlink() or not zipfile.is_zipfile(path):  # torch's archives are zips
+        return False
+    try:
+        record = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # a damaged or foreign archive: not a look either way
+        return False
+    return isinstance(record, dict) and record.get("format") == LOOK_FORMAT

@@ -383,7 +383,89 @@ def _existing_file(path) -> Path:
         raise ValueError(f"VDB file {path} does not exist.")
     if not path.is_file():
         raise ValueError(f"VDB file {path} is not a file.")
+    check_vdb_layout(path)
     return path
+
+
+# OpenVDB's file layout (io/Archive.cc, io/File.cc, io/GridDescriptor.cc), all little-endian: the header
+# (int64 magic, uint32 file version, two uint32 library version numbers from version 211, a uint8 "has
+# grid offsets" from 212, a uint8 compression flag in 220-221, a 36-character UUID from 218, else 16
+# bytes), the file metadata (uint32 count; each entry a name and a type name, then a uint32 size and that
+# many bytes), an int32 grid count and one descriptor per grid (name, type and, from 216, instance parent:
+# uint32-length strings; then the int64 file offsets of the grid, its voxel data and its end), where the
+# next descriptor starts at the end offset.
+_VDB_MAGIC = 0x56444220
+_VDB_GRID_OFFSETS_VERSION = 212
+_VDB_KNOWN_VERSION = 224  # the newest layout this check knows (OpenVDB 10 writes it)
+
+
+def check_vdb_layout(path) -> None:
+    """``ValueError`` unless the sizes and offsets that ``path``'s header and grid descriptors declare lie
+    inside the file.
+
+    OpenVDB trusts them: a string length or an offset read past the end of a truncated file makes it
+    allocate that many bytes, gigabytes for a minute over a file of a few kilobytes before its error. This
+    reads only the header and the descriptors (a few hundred bytes), in Python."""
+    path = Path(path)
+    size = path.stat().st_size
+    fix = "it is damaged or truncated (an interrupted copy or download?); copy or export it again"
+    with open(path, "rb") as handle:
+
+        def read(count: int, what: str) -> bytes:
+            data = handle.read(count)
+            if len(data) != count:
+                raise ValueError(f"{path} ends inside its {what} at byte {size}; {fix}.")
+            return data
+
+        def number(form: str, what: str) -> int:
+            return int(np.frombuffer(read(np.dtype(form).itemsize, what), dtype=form)[0])
+
+        def string(what: str) -> None:
+            length = number("<u4", what)
+            if length > size - handle.tell():
+                raise ValueError(
+                    f"{path} declares a {what} of {length} bytes at byte {handle.tell() - 4}, past its end at "
+                    f"byte {size}; {fix}."
+                )
+            handle.seek(length, os.SEEK_CUR)
+
+        if size < 8 or number("<i8", "header") != _VDB_MAGIC:
+            raise ValueError(f"{path} is not a readable OpenVDB file (it does not start with OpenVDB's magic number).")
+        version = number("<u4", "header")
+        if version > _VDB_KNOWN_VERSION:  # a newer layout than this check knows: the binding decides
+            return
+        if version < 211:  # separate major, minor and patch numbers
+            version = 100 * version + 10 * number("<u4", "header") + number("<u4", "header")
+        else:
+            read(8, "header")  # the library's major and minor version
+        offsets = version < _VDB_GRID_OFFSETS_VERSION or read(1, "header") != b"\x00"
+        if 220 <= version < 222:
+            read(1, "header")  # the file-wide compression flag
+        read(36 if version >= 218 else 16, "header")  # the UUID
+        for _ in range(number("<u4", "file metadata")):
+            string("metadata name")
+            string("metadata type name")
+            string("metadata value")
+        if not offsets:  # grids written to a stream follow inline, with no offsets to check
+            return
+        grids = number("<i4", "grid count")
+        if not 0 <= grids <= (size - handle.tell()) // 36:  # a descriptor takes at least 36 bytes
+            raise ValueError(
+                f"{path} declares {grids} grid(s), more than its last {size - handle.tell()} bytes can describe; {fix}."
+            )
+        for _ in range(grids):
+            string("grid name")
+            string("grid type name")
+            if version >= 216:
+                string("grid instance parent name")
+            start = handle.tell() + 24
+            grid, block, end = (number("<i8", "grid descriptor") for _ in range(3))
+            if not start <= grid <= block <= end <= size:
+                raise ValueError(
+                    f"{path} declares a grid spanning bytes {grid}..{end} (voxel data from {block}), but the file "
+                    f"holds {size} bytes; {fix}."
+                )
+            handle.seek(end)
 
 
 # ----------------------------------------------------------------------------- reading

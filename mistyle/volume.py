@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import MAX_DENSITY
+from .conventions import MAX_DENSITY, MAX_EXTINCTION
 
 
 def validate_density(density, name: str = "density") -> np.ndarray:
@@ -27,6 +27,8 @@ def validate_density(density, name: str = "density") -> np.ndarray:
         raise ValueError(f"{name} is empty (shape {array.shape}); every axis needs at least one voxel.")
     if not np.issubdtype(array.dtype, np.number) or np.iscomplexobj(array):
         raise ValueError(f"{name} must hold real numbers, got dtype {array.dtype}.")
+    if array.dtype.kind == "f" and array.dtype.itemsize > 4:
+        _check_float32_range(array, name)
     array = np.ascontiguousarray(array, dtype=np.float32)
     bad = ~np.isfinite(array)
     if bad.any():
@@ -46,6 +48,38 @@ def validate_density(density, name: str = "density") -> np.ndarray:
             "e.g. np.clip(density, 0, None)."
         )
     return array
+
+
+def _check_float32_range(array: np.ndarray, name: str) -> None:
+    """A wider float grid's finite values beyond float32's range would turn into inf when cast; say so
+    (with the largest) rather than report them as NaN/inf values the file does not hold."""
+    limit = float(np.finfo(np.float32).max)
+    beyond = (array > limit) | (array < -limit)
+    beyond &= np.isfinite(array)
+    if beyond.any():
+        finite = np.isfinite(array)
+        largest = max(float(array.max(where=finite, initial=0.0)), -float(array.min(where=finite, initial=0.0)))
+        raise ValueError(
+            f"{name} holds {int(beyond.sum())} values beyond float32's range (up to {largest:.4g}; float32 ends "
+            f"at {limit:.4g}), and mistyle takes densities up to {MAX_DENSITY:g}. Normalise the volume (e.g. "
+            "density / density.max()) and set the extinction with --density-scale."
+        )
+
+
+def validate_extinction(density, density_scale: float, name: str = "density") -> float:
+    """The largest extinction ``max(density) * density_scale`` (per unit of the box's longest side) of a
+    checked density grid; ``ValueError`` above ``MAX_EXTINCTION``, where a path-traced render's time, which
+    grows with it, is out of bounds (``conventions.MAX_EXTINCTION``) and the medium looks no different."""
+    peak = float(np.max(density, initial=0.0))
+    extinction = peak * float(density_scale)
+    if not extinction <= MAX_EXTINCTION:
+        raise ValueError(
+            f"{name} holds densities up to {peak:.4g}, which at density scale {float(density_scale):g} is an "
+            f"extinction of {extinction:.4g} per box length; mistyle renders extinctions up to {MAX_EXTINCTION:g} "
+            "(a render's time grows with it, and denser media look the same). Divide the density (e.g. density / "
+            f"density.max()) or lower --density-scale so that max density x scale <= {MAX_EXTINCTION:g}."
+        )
+    return extinction
 
 
 def validate_albedo(albedo, shape_zyx: tuple[int, int, int] | None = None, name: str = "albedo") -> np.ndarray:

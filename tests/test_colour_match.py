@@ -107,6 +107,27 @@ def test_the_match_refuses_an_albedo_of_another_shape(blob_density):
         )
 
 
+def test_the_match_refuses_an_extinction_its_renders_would_take_days_over(mi, blob_density):
+    """Density 8.4e5 is accepted (MAX_DENSITY 1e6), but at scale 20 its renders cross the box in some 1e7
+    free-flight steps a path and take days; the match refuses it at once, naming the bound."""
+    import time
+
+    from mistyle.colour_match import grey_response
+    from mistyle.conventions import MAX_EXTINCTION
+
+    dense = blob_density / blob_density.max() * 8.4e5
+    albedo = np.full(blob_density.shape + (3,), 0.5, np.float32)
+    light = {"density_scale": 20.0, "radiance": 8.0, "camera_distance": 2.5}
+    started = time.perf_counter()
+    for fit in (
+        lambda: grey_response(dense, **light),
+        lambda: fit_colour_match(albedo, dense, _two_colour_style(), **light),
+    ):
+        with pytest.raises(ValueError, match=f"extinction of 1.68e\\+07 per box length.* up to {MAX_EXTINCTION:g}"):
+            fit()
+    assert time.perf_counter() - started < 1.0
+
+
 def test_stylize_matches_colours_by_default_and_it_brings_the_render_closer_to_the_style(mi):
     """The bundled network on a held-out smoke and painting, path traced from views the feedback render
     does not use: the colour match lowers the RGB sliced Wasserstein distance to the painting, and

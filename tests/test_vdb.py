@@ -253,6 +253,31 @@ def test_a_file_that_is_not_a_vdb_is_a_value_error(tmp_path, subprocess_route):
 
 
 @needs_vdb
+def test_a_truncated_vdb_is_refused_before_the_binding_reads_it(tmp_path, fields, subprocess_route):
+    """OpenVDB trusts the sizes a file declares: a 7 KB cut of a file took a minute and 8-11 GB of memory in
+    the binding before its error. The declared offsets are checked against the file's size first."""
+    import time
+
+    density, albedo = fields
+    whole = write_vdb(
+        tmp_path / "whole.vdb",
+        VdbTransform.for_medium_box(density.shape),
+        {DENSITY_GRID: density, ALBEDO_GRID: albedo},
+        metadata={"note": "x" * 300},
+    ).read_bytes()
+    started = time.perf_counter()
+    for length in (12, 100, 400, 7000, len(whole) // 2, len(whole) - 1):
+        cut = tmp_path / f"cut{length}.vdb"
+        cut.write_bytes(whole[:length])
+        with pytest.raises(ValueError, match=f"cut{length}.vdb .*(truncated|not a readable)") as caught:
+            read_vdb(cut)
+        assert "\n" not in str(caught.value)
+        with pytest.raises(ValueError, match="truncated|not a readable"):
+            vdb_info(cut)
+    assert time.perf_counter() - started < 2.0
+
+
+@needs_vdb
 def test_empty_grids_are_refused_on_read(tmp_path, subprocess_route):
     empty = np.zeros((4, 4, 4))
     path = write_vdb(tmp_path / "empty.vdb", VdbTransform.for_medium_box(empty.shape), {DENSITY_GRID: empty})

@@ -40,6 +40,8 @@ most smoke bricks fall in the last level anyway."""
 def brick_levels(density: np.ndarray, brick: int, levels: int) -> tuple[np.ndarray, list[np.ndarray]]:
     """Group the bricks by their largest density (halo included) into majorant levels.
 
+    ``brick`` (voxels a side) larger than the grid's longest side is the whole grid as one brick.
+
     Returns ``(level, edges)``: ``level (BZ, BY, BX)`` int, -1 for bricks without density and
     ``0 .. levels-1`` otherwise, level ``k`` holding the bricks whose maximum lies in
     ``(m / 2^(k+1), m / 2^k]`` of the volume's maximum ``m`` (the last level takes everything
@@ -49,6 +51,8 @@ def brick_levels(density: np.ndarray, brick: int, levels: int) -> tuple[np.ndarr
         raise ValueError(f"brick must be a positive number of voxels, got {brick!r}.")
     if int(levels) != levels or levels < 1:
         raise ValueError(f"levels must be a positive integer, got {levels!r}.")
+    # A brick as long as the grid already holds all of it along every axis: larger ones are that one brick.
+    brick = min(int(brick), max(density.shape))
     edges = [np.unique(np.minimum(np.arange(0, n + brick, brick), n)) for n in density.shape]
     # Each voxel's 3x3x3 maximum, then its maximum over each brick: the brick's peak with its halo.
     padded = np.pad(np.asarray(density, dtype=np.float64), 1)
@@ -56,9 +60,10 @@ def brick_levels(density: np.ndarray, brick: int, levels: int) -> tuple[np.ndarr
     z, y, x = density.shape
     for dz, dy, dx in np.ndindex(3, 3, 3):
         np.maximum(grown, padded[dz : dz + z, dy : dy + y, dx : dx + x], out=grown)
-    counts = [len(e) - 1 for e in edges]
-    grown = np.pad(grown, [(0, c * brick - n) for c, n in zip(counts, density.shape)])
-    peak = grown.reshape(counts[0], brick, counts[1], brick, counts[2], brick).max(axis=(1, 3, 5))
+    # Segment maxima along each axis in turn: memory stays that of the grid, whatever the brick.
+    peak = grown
+    for axis, bounds in enumerate(edges):
+        peak = np.maximum.reduceat(peak, bounds[:-1], axis=axis)
     level = np.full(peak.shape, -1, dtype=np.int64)
     top = peak.max()
     if top > 0:

@@ -6,30 +6,34 @@ before). ``--mix a.png:0.7 b.png:0.3`` is one style made of several. A single pa
 ``--out`` itself; several go to ``--out/{density}__{style}/`` with an ``index.html`` beside them.
 An output that already exists is refused unless ``--overwrite`` is given, before any work starts.
 
-``--overwrite`` replaces only what mistyle wrote: a folder is a mistyle output when it holds the
-``report.json`` every render writes (``is_mistyle_output``). A folder with other files, and a
-folder that is or holds one of the run's inputs, is refused whatever the options.
+``--overwrite`` replaces only what mistyle wrote (``ownership``): an output folder whose manifest
+lists every file in it, unchanged. A folder holding any other file (a user's notes, an edited
+image, a folder mistyle did not make), and a folder that is or holds one of the run's inputs, is
+refused whatever the options; so is a batch's ``--out`` holding anything but its outputs and
+their ``index.html``.
 """
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
-STYLE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".exr")
+from .conventions import STYLE_SUFFIXES
+from .ownership import check_replaceable, is_owned, read_manifest
+
 REPORT_FILE = "report.json"
-"""Written into every output (last, so only a complete output has it): what marks a folder as mistyle's."""
+RENDER_KINDS = ("render", "sequence")
+"""Manifest kinds of a render's folder: one run's (``staged_directory``), or chunks merged frame by frame."""
+BATCH_KIND = "batch"
+_OURS_BESIDE = re.compile(r"\.[^/]+\.(lock|(partial|replaced|chunk)-[^/]+)(/.*)?")
+"""What mistyle keeps beside an output while writing it: its lock and staging folders."""
 
 
 def is_mistyle_output(folder: Path) -> bool:
-    """Whether ``folder`` holds a render's ``report.json`` (a JSON object with its ``inputs``)."""
-    try:
-        report = json.loads((Path(folder) / REPORT_FILE).read_text())
-    except (OSError, ValueError):
-        return False
-    return isinstance(report, dict) and "inputs" in report
+    """Whether ``folder`` is a complete render of mistyle's (its manifest is written last)."""
+    record = read_manifest(folder)
+    return record is not None and record.get("kind") in RENDER_KINDS
 
 
 def check_not_an_input(folder: Path, inputs: list[Path]) -> None:
@@ -123,9 +127,11 @@ def style_choices(styles: list[Path] | None, mix: list[str] | None) -> list[Styl
         parts = [parse_mix_item(item) for item in mix]
         if len(parts) < 2:
             raise ValueError("--mix needs two or more IMAGE:WEIGHT items; for one style use --style.")
-        total = sum(weight for _, weight in parts)
-        if total <= 0:
+        largest = max(weight for _, weight in parts)
+        if largest <= 0:
             raise ValueError("--mix weights must not all be zero.")
+        parts = [(path, weight / largest) for path, weight in parts]  # no overflow: 1e308 + 1e308 is inf
+        total = sum(weight for _, weight in parts)
         parts = [(path, weight / total) for path, weight in parts]
         name = "mix-" + "-".join(f"{safe_name(path.stem)}{round(100 * weight)}" for path, weight in parts)
         return [StyleChoice(name, tuple(parts))]
@@ -166,22 +172,46 @@ def plan_outputs(
             )
         seen[output.name] = output
     inputs = [source.path for source in sources] + [image for choice in choices for image, _ in choice.parts]
+    if not single:
+        check_batch_root(Path(out), [output.folder.name for output in outputs])
     for output in outputs:
         folder = output.folder
         check_not_an_input(folder, inputs)
-        if folder.is_dir() and any(p for p in folder.iterdir() if not p.name.startswith(".")):
-            if not is_mistyle_output(folder):
-                raise ValueError(
-                    f"{folder} holds files that are not a mistyle render (it has no {REPORT_FILE} from "
-                    "mistyle-render); --overwrite replaces only mistyle's own outputs. Choose another --out, "
-                    "or empty that folder."
-                )
-            if not overwrite and not resume:
-                raise ValueError(
-                    f"{folder} already holds a render; pass --overwrite to replace it, --resume to keep it "
-                    "and make only the missing outputs, or choose another --out."
-                )
+        if not folder.is_dir() or not any(folder.iterdir()):
+            continue
+        if resume and is_mistyle_output(folder):
+            continue  # kept as it is; the caller checks it was made with this run's settings
+        check_replaceable(folder)
+        if not is_mistyle_output(folder):  # only the pending files of a killed merge: empty for our purposes
+            continue
+        if not overwrite and not resume:
+            raise ValueError(
+                f"{folder} already holds a render; pass --overwrite to replace it, --resume to keep it "
+                "and make only the missing outputs, or choose another --out."
+            )
     return outputs
+
+
+def check_batch_root(out: Path, names: list[str]) -> None:
+    """``ValueError`` when a batch's ``out`` holds anything but mistyle's: the outputs it plans
+    (``names``, each checked on its own), complete renders of earlier batches, its ``index.html``
+    (listed in the root's manifest) and the locks and staging folders beside them."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
+    if out.is_dir():
+        check_replaceable(out, also_ours=batch_entries(out, names))
+
+
+def batch_entries(out: Path, names: list[str] = ()):
+    """Whether a path in a batch's ``out`` (relative) is one of its outputs' (``names``, and the complete
+    renders there) or their locks and staging folders; the root's own files are in its manifest."""
+    renders = {p.name for p in out.iterdir() if p.is_dir() and not p.is_symlink() and is_owned(p)}
+    allowed = set(names) | renders
+
+    def ours(name: str) -> bool:
+        return name.split("/")[0] in allowed or _OURS_BESIDE.fullmatch(name) is not None
+
+    return ours
 
 
 def batch_renders(out: Path) -> list[Path]:

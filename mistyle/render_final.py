@@ -313,8 +313,9 @@ class Job:
 
 def run(args) -> int:
     from .backend import use_variant
-    from .io import chunk_staging, load_style, output_lock, staged_directory
+    from .io import load_style
     from .outputs import is_mistyle_output, plan_outputs
+    from .ownership import chunk_staging, output_lock, staged_directory
     from .pipeline import Pipeline
 
     check_options(args)
@@ -330,6 +331,9 @@ def run(args) -> int:
         )
     keep = args.resume and not args.overwrite and not merging
     outputs = [output for output in planned if not (keep and is_mistyle_output(output.folder))]
+    for output in planned:
+        if output not in outputs:
+            check_same_settings(args, output.folder, "--resume keeps it", "pass --overwrite to render it again")
     batch = len(planned) > 1
     if len(outputs) < len(planned):
         log(f"note: --resume: {len(planned) - len(outputs)} of {len(planned)} output(s) already complete, kept")
@@ -457,14 +461,16 @@ def save_look(args, pipeline, styles: dict):
 
 def write_batch_index(out: Path, pipeline) -> None:
     """``out/index.html`` for the complete outputs on disk, titled with their number."""
-    from .outputs import batch_renders
-    from .pages import write_index
+    from .outputs import BATCH_KIND, batch_entries, batch_renders
+    from .ownership import writing
+    from .pages import INDEX_FILE, write_index
 
     count = len(batch_renders(out))
     if count:
-        write_index(
-            out, f"mistyle: {count} render{'s' if count != 1 else ''}", [f"checkpoint {pipeline.stylizer.path}"]
-        )
+        with writing(out, BATCH_KIND, [INDEX_FILE], also_ours=batch_entries(Path(out))):
+            write_index(
+                out, f"mistyle: {count} render{'s' if count != 1 else ''}", [f"checkpoint {pipeline.stylizer.path}"]
+            )
 
 
 # ---------------------------------------------------------------------------- stage 0: options
@@ -472,11 +478,20 @@ def check_options(args) -> None:
     """Every option's range, before anything is read or written; one message names the option.
 
     Options that a library function also takes are checked by that function's own validator."""
+    from .io import check_link
     from .pipeline import validate_scale_structures, validate_strength
     from .scenes import validate_density_scale
     from .scenes.cameras import validate_camera_distance, validate_orbit_position
     from .scenes.pathtraced import validate_coat_ior, validate_max_depth
 
+    for path in args.density or []:  # a loop would end in Path.resolve's RuntimeError while planning outputs
+        check_link(Path(path), "Density", "point --density at a density file or a folder of frames")
+    for path in args.mesh or []:
+        check_link(Path(path), "Mesh", "point --mesh at a mesh file")
+    for path in (args.style or []) + [item.rpartition(":")[0] for item in args.mix or []]:
+        check_link(Path(path), "Style image", "point --style at an image file or a folder of them")
+    if args.look is not None:
+        check_link(Path(args.look), "Look", "point --look at a look file made by --save-look")
     validate_max_depth(args.max_depth, "--max-depth")
     validate_orbit_position(args.view, "--view")
     if args.camera_distance is not None:
@@ -527,6 +542,10 @@ def check_look_options(args) -> None:
             raise ValueError("--save-look fits one style: give one --style image (or one --mix).")
         if args.strength != 1.0:
             raise ValueError("A look holds its style at full strength; --save-look does not take --strength.")
+    if args.look is not None and Path(args.look).is_dir():
+        raise ValueError(
+            f"--look {args.look} is a folder; give a look file, made by mistyle-render ... --save-look FILE."
+        )
     if args.look is not None and args.strength != 1.0:
         raise ValueError("A look holds its style at full strength; --look does not take --strength.")
     if args.key_frames is not None and args.save_look is None:
@@ -544,6 +563,7 @@ def check_look_options(args) -> None:
                 f"--save-look {path} must be a file in an existing folder (e.g. looks/wave.look); "
                 f"{'it is a folder' if path.is_dir() else 'its folder does not exist'}."
             )
+        check_look_replaceable(path, args.overwrite)
     if args.frames is not None:
         args.frame_range = parse_frame_range(args.frames)
         if args.mesh:
@@ -555,6 +575,21 @@ def check_look_options(args) -> None:
             )
     else:
         args.frame_range = None
+
+
+def check_look_replaceable(path: Path, overwrite: bool) -> None:
+    """``ValueError`` unless ``--save-look path`` may be written: a new file, or with ``--overwrite`` a look."""
+    from .look import is_look_file
+
+    if not (path.exists() or path.is_symlink()):
+        return
+    if not is_look_file(path):
+        raise ValueError(
+            f"--save-look {path} already exists and is not a mistyle look; mistyle replaces only its own files. "
+            "Choose another file name."
+        )
+    if not overwrite:
+        raise ValueError(f"The look {path} already exists; pass --overwrite to replace it, or choose another name.")
 
 
 def parse_frame_range(text: str) -> tuple[int, int]:
@@ -630,6 +665,61 @@ def write_coat_mesh(job: Job) -> None:
         job.coat_mesh_path = write_ply(job.out / "coat_mesh.ply", *job.coat_mesh)
 
 
+SETTING_OPTIONS = {
+    "res": "--res",
+    "spp": "--spp",
+    "denoise": "--denoise",
+    "max_depth": "--max-depth",
+    "light": "--light",
+    "coat_ior": "--coat",
+    "view": "--view",
+    "turntable": "--turntable",
+    "strength": "--strength",
+    "scale_structures": "--scale-structures",
+    "colour_match": "--no-colour-match",
+}
+"""The options that decide how an output's frames look, as ``report.json`` records them: chunks merged
+into one folder, and outputs kept by ``--resume``, must agree on all of them."""
+
+
+def _settings_record(args) -> dict:
+    record = {
+        "res": args.res,
+        "spp": args.spp,
+        "denoise": args.denoise,
+        "max_depth": args.max_depth,
+        "light": args.light,
+        "coat_ior": args.coat,
+        "view": args.view,
+        "turntable": args.turntable,
+        "strength": args.strength,
+        "scale_structures": args.scale_structures,
+        "colour_match": args.colour_match,
+    }
+    assert record.keys() == SETTING_OPTIONS.keys()
+    return json.loads(json.dumps(record))  # as a report holds them (tuples become lists)
+
+
+def check_same_settings(args, folder: Path, why: str, other_fix: str = "") -> None:
+    """``ValueError`` naming the first option whose value differs from the one ``folder``'s render used."""
+    from .outputs import REPORT_FILE
+
+    try:
+        held = json.loads((folder / REPORT_FILE).read_text()).get("inputs", {})
+    except (OSError, ValueError, AttributeError):
+        raise ValueError(
+            f"{folder / REPORT_FILE} cannot be read, so the render settings of {folder} are unknown; "
+            f"{other_fix or 'remove that folder'}, or choose another --out."
+        ) from None
+    for key, value in _settings_record(args).items():
+        if key in held and held[key] != value:
+            option, fixes = SETTING_OPTIONS[key], ", ".join(filter(None, [other_fix, "or choose another --out"]))
+            raise ValueError(
+                f"{folder} was rendered with {option} {held[key]} and this run asks for {value}; {why} only with the "
+                f"same settings: give {option} {held[key]}, {fixes}."
+            )
+
+
 def _inputs_record(job: Job) -> dict:
     args, pipeline = job.args, job.pipeline
     refinement = pipeline.look_refinement() if job.look is not None else pipeline.refinement(len(job.frames.densities))
@@ -638,20 +728,12 @@ def _inputs_record(job: Job) -> dict:
         "mesh": job.output.density.mesh,
         "grid": args.grid,
         "style": job.look.meta.get("style", "a look") if job.look is not None else job.output.style.describe(),
-        "strength": args.strength,
         "frames": len(job.frames.densities),
         "shape_zyx": list(job.frames.densities[0].shape),
         "checkpoint": str(pipeline.stylizer.path),
         "look_sha256": None if job.look is None else job.look.meta.get("file_sha256"),
-        "light": args.light,
-        "spp": args.spp,
-        "denoise": args.denoise,
-        "max_depth": args.max_depth,
-        "res": args.res,
+        **_settings_record(args),
         "density_scale": pipeline.density_scale,
-        "coat_ior": args.coat,
-        "scale_structures": args.scale_structures,
-        "colour_match": args.colour_match,
         "refine_steps": refinement.layer_steps,
         "refine_path_steps": refinement.path_steps,
         "views": len(job.views),
@@ -684,9 +766,9 @@ def stylize_frames(job: Job, report: dict):
 def render_frames(job: Job, stylized, report: dict):
     """Path-trace the pipeline's albedos and write EXR/PNG (and video); also the layer's images of
     the feed-forward albedos. Returns ``(images, layer_images)``, linear ``(H, W, 3)`` each."""
-    from .display import display
     from .io import write_exr, write_gif, write_mp4, write_png
     from .progress import bar
+    from .tone import display
 
     args, pipeline = job.args, job.pipeline
     plan = pipeline.render_plan(job.frames, job.views, job.first)
@@ -700,6 +782,8 @@ def render_frames(job: Job, stylized, report: dict):
             coat_mesh=job.coat_mesh_path,
             progress=lambda done, count, seconds: progress_bar.update(1),
             first=job.first,
+            notes=job.notes,  # images of a sequence or turntable that show no medium, and why
+            chunk=job.merged,  # frames merged into a folder: others, rendered apart, may show the medium
         )
     layer_images = [
         image
@@ -790,23 +874,24 @@ METRIC_KEYS = ("rgb_swd", "patch_swd", "hue_coverage", "structure", "swd_final",
 def write_report(job: Job, stylized, images, layer_images, report: dict) -> None:
     """Style metrics of every image against the style, ``report.json``, ``sheet.png`` and a summary line.
 
-    A metric that cannot be computed is ``null`` in the report, with a note: every metric when no
-    pixel of the final render sees the medium, ``patch_swd`` when no 5x5 patch lies inside it."""
-    from .display import display
+    A metric that cannot be computed is ``null`` in the report, with a note, also shown on the console:
+    the style metrics of images that see no medium (the pipeline refuses a render where none does, and
+    names why each image does not: ``Pipeline.check_images``), ``patch_swd`` when no 5x5 patch lies inside it."""
     from .io import atomic_write_bytes
     from .objective.metrics import foreground_mask, style_distance, style_fidelity
     from .outputs import REPORT_FILE
     from .pages import SHEET_FILE, write_sheet
+    from .tone import display
 
     style = stylized.target
     started = time.perf_counter()
     visible = [image for image in images if foreground_mask(image).any()]
     if visible:
         if len(visible) < len(images):
-            job.notes.append(
-                f"{len(images) - len(visible)} of {len(images)} image(s) see no medium (too thin at density scale "
-                f"{job.pipeline.density_scale:g}); the style metrics are of the others"
-            )
+            unseen = len(images) - len(visible)
+            note = f"{unseen} of {len(images)} image(s) see no medium; the style metrics are of the others"
+            job.notes.append(note)
+            log(f"note: {note}")
         final = [style_distance(image, style) for image in visible]
         report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
         report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
@@ -815,10 +900,9 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
         report.update(style_fidelity(visible, style))
     else:
         report.update(dict.fromkeys(METRIC_KEYS))
-        job.notes.append(
-            f"no pixel of the final render sees the medium (too thin at density scale {job.pipeline.density_scale:g}); "
-            "the style metrics are left out: raise --density-scale to see it"
-        )
+        note = "no pixel of the final render sees the medium; the style metrics are left out"
+        job.notes.append(note)
+        log(f"note: {note}")
     for key in METRIC_KEYS:
         if report.get(key) is not None and not np.isfinite(report[key]):
             report[key] = None
@@ -871,7 +955,7 @@ def check_mergeable(job: Job) -> None:
     from .outputs import REPORT_FILE, is_mistyle_output
 
     folder = job.output.folder
-    if not is_mistyle_output(folder):
+    if not is_mistyle_output(folder) or not (folder / REPORT_FILE).is_file():
         return
     held = json.loads((folder / REPORT_FILE).read_text()).get("inputs", {})
     ours = _inputs_record(job)
@@ -883,6 +967,7 @@ def check_mergeable(job: Job) -> None:
                 f"{folder} holds frames of another {what} ({held.get(key)}); chunks merge only with chunks of the "
                 "same density and look. Choose another --out, or remove that folder first."
             )
+    check_same_settings(job.args, folder, "a chunk merges into it")
 
 
 def frame_metrics(image: np.ndarray, style: np.ndarray) -> dict:
@@ -901,14 +986,26 @@ FRAME_METRICS = ("rgb_swd", "patch_swd", "hue_coverage", "structure")
 def merge_chunk(job: Job, folder: Path) -> None:
     """Move a chunk's files from ``job.out`` into ``folder`` (``io.merge_files``), then write the folder's
     ``report.json`` (every frame present, each with its metrics; the chunks that made them), its video,
-    ``sheet.png`` (its first frame) and ``index.html``. Two chunks give the files one run gives."""
-    from .io import atomic_write_bytes, merge_files, read_png, write_gif, write_mp4
-    from .outputs import REPORT_FILE, is_mistyle_output
+    ``sheet.png`` (its first frame) and ``index.html``. Two chunks give the files one run gives.
+    The folder's manifest takes the files in, so a later chunk or ``--overwrite`` knows them for mistyle's."""
+    from .outputs import REPORT_FILE
+    from .ownership import writing
+    from .pages import INDEX_FILE, SHEET_FILE
+
+    names = [p.name for p in job.out.iterdir() if p.is_file()]
+    with writing(folder, "sequence", names + [REPORT_FILE, "sequence.mp4", "sequence.gif", SHEET_FILE, INDEX_FILE]):
+        _merge_chunk_files(job, folder)
+
+
+def _merge_chunk_files(job: Job, folder: Path) -> None:
+    from .io import atomic_write_bytes, read_png, write_gif, write_mp4
+    from .outputs import REPORT_FILE
+    from .ownership import merge_files
     from .pages import SHEET_FILE, write_index, write_sheet
 
     chunk = job.report
     merge_files(job.out, folder)
-    old = json.loads((folder / REPORT_FILE).read_text()) if is_mistyle_output(folder) else {}
+    old = json.loads((folder / REPORT_FILE).read_text()) if (folder / REPORT_FILE).is_file() else {}
     frames = {**old.get("frames", {}), **chunk["frames"]}
     frames = dict(sorted(frames.items()))
     done = set(chunk["frames"])

@@ -9,9 +9,9 @@ ROOT = Path(mistyle.__file__).parent
 # A unit may import units of a lower layer only (or itself). Same as the map in README.md.
 LAYERS = [
     {"conventions", "vdb_convert"},
-    {"display", "volume", "warp", "backend", "progress", "stops", "vdb", "outputs"},
-    {"io"},
-    {"scenes", "pages"},
+    {"tone", "volume", "warp", "backend", "progress", "stops", "vdb"},
+    {"io", "ownership"},
+    {"scenes", "pages", "outputs"},
     {"integrators"},
     {"bridge_torch", "reference_torch", "pathtrace", "denoise", "adam"},
     {"model", "objective"},

@@ -2,6 +2,7 @@
 on a two-worker Dask cluster (``mistyle.farm``)."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from mistyle.farm import frame_chunks
 from mistyle.farm import main as farm_main
 from mistyle.io import write_vol
 from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, fit_look, parse_key_frames
+from mistyle.ownership import MANIFEST_FILE
 from mistyle.pipeline import Stylizer
 from mistyle.render_final import main
 
@@ -233,6 +235,75 @@ def test_damaged_foreign_and_mismatched_looks_are_one_clear_error(look, stylizer
         Look.load(path, stylizer=other)
 
 
+def _rewritten(source, target, change):
+    """``target``: the look record of ``source`` after ``change(record)``, saved as torch saves it."""
+    record = torch.load(source, map_location="cpu", weights_only=True)
+    change(record)
+    torch.save(record, target)
+    return target
+
+
+def test_a_look_with_changed_bytes_is_refused_by_its_digest(look, stylizer, tmp_path):
+    """torch keeps no checksum: 500 changed bytes of a tensor load as other numbers, which fail late (NaN
+    albedos, blamed on the density or the light). The digest recorded at save finds them."""
+    import zipfile
+
+    path = look.save(tmp_path / "good.look")
+    raw = path.read_bytes()
+    with zipfile.ZipFile(path) as archive:
+        member = max((i for i in archive.infolist() if "/data/" in i.filename), key=lambda i: i.file_size)
+    start = member.header_offset + 30 + len(member.filename) + len(member.extra)
+    damaged = bytearray(raw)
+    damaged[start : start + min(500, member.file_size)] = b"\x7f" * min(500, member.file_size)
+    (tmp_path / "changed.look").write_bytes(bytes(damaged))
+    with pytest.raises(ValueError, match="changed.look is a damaged mistyle look .*SHA-256 recorded") as error:
+        Look.load(tmp_path / "changed.look", stylizer=stylizer)
+    assert "\n" not in str(error.value)
+
+
+def test_looks_with_nan_huge_or_misshapen_tensors_are_refused_when_loaded(look, stylizer, tmp_path):
+    """Looks saved before the digest was recorded still load, and every look is checked for finite values of
+    a sane size and for the shapes the network takes, with or without a digest."""
+    from mistyle.look import MAX_LOOK_VALUE, PAYLOAD_DIGEST_KEY, payload_digest
+
+    path = look.save(tmp_path / "good.look")
+
+    def legacy(record):
+        del record[PAYLOAD_DIGEST_KEY]
+
+    old = _rewritten(path, tmp_path / "old.look", legacy)
+    np.testing.assert_array_equal(Look.load(old, stylizer=stylizer).thumbnail, look.thumbnail)
+
+    def poison(record):
+        record["kernels"]["3"]["gamma"][0, :3] = float("nan")
+        record[PAYLOAD_DIGEST_KEY] = payload_digest(record)  # a digest does not make a value sane
+
+    def huge(record):
+        legacy(record)
+        record["decoder"]["2.weight"] *= 10 * MAX_LOOK_VALUE
+
+    def misshapen(record):
+        legacy(record)
+        record["kernels"]["3"]["beta"] = record["kernels"]["3"]["beta"][:, :-1].clone()
+
+    def unmonotone(record):
+        legacy(record)
+        record["colour_match"]["shown_levels"] = record["colour_match"]["shown_levels"].flip(0)
+
+    cases = {
+        poison: "tensor kernels/3/gamma (1, 8) holds 3 NaN or infinite values",
+        huge: "tensor decoder/2.weight holds values up to",
+        misshapen: "kernels 3/beta (1, 7) do not have the shapes the network gives",
+        unmonotone: "response does not increase",
+    }
+    for change, message in cases.items():
+        bad = _rewritten(path, tmp_path / f"{change.__name__}.look", change)
+        with pytest.raises(
+            ValueError, match=f"{change.__name__}.look is a damaged mistyle look .*{re.escape(message)}"
+        ):
+            Look.load(bad, stylizer=stylizer)
+
+
 # ---------------------------------------------------------------------------- the command line
 @pytest.fixture(scope="module")
 def sequence(tmp_path_factory, blob_density):
@@ -251,7 +322,10 @@ def render(checkpoint, *arguments):
 
 
 def files_of(folder):
-    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and p.name != "report.json"}
+    """The files of a render, but its report and manifest (their times differ from run to run)."""
+    assert (folder / MANIFEST_FILE).is_file()
+    skipped = ("report.json", MANIFEST_FILE)
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and p.name not in skipped}
 
 
 def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpoint, sequence, look, tmp_path, capsys):

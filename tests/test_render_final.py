@@ -138,7 +138,8 @@ def test_render_final_turntable_writes_everything(mi, checkpoint, inputs, tmp_pa
         assert key in report, key
     assert (out / "turntable.mp4").stat().st_size > 1000 and (out / "turntable.mp4").read_bytes()[4:8] == b"ftyp"
     assert np.load(out / "albedo.npy").shape == (16, 18, 20, 3)
-    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+    hidden = [p.name for p in out.iterdir() if p.name.startswith(".")]
+    assert hidden == [".mistyle-manifest.json"]  # no temporary file left, only the record of what the run wrote
 
 
 def given(checkpoint, density, style) -> list[str]:
@@ -471,7 +472,7 @@ def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint,
 
 
 def test_a_second_run_into_an_output_in_use_is_refused(mi, checkpoint, inputs, tmp_path, capsys):
-    from mistyle.io import staged_directory
+    from mistyle.ownership import staged_directory
 
     out = tmp_path / "out"
     with staged_directory(out):
@@ -494,7 +495,7 @@ def test_a_second_run_into_an_output_in_use_is_refused(mi, checkpoint, inputs, t
             ]
         )
         assert code == 2 and "Another mistyle run is writing to" in capsys.readouterr().err
-    assert out.is_dir() and not any(out.iterdir())
+    assert [p.name for p in out.iterdir()] == [".mistyle-manifest.json"]  # the empty output, and nothing else
 
 
 def test_checkpoint_from_another_config_is_refused(mi, checkpoint, inputs, tmp_path, capsys):
@@ -872,7 +873,7 @@ def test_overwrite_refuses_a_folder_mistyle_did_not_write(mi, checkpoint, inputs
     ]
     for extra in ([], ["--overwrite"]):
         assert main(arguments + extra) == 2
-        assert "not a mistyle render" in capsys.readouterr().err
+        assert "holds holiday.jpg: it has no manifest" in capsys.readouterr().err
         assert (out / "holiday.jpg").read_bytes() == b"precious"
     # A render is replaced with --overwrite, and only then.
     render = tmp_path / "render"
@@ -908,7 +909,7 @@ def test_a_medium_of_a_few_voxels_is_refused_before_any_work(mi, checkpoint, inp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dot.vol"]  # nothing written
 
 
-def test_an_invisible_medium_renders_with_its_metrics_left_out(mi, checkpoint, inputs, tmp_path):
+def test_an_invisible_medium_is_refused_and_leaves_nothing(mi, checkpoint, inputs, tmp_path, capsys):
     density = np.zeros((32, 32, 32), np.float32)
     density[14:18, 14:18, 14:18] = 1e-4
     write_vol(tmp_path / "faint.vol", density)
@@ -926,11 +927,8 @@ def test_an_invisible_medium_renders_with_its_metrics_left_out(mi, checkpoint, i
             *FAST,
         ]
     )
-    assert code == 0
-    text = (out / "report.json").read_text()
-    report = json.loads(text)
-    assert "NaN" not in text and report["rgb_swd"] is None and report["patch_swd"] is None
-    assert any("no pixel of the final render sees the medium" in note for note in report["notes"])
+    assert code == 2  # not a black image reported as done: the cause, before any work
+    assert "too thin to see" in capsys.readouterr().err and not out.exists()
 
 
 # ------------------------------------------------------------------ interrupts and what they leave
@@ -1025,30 +1023,45 @@ def test_an_error_without_a_signal_is_not_taken_for_one(monkeypatch, tmp_path):
         main(["--density", "d.vol", "--style", "s.png", "--out", str(tmp_path / "out")])
 
 
-def test_a_killed_runs_staging_folders_are_removed_by_the_next_run(mi, checkpoint, inputs, tmp_path, capsys):
+def test_a_killed_runs_staging_folders_are_removed_by_the_next_run_and_a_live_ones_are_not(
+    mi, checkpoint, inputs, tmp_path, capsys
+):
     import os
+    import subprocess
+    import sys
 
-    for name in (".out.partial-abc123", ".out.replaced-def456"):
-        (tmp_path / name / "x").mkdir(parents=True)
-    (tmp_path / ".out.lock").write_text("")  # left by a SIGKILL: its process is gone, so its lock is free
-    previous = os.umask(0o022)
+    from mistyle.ownership import process_start, run_identity
+
+    ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    host = run_identity().split("-", 2)[2]
+    dead = f"{int(ended.stdout)}-1-{host}"  # its pid, no longer running (or another process's now)
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     try:
-        arguments = [
-            "--checkpoint",
-            str(checkpoint),
-            "--density",
-            str(inputs / "blob.vol"),
-            "--style",
-            str(inputs / "style.png"),
-            "--out",
-            str(tmp_path / "out"),
-            *FAST,
-        ]
-        assert main(arguments) == 0
+        alive = f"{live.pid}-{process_start(live.pid)}-{host}"
+        for name in (f".out.partial-{dead}-abc123", f".out.replaced-{dead}-def456", f".out.chunk-{alive}-ghi789"):
+            (tmp_path / name / "x").mkdir(parents=True)
+        (tmp_path / ".out.lock").write_text("")  # left by a SIGKILL: its process is gone, so its lock is free
+        previous = os.umask(0o022)
+        try:
+            arguments = [
+                "--checkpoint",
+                str(checkpoint),
+                "--density",
+                str(inputs / "blob.vol"),
+                "--style",
+                str(inputs / "style.png"),
+                "--out",
+                str(tmp_path / "out"),
+                *FAST,
+            ]
+            assert main(arguments) == 0
+        finally:
+            os.umask(previous)
     finally:
-        os.umask(previous)
+        live.kill()
+        live.wait()
     assert "removed 2 unfinished staging folder(s)" in capsys.readouterr().err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f".out.chunk-{alive}-ghi789", "out"]
     assert (tmp_path / "out").stat().st_mode & 0o777 == 0o755  # the umask's mode, not mkdtemp's 0700
 
 

@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import STYLE_SUFFIXES, load_style
+from ..conventions import STYLE_SUFFIXES
+from ..io import load_style
 from .heldout import check_training_styles
 
 PHOTOS = {
@@ -60,7 +61,7 @@ def random_crop(image: np.ndarray, size: int, rng: np.random.Generator) -> np.nd
 
 @dataclass
 class ImageFolder:
-    """Every style picture under ``root`` (``io.STYLE_SUFFIXES``; DTD's ``images/<class>/*.jpg`` included).
+    """Every style picture under ``root`` (``conventions.STYLE_SUFFIXES``; DTD's ``images/<class>/*.jpg`` included).
 
     A folder holding any of the fidelity benchmark's held-out styles is refused (``data.heldout``).
 

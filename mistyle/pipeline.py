@@ -18,7 +18,9 @@ The chain, each stage owned by one module and configured by ``PipelineSettings``
    refinement (``fit.refine_albedo``): fast-layer steps, then path-traced steps, against the style;
    in a sequence each frame starts from the previous frame's result warped by the velocity and is
    held near it by the temporal term. ``Pipeline.refinement`` owns the rule for how many steps.
-4. **Path tracing** (``pathtrace.path_trace``): Mitsuba's ``volpath``, multiple scattering.
+4. **Path tracing** (``pathtrace.path_trace``): Mitsuba's ``volpath``, multiple scattering, in passes
+   (a stop waits for one pass). A render that cannot show the medium is refused with its cause: before
+   any work when the inputs decide it (``Pipeline.check_visible``), else after it (``check_images``).
 
 ``mistyle-render`` is argparse -> ``PipelineSettings`` -> ``Pipeline`` -> files, and
 ``mistyle.stylize(..., refine=True)`` returns the albedo it path traces by default
@@ -75,6 +77,49 @@ def flicker_report(albedos: list, frames, suffix: str = "") -> dict:
     return {f"temporal_flicker{suffix}_unwarped": float(np.mean(np.abs(np.diff(stacked, axis=0))))}
 
 
+def described(value) -> str:
+    """``value`` as an error message shows it: short, with its type."""
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape}"
+    text = repr(value)
+    return f"{text if len(text) <= 60 else text[:57] + '...'} ({type(value).__name__})"
+
+
+def validate_int(value, name: str, low: int | None = None, high: int | None = None) -> int:
+    """``value`` as an int in ``[low, high]`` (a ``None`` bound: none); ``TypeError`` for anything but an
+    integer (a bool, a float or a string too), ``ValueError`` out of range, both naming ``name``."""
+    bounds = f" in [{low}, {high}]" if None not in (low, high) else f" >= {low}" if low is not None else ""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer{bounds}, got {described(value)}.")
+    if (low is not None and value < low) or (high is not None and value > high):
+        raise ValueError(f"{name} must be{bounds}, got {value}.")
+    return int(value)
+
+
+def validate_real(value, name: str, accepted: str = "a number") -> float:
+    """``value`` as a float; ``TypeError`` naming ``name`` for a string, a bool or anything else that is
+    not a real number. Ranges are the caller's (``validate_strength``, ...), which also refuse NaN."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be {accepted}, got {described(value)}.")
+    return float(value)
+
+
+def validate_flag(value, name: str) -> bool:
+    """``value`` as a bool; ``TypeError`` naming ``name`` for anything but True or False (a truthy string
+    such as ``"no"`` would otherwise switch the option on)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {described(value)}.")
+    return bool(value)
+
+
+def validate_path(value, name: str, accepted: str = "a file's path") -> None:
+    """``None`` or a path (``str`` or ``os.PathLike``); ``TypeError`` naming ``name`` otherwise."""
+    import os
+
+    if value is not None and not isinstance(value, (str, os.PathLike)):
+        raise TypeError(f"{name} must be {accepted} (a str or Path) or None, got {described(value)}.")
+
+
 @dataclass
 class RenderSettings:
     """How the final images are path traced (``mistyle-render``'s ``--res``, ``--spp``, ...)."""
@@ -88,6 +133,30 @@ class RenderSettings:
     view: float = HELD_OUT_VIEW  # the camera's position on the orbit, in [0, 1)
     turntable: int = 0  # > 0: this many views evenly around the orbit from ``view``
     denoise: str = "oidn"  # mistyle.denoise.DENOISERS: Intel Open Image Denoise on the path-traced images, or "none"
+
+    def __post_init__(self):
+        # mistyle-render's bounds (render_final.check_options), for settings made in Python.
+        from .scenes.cameras import validate_orbit_position
+        from .scenes.pathtraced import validate_coat_ior, validate_max_depth
+
+        validate_int(self.res, "res", 8, 8192)
+        validate_int(self.spp, "spp", 1, 1 << 16)
+        validate_max_depth(validate_int(self.max_depth, "max_depth"), "max_depth")
+        forms = "constant[:Le], envmap:<file.exr>[:scale], point:x,y,z[:intensity] or area[:radiance]"
+        if not isinstance(self.light, str):
+            raise TypeError(f"light must be a string: {forms}; got {described(self.light)}.")
+        if self.light.partition(":")[0] not in LIGHT_KINDS:
+            raise ValueError(f"light {self.light!r} is not a known light; give one of {forms}.")
+        if self.coat_ior is not None:
+            validate_coat_ior(validate_real(self.coat_ior, "coat_ior", "an index of refraction or None"), "coat_ior")
+        if self.bricks is not None:
+            validate_int(self.bricks, "bricks", 0, 4096)
+            if self.bricks and self.coat_ior is not None:
+                raise ValueError("bricks needs one medium under a coat (coat_ior set); leave bricks at None or 0.")
+        validate_orbit_position(validate_real(self.view, "view", "an orbit position in [0, 1)"), "view")
+        validate_int(self.turntable, "turntable", 0, 3600)
+        if self.denoise not in DENOISERS:
+            raise ValueError(f"denoise must be one of {', '.join(DENOISERS)}, got {self.denoise!r}.")
 
 
 @dataclass
@@ -127,16 +196,31 @@ class PipelineSettings:
         return self.strength == 1.0 and self.colour_match and not named
 
     def __post_init__(self):
-        validate_strength(self.strength)
-        validate_scale_structures(self.scale_structures)
-        if self.render.denoise not in DENOISERS:
-            raise ValueError(f"denoise must be one of {', '.join(DENOISERS)}, got {self.render.denoise!r}.")
+        from .scenes import validate_density_scale
+        from .scenes.cameras import validate_camera_distance
+
+        validate_path(self.checkpoint, "checkpoint", "a mistyle-train checkpoint's path")
+        validate_path(self.vgg_weights, "vgg_weights", "the VGG weights' path")
         if self.device not in DEVICES:
-            raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {self.device!r}.")
+            raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {described(self.device)}.")
+        validate_strength(validate_real(self.strength, "strength", "a number in [0, 1]"))
+        validate_scale_structures(validate_real(self.scale_structures, "scale_structures"))
+        validate_flag(self.colour_match, "colour_match")
         for name in ("refine_steps", "refine_path_steps", "look_steps"):
-            steps = getattr(self, name)
-            if steps is not None and not 0 <= steps <= 10000:
-                raise ValueError(f"{name} must lie in [0, 10000], got {steps}.")
+            if getattr(self, name) is not None:
+                validate_int(getattr(self, name), name, 0, 10000)
+        if self.density_scale is not None:
+            validate_density_scale(validate_real(self.density_scale, "density_scale"))
+        if self.camera_distance is not None:
+            validate_camera_distance(validate_real(self.camera_distance, "camera_distance"), "camera_distance")
+        if self.key_frames is not None and not isinstance(self.key_frames, str):
+            raise TypeError(
+                f'key_frames must be a string of frame indices such as "0,40,80", got {described(self.key_frames)}.'
+            )
+        if not isinstance(self.render, RenderSettings):
+            raise TypeError(
+                f"render must be a RenderSettings (e.g. RenderSettings(res=128)), got {described(self.render)}."
+            )
 
 
 @dataclass
@@ -194,6 +278,17 @@ class Pipeline:
         stylizer: Stylizer | None = None,
         log: Callable[[str], None] | None = None,
     ):
+        if settings is not None and not isinstance(settings, PipelineSettings):
+            raise TypeError(
+                f"settings must be a PipelineSettings (e.g. Pipeline(PipelineSettings(strength=0.5))) or None, "
+                f"got {described(settings)}."
+            )
+        if stylizer is not None and not isinstance(stylizer, Stylizer):
+            raise TypeError(
+                f"stylizer must be a Stylizer (loaded once, shared by pipelines) or None, got {described(stylizer)}."
+            )
+        if log is not None and not callable(log):
+            raise TypeError(f"log must be a function of one message (e.g. print) or None, got {described(log)}.")
         self.settings = settings if settings is not None else PipelineSettings()
         s = self.settings
         self.stylizer = stylizer if stylizer is not None else Stylizer(s.checkpoint, s.device, s.vgg_weights)
@@ -219,10 +314,14 @@ class Pipeline:
         return self.config.render.radiance
 
     def light(self):
-        """The final render's ``scenes.LightSpec``."""
+        """The final render's ``scenes.LightSpec``; ``ValueError`` for an environment map holding NaN/inf
+        pixels (``pathtrace.check_light``), before anything is read or rendered."""
+        from .pathtrace import check_light
         from .scenes import LightSpec
 
-        return LightSpec.parse(self.settings.render.light, default_radiance=self.radiance)
+        light = LightSpec.parse(self.settings.render.light, default_radiance=self.radiance)
+        check_light(light)
+        return light
 
     def views(self) -> list:
         """The final render's ``scenes.View``s: one at ``render.view``, or a turntable from it."""
@@ -288,6 +387,7 @@ class Pipeline:
         s = self.settings
         notes = [] if notes is None else notes
         frames = self.frames(density, velocities)
+        self.check_visible(frames)
         parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
         target = style_target([image for image, _ in parts], [weight for _, weight in parts])
         refinement = self.refinement(len(frames.densities))
@@ -381,6 +481,7 @@ class Pipeline:
         each frame is refined on its own, from the look's albedo). The target is the look's style."""
         notes = [] if notes is None else notes
         frames = self.frames(density, velocities)
+        self.check_visible(frames)
         notes.extend(look.notes_for(frames.densities[0].shape, frames.density_scale))
         report: dict = {}
         started = time.perf_counter()
@@ -451,18 +552,46 @@ class Pipeline:
 
     # ------------------------------------------------------------------------ render
     def path_trace(
-        self, frames: Frames, albedos: list, views: list | None = None, coat_mesh=None, progress=None, first: int = 0
+        self,
+        frames: Frames,
+        albedos: list,
+        views: list | None = None,
+        coat_mesh=None,
+        progress=None,
+        first: int = 0,
+        notes: list | None = None,
+        chunk: bool = False,
     ) -> tuple[list, list]:
         """Path-trace frame ``i`` with ``albedos[i]`` from ``views`` (default ``self.views()``): every view
         of a single frame, or for a sequence frame ``i`` from view ``i mod len(views)``. Returns
         ``(images (res, res, 3) linear RGB, seconds per image)``; ``progress(done, count, seconds)``
-        after each image."""
+        after each image.
+
+        ``ValueError`` naming the cause for images that cannot show the medium: before the render when
+        the inputs decide it (``check_visible``; an albedo holding NaN/inf), after it for a NaN/inf image
+        or one that shows the medium in too few pixels (``check_images``). In a sequence or a turntable
+        an image that shows no medium while others do is a warning, logged and added to ``notes``; in a
+        ``chunk`` of a sequence (``first`` > 0, or ``chunk``: rendered in parts, ``--frames``) even when
+        none of its images does, since the other chunks may."""
         from .denoise import denoise
         from .pathtrace import path_trace
 
         render = self.settings.render
+        plan = self.render_plan(frames, views, first)
+        labels = self.image_labels(frames, plan, first)
+        self.check_visible(frames, plan)
+        for frame, _ in plan:
+            bad = ~np.isfinite(np.asarray(albedos[frame], dtype=np.float32))
+            if bad.any():
+                where = tuple(int(i) for i in np.argwhere(bad)[0])
+                name = f"frame {first + frame}" if len(plan) > 1 or first else "the frame"
+                raise ValueError(
+                    f"The albedo of {name} holds {int(bad.sum())} NaN/inf value(s) (first at [z, y, x, channel] = "
+                    f"{where}), which the path tracer cannot render. Clean it (e.g. np.nan_to_num(albedo, nan=0.5)) "
+                    "or check what made it (the look, the refinement)."
+                )
         images, seconds = [], []
-        for frame, frame_views in self.render_plan(frames, views, first):
+        for frame, frame_views in plan:
             frame_images, took = path_trace(
                 frames.densities[frame],
                 albedos[frame],
@@ -471,6 +600,8 @@ class Pipeline:
                 progress=progress,
                 **self.trace_options(),
             )
+            for offset, image in enumerate(frame_images):  # before the denoiser, which hides NaN
+                self.check_finite_render(image, labels[len(images) + offset])
             if render.denoise == "oidn":
                 started = time.perf_counter()
                 frame_images = [denoise(image) for image in frame_images]
@@ -478,7 +609,96 @@ class Pipeline:
             images += frame_images
             seconds += took
         check_finite("The path-traced image", images)
+        self.check_images(images, frames, albedos, plan, labels, notes, refuse=not (chunk or first))
         return images, seconds
+
+    def image_labels(self, frames: Frames, plan: list, first: int = 0) -> list[str]:
+        """What messages call each image of ``plan`` (``render_plan``): ``the final image``, ``view i``
+        of a turntable, ``frame i`` of a sequence (its index in the whole sequence)."""
+        if frames.sequence or first:
+            return [f"frame {first + frame}" for frame, _ in plan]
+        ((_, views),) = plan
+        return ["the final image"] if len(views) == 1 else [f"view {index}" for index in range(len(views))]
+
+    def check_visible(self, frames: Frames, plan: list | None = None) -> None:
+        """``ValueError`` before any work for a final render that cannot show the medium, as far as the
+        settings and the densities decide it: ``max_depth`` 1 (``pathtrace.check_max_depth``), an
+        environment map holding NaN/inf (``light``), a camera from which the medium spans too few pixels
+        or a medium too thin for the light to show (``pathtrace.unseen_medium``). For a sequence or
+        a turntable only when no image can show it: a simulation may start as a wisp, which
+        ``check_images`` reports after the render. Also a medium so dense that the path tracer's time is
+        out of bounds (``volume.validate_extinction``)."""
+        from .pathtrace import check_max_depth, unseen_medium
+        from .volume import validate_extinction
+
+        render = self.settings.render
+        check_max_depth(render.max_depth)
+        for index, density in enumerate(frames.densities):
+            validate_extinction(density, frames.density_scale, f"Frame {index}" if frames.sequence else "The density")
+        light = self.light()
+        plan = self.render_plan(frames) if plan is None else plan
+        causes = [
+            unseen_medium(frames.densities[frame], view, render.res, frames.density_scale, light)
+            for frame, views in plan
+            for view in views
+        ]
+        if all(causes):
+            self.refuse_unseen(self.image_labels(frames, plan), causes, "cannot show the", "can show the")
+
+    def check_finite_render(self, image: np.ndarray, label: str) -> None:
+        """``ValueError`` for a path-traced image holding NaN/inf, which its finite inputs (density, albedo
+        and light, all checked) should never give."""
+        bad = ~np.isfinite(image).all(axis=-1)
+        if bad.any():
+            render = self.settings.render
+            row, column = (int(i) for i in np.argwhere(bad)[0])
+            raise ValueError(
+                f"The path tracer gave {label} {int(bad.sum())} NaN/inf pixel(s) (first at row {row}, column "
+                f"{column}) from finite inputs: light {render.light!r}, density scale {self.density_scale:g}, max "
+                f"depth {render.max_depth}. Nothing was written; try a lower density scale or light strength."
+            )
+
+    def check_images(
+        self,
+        images: list,
+        frames: Frames,
+        albedos: list,
+        plan: list,
+        labels: list[str],
+        notes: list | None = None,
+        refuse: bool = True,
+    ) -> None:
+        """After the render: ``ValueError`` naming the cause (``pathtrace.dark_render``: the medium too thin,
+        its albedo black, the camera too far, the light) when no image shows the medium in enough pixels
+        and ``refuse``. Otherwise (a sequence that starts as a wisp, a turntable, a chunk) each image that
+        does not is a warning on the console (``log``) and in ``notes``."""
+        from .pathtrace import dark_render
+
+        render = self.settings.render
+        light = self.light()
+        pairs = [(frame, view) for frame, views in plan for view in views]
+        causes = [
+            dark_render(image, frames.densities[frame], albedos[frame], view, render.res, frames.density_scale, light)
+            for image, (frame, view) in zip(images, pairs)
+        ]
+        if refuse and all(causes):
+            self.refuse_unseen(labels, causes, "shows no", "shows the")
+        for label, cause in zip(labels, causes):
+            if cause:
+                warning = f"{label} shows no medium: {cause}"
+                self.log(f"warning: {warning}")
+                if notes is not None:
+                    notes.append(warning)
+
+    @staticmethod
+    def refuse_unseen(labels: list[str], causes: list[str], one: str, none_of: str) -> None:
+        """The ``ValueError`` for a render none of whose images shows the medium, with the first one's
+        cause: "The final image {one} medium: ..." or "None of the N images {none_of} medium; ..."."""
+        if len(labels) == 1:
+            raise ValueError(f"The final image {one} medium: {causes[0]} Nothing was written.")
+        raise ValueError(
+            f"None of the {len(labels)} images {none_of} medium; {labels[0]}: {causes[0]} Nothing was written."
+        )
 
     def render_plan(self, frames: Frames, views: list | None = None, first: int = 0) -> list[tuple[int, list]]:
         """``(frame, views)`` to path trace: every view of one frame, or each frame of a sequence

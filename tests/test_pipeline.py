@@ -123,3 +123,26 @@ def test_pipeline_refuses_empty_and_mismatched_frames(blob_density):
         pipeline.frames([blob_density, blob_density[:8]])
     with pytest.raises(ValueError, match="one velocity per frame"):
         pipeline.frames([blob_density, blob_density], velocities=[np.zeros(blob_density.shape + (3,))])
+
+
+def test_passes_replay_their_kernels_and_give_the_traced_passes_bit_for_bit(mi, blob_density, monkeypatch):
+    """A render in passes (a stop waits for one pass) traces Mitsuba's integrator for the first passes of
+    each size only and replays the recorded kernels after (``dr.freeze``): the same image as tracing each
+    pass, with pass ``n`` of ``P`` seeded ``(seed + view) * P + n``."""
+    from mistyle.pathtrace import render_passes
+    from mistyle.scenes import CameraPath, pathtraced_scene
+
+    albedo = np.full(blob_density.shape + (3,), 0.6, np.float32)
+    views = [CameraPath(distance=2.0).view(0.1), CameraPath(distance=2.0).view(0.6)]
+    scene = mi.load_dict(pathtraced_scene(blob_density, albedo, views, res=16, density_scale=20.0, spp=20))
+    passes = [3] * 4 + [2] * 4
+    traced = sum(
+        np.array(mi.render(scene, sensor=1, spp=count, seed=(5 + 1) * len(passes) + number), np.float64) * count
+        for number, count in enumerate(passes)
+    )
+    calls = []
+    render = mi.render
+    monkeypatch.setattr(mi, "render", lambda *args, **kwargs: calls.append(kwargs["spp"]) or render(*args, **kwargs))
+    image = render_passes(scene, 1, passes, seed=5)
+    assert len(calls) < len(passes)  # replayed, not traced again
+    np.testing.assert_array_equal(image, (traced / sum(passes)).astype(np.float32))

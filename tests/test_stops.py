@@ -100,3 +100,48 @@ def test_a_stop_whose_exception_was_lost_still_stops_the_run(capsys, safe_points
     assert run_stoppable(work, "kept", in_process=True) == INTERRUPTED_CODE
     assert steps == [] and capsys.readouterr().err == "interrupted: kept\n"
     stops.raise_if_requested()  # once the run is over, library calls are not stopped by its signal
+
+
+def test_sigterm_during_a_long_path_trace_ends_the_render_within_two_seconds(tmp_path, blob_density):
+    """A 256^2 render at 1024 spp takes minutes; it runs in passes (``pathtrace.PASS_SAMPLES``) so that
+    SIGTERM ends it with the stop's one line and nothing left beside the output (no lock, no staging)."""
+    import os
+    import select
+    from pathlib import Path
+
+    from mistyle.io import write_vol
+
+    density = tmp_path / "in" / "blob.vol"
+    density.parent.mkdir()
+    write_vol(density, blob_density)
+    renders = tmp_path / "renders"
+    renders.mkdir()
+    style = Path(__file__).resolve().parents[1] / "examples" / "style_marble.png"
+    command = [sys.executable, "-m", "mistyle.render_final", "--density", str(density), "--style", str(style)]
+    command += ["--out", str(renders / "blob"), "--res", "256", "--spp", "1024", "--refine", "0"]
+    environment = {**os.environ, "MISTYLE_PROGRESS": "lines"}  # the bars as lines on a pipe
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment)
+    try:
+        progress, deadline = b"", time.monotonic() + 60
+        while b"path tracing" not in progress and time.monotonic() < deadline and process.poll() is None:
+            if select.select([process.stderr], [], [], 0.5)[0]:
+                progress += os.read(process.stderr.fileno(), 65536)
+        assert b"path tracing" in progress, progress.decode()
+        time.sleep(1.0)  # into the passes
+        assert process.poll() is None, "the render ended before it was stopped"
+        sent = time.monotonic()
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=60)
+        took = time.monotonic() - sent
+        error = (progress + process.stderr.read()).decode()
+        assert process.returncode == TERMINATED_CODE, error
+        assert took < 2.0, f"SIGTERM took {took:.2f} s to end the render"
+        lines = [line.strip() for line in error.replace("\r", "\n").splitlines() if line.strip()]
+        assert lines[-1] == "terminated: the output being written was removed; finished outputs are kept"
+        assert sum("terminated" in line for line in lines) == 1 and "Traceback" not in error
+        assert "path traced" not in error and process.stdout.read() == b""  # stopped during the path trace
+        assert sorted(p.name for p in renders.iterdir()) == []  # no .lock, no .blob.partial-*
+    finally:
+        if process.poll() is None:  # a failed check leaves no render running
+            process.kill()
+            process.wait()

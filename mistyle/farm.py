@@ -11,7 +11,16 @@ workers need only mistyle, the density frames and the output folder on a shared 
 ``mistyle-render --look ... --frames A-B`` (``render_chunk``): its frames are stylized from the look
 alone and path traced with per-frame seeds, and it merges them into ``--out`` under the folder's lock,
 so the folder equals one process's render bit for bit whatever the chunks and their order
-(``tests/test_farm.py``). A failed chunk is reported with its frames; rerun just those with ``--frames``.
+(``tests/test_look.py``). A failed chunk is reported with its frames; rerun just those with ``--frames``.
+
+Everything a worker would refuse is checked here before the cluster starts: the options after ``--``
+(parsed and checked as ``mistyle-render`` does; ``--out``, ``--frames``, ``--density`` and ``--look``
+are the farm's own), the look, the frames and ``--out`` (``mistyle.ownership``: never a file, nor a
+folder holding files mistyle did not write). Each task keeps its copy of the look in a staging folder
+beside ``--out`` named after its worker process, and a local cluster's scratch space is the farm's own
+such folder, so whatever a killed run leaves there is removed by the next run into that ``--out``.
+Ctrl-C stops a local cluster's workers at once (they run in their own process group, so the terminal's
+signal reaches only this process, which kills them) and removes their unfinished chunks.
 
 Dask rather than Ray: the work is a flat list of independent, coarse tasks with nothing to share but
 one small file, which Dask's ``distributed`` runs from a pure-Python install (a scheduler and workers
@@ -24,11 +33,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 DEFAULT_CHUNK = 8
 """Frames per task: enough to amortise loading the network (about a second) against a frame's render."""
+OWN_OPTIONS = ("density", "look", "out", "frames")
+"""``mistyle-render`` options the farm sets for every chunk itself: not accepted after ``--``."""
+POLL_SECONDS = 0.2
 
 
 def frame_chunks(count: int, size: int, frames: tuple[int, int] | None = None) -> list[tuple[int, int]]:
@@ -41,23 +52,32 @@ def frame_chunks(count: int, size: int, frames: tuple[int, int] | None = None) -
     return [(start, min(start + size - 1, last)) for start in range(first, last + 1, size)]
 
 
+def chunk_argv(density, look, out, first: int, last: int, options: list[str]) -> list[str]:
+    """The ``mistyle-render`` arguments of one chunk: the farm's own options, then the user's."""
+    argv = ["--density", str(density), "--look", str(look), "--out", str(out), "--frames", f"{first}-{last}"]
+    return [*argv, "--quiet", *options]
+
+
 def render_chunk(look: bytes, density: str, out: str, first: int, last: int, options: list[str]) -> dict:
     """On a worker: ``mistyle-render --density density --look <look> --out out --frames first-last options``.
-    Returns ``{"frames": [first, last]}``; raises ``RuntimeError`` with the command's message if it fails."""
+    Returns ``{"frames": [first, last]}``, with ``"error"`` (the command's message) if it failed: a
+    task that returns its failure keeps Dask from logging it as a crash on the worker."""
     import contextlib
     import io
 
+    from .ownership import chunk_staging
     from .render_final import main
 
-    with tempfile.TemporaryDirectory(prefix="mistyle-look-") as folder:
-        path = Path(folder) / "shipped.look"
+    # The look lies in a staging folder beside the output, named after this worker process: removed
+    # after the chunk, or by the next run once the process is gone (``ownership.remove_dead_staging``).
+    with chunk_staging(Path(out)) as folder:
+        path = folder / "shipped.look"
         path.write_bytes(look)
         errors = io.StringIO()
-        argv = ["--density", density, "--look", str(path), "--out", out, "--frames", f"{first}-{last}", "--quiet"]
-        with contextlib.redirect_stderr(errors):
-            code = main(argv + list(options))
+        with contextlib.redirect_stderr(errors), contextlib.redirect_stdout(io.StringIO()):
+            code = main(chunk_argv(density, path, out, first, last, options))
     if code != 0:
-        raise RuntimeError(f"frames {first}-{last}: {errors.getvalue().strip() or f'exit status {code}'}")
+        return {"frames": [first, last], "error": errors.getvalue().strip() or f"exit status {code}"}
     return {"frames": [first, last]}
 
 
@@ -72,19 +92,39 @@ def render_on_cluster(
     options: list[str] | None = None,
 ) -> list[dict]:
     """Render every frame (or ``frames``) of ``density`` from the look file ``look`` into ``out`` on the Dask
-    ``client``'s workers, ``chunk`` frames a task; ``options``: further ``mistyle-render`` options."""
-    from .io import density_frame_files
+    ``client``'s workers, ``chunk`` frames a task; ``options``: further ``mistyle-render`` options.
+    ``RuntimeError`` naming the failed chunks once every chunk has ended."""
+    import time
 
-    count = len(density_frame_files(density))
-    ranges = frame_chunks(count, chunk, frames)
-    look_bytes = Path(look).read_bytes()
-    shipped = client.scatter(look_bytes, broadcast=True)
+    from .io import density_frame_files
+    from .stops import raise_if_requested
+
+    ranges = frame_chunks(len(density_frame_files(density)), chunk, frames)
+    shipped = client.scatter(Path(look).read_bytes(), broadcast=True)
     density, out = str(Path(density).resolve()), str(Path(out).resolve())
     tasks = [
         client.submit(render_chunk, shipped, density, out, first, last, list(options or []), pure=False)
         for first, last in ranges
     ]
-    return client.gather(tasks)
+    # Polled rather than gathered: Ctrl-C then finds no gather of Dask's half way, to be cancelled noisily.
+    while not all(task.done() for task in tasks):
+        raise_if_requested()
+        time.sleep(POLL_SECONDS)
+    done, failed = [], []
+    for (first, last), task in zip(ranges, tasks):
+        try:
+            result = task.result()
+        except Exception as error:  # the worker died, or the task raised: one line all the same
+            result = {"frames": [first, last], "error": f"{type(error).__name__}: {error}".splitlines()[0]}
+        (failed if "error" in result else done).append(result)
+    if failed:
+        which = ", ".join(f"{a}-{b}" for a, b in (r["frames"] for r in failed))
+        (a, b), message = failed[0]["frames"], failed[0]["error"].removeprefix("error: ")
+        raise RuntimeError(
+            f"{len(failed)} of {len(ranges)} chunks failed (frames {which}; once fixed, rerun them with --frames); "
+            f"frames {a}-{b}: {message}"
+        )
+    return done
 
 
 def parser() -> argparse.ArgumentParser:
@@ -99,7 +139,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--chunk", type=int, default=DEFAULT_CHUNK, help="frames per task")
     p.add_argument("--frames", default=None, metavar="A-B", help="only these frames (0-based, inclusive)")
-    p.add_argument("options", nargs=argparse.REMAINDER, help="after --: options passed to every mistyle-render")
+    p.add_argument(
+        "options",
+        nargs=argparse.REMAINDER,
+        help="after --: options passed to every mistyle-render (not --out, --frames, --density, --look: the farm's)",
+    )
     return p
 
 
@@ -115,6 +159,38 @@ def main(argv=None) -> int:
         return 2
 
 
+def check_render_options(args, options: list[str]) -> argparse.Namespace:
+    """The options after ``--`` as every chunk's ``mistyle-render`` will take them, checked by its own
+    parser and ``check_options``: ``ValueError`` (one line) for any it would refuse, and for the farm's own."""
+    from . import render_final
+
+    def refuse(message: str):
+        raise ValueError(f"after --: {message} (options passed to every mistyle-render).")
+
+    render_parser = render_final.parser()
+    render_parser.error = refuse  # argparse's own would print the usage and exit
+    ours = render_parser.parse_args(chunk_argv(args.density, args.look, args.out, 0, 0, []))
+    parsed = render_parser.parse_args(chunk_argv(args.density, args.look, args.out, 0, 0, options))
+    for name in OWN_OPTIONS:  # a pass-through option overrides (or extends) the farm's: compare the results
+        if getattr(parsed, name) != getattr(ours, name):
+            raise ValueError(
+                f"--{name} is mistyle-farm's own option: give it before --, not after it "
+                f"(mistyle-farm ... --{name} VALUE -- OTHER-OPTIONS)."
+            )
+    render_final.check_options(parsed)
+    return parsed
+
+
+def check_out(out: Path, density: Path, look: Path) -> None:
+    """``--out`` as every chunk will find it: a folder (or nothing yet) holding only mistyle's files,
+    neither an input nor inside one."""
+    from .outputs import plan_outputs
+
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
+    plan_outputs([density], None, [look], None, out, overwrite=True)
+
+
 def _farm(args) -> int:
     """The command's work: the checks, the cluster, the chunks; the cluster is closed however it ends."""
     from .look import Look
@@ -127,26 +203,136 @@ def _farm(args) -> int:
         raise ValueError(f"Density {args.density} does not exist.")
     if args.local_workers is not None and not 1 <= args.local_workers <= 256:
         raise ValueError(f"--local-workers must lie in [1, 256], got {args.local_workers}.")
-    named = options[options.index("--checkpoint") + 1] if "--checkpoint" in options[:-1] else None
-    Look.load(args.look, checkpoint=named)  # a damaged look or another network: one line here, not per task
     frames = None if args.frames is None else parse_frame_range(args.frames)
-    from distributed import Client, LocalCluster
+    check_out(args.out, args.density, args.look)
+    parsed = check_render_options(args, options)
+    from .io import density_frame_files
 
-    if args.local_workers is not None:
-        cluster = LocalCluster(n_workers=args.local_workers, threads_per_worker=1, processes=True)
-        client = Client(cluster)
-    else:
-        cluster, client = None, Client(args.scheduler, timeout=30)
-    try:
+    frame_chunks(len(density_frame_files(args.density)), args.chunk, frames)
+    Look.load(args.look, checkpoint=parsed.checkpoint)  # a damaged look or another network: one line here
+    with _cluster(args) as client:
         done = render_on_cluster(
             client, args.density, args.look, args.out, chunk=args.chunk, frames=frames, options=options
         )
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
     print(f"wrote {args.out}/: {sum(b - a + 1 for a, b in (d['frames'] for d in done))} frames in {len(done)} chunks")
     return 0
+
+
+def _prepare_worker() -> int:
+    """On a local worker: leave the terminal's process group, so that Ctrl-C reaches the farm's client
+    alone (which then kills the workers) rather than each worker half way through a frame; and give
+    tqdm a thread lock instead of its default process-shared one, a semaphore that a killed worker
+    would leave for the resource tracker to report as leaked. Returns the worker's pid."""
+    import os
+    import threading
+
+    from tqdm.std import tqdm
+
+    os.setpgrp()
+    tqdm.set_lock(threading.RLock())
+    return os.getpid()
+
+
+class _cluster:
+    """``with _cluster(args) as client``: a client of ``--scheduler``, or of a local cluster of
+    ``--local-workers``. However the block ends, the client is closed; a local cluster is closed too,
+    at once when the block failed or was interrupted (its workers killed), and the staging folders of
+    its chunks are removed (``ownership.remove_dead_staging``)."""
+
+    def __init__(self, args):
+        self.args, self.cluster, self.client, self.pids, self.scratch = args, None, None, [], None
+
+    def __enter__(self):
+        from distributed import Client
+
+        from .ownership import make_staging
+
+        if self.args.scheduler is not None:
+            self.client = Client(self.args.scheduler, timeout=30)
+            return self.client
+        # Dask's scratch space, as a staging folder of this process: removed when it ends, or by the
+        # next run once this process is gone.
+        out = Path(self.args.out).resolve()
+        out.parent.mkdir(parents=True, exist_ok=True)
+        self.scratch = make_staging(out, "chunk")
+        try:
+            self._start_local()
+        except BaseException:
+            self.__exit__(*sys.exc_info())
+            raise
+        return self.client
+
+    def _start_local(self) -> None:
+        import logging
+        import signal
+
+        import dask
+        from distributed import Client, LocalCluster
+
+        # The workers must not see the terminal's Ctrl-C: a worker stopped half way leaves its chunk
+        # behind, and Mitsuba answers the signal by cutting a render short, a frame the chunk would
+        # then merge. They are spawned from the cluster's thread, which inherits this thread's signal
+        # mask, and keep it: SIGINT stays blocked there (here a Ctrl-C waits for the cluster to be up).
+        # Once up, each leaves the terminal's process group too.
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            # Dask's scratch space (the scheduler's and the workers') in the farm's staging folder.
+            with dask.config.set({"temporary-directory": str(self.scratch)}):
+                self.cluster = LocalCluster(
+                    n_workers=self.args.local_workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    silence_logs=logging.CRITICAL,  # a worker's failure comes back as its chunk's one line
+                    dashboard_address=None,
+                )
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        self.client = Client(self.cluster)
+        self.pids = list(self.client.run(_prepare_worker).values())
+
+    def __exit__(self, kind, error, trace):
+        import contextlib
+        import gc
+        import os
+        import shutil
+        import signal
+        import time
+
+        from .ownership import remove_dead_staging
+
+        if kind is not None and self.cluster is not None:
+            for nanny in self.cluster.workers.values():
+                nanny.close_gracefully()  # no restart of the worker killed next
+            for pid in self.pids:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                self.client.close(timeout=5)
+        if self.cluster is not None:
+            with contextlib.suppress(Exception):
+                self.cluster.close(timeout=5)
+        self.cluster = self.client = None
+        if self.scratch is not None:
+            gc.collect()  # the closed workers' queues release their semaphores before an interrupt's os._exit
+            shutil.rmtree(self.scratch, ignore_errors=True)
+            deadline = time.monotonic() + 2  # the cluster has joined its workers; a last look
+            while any(_alive(pid) for pid in self.pids) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            remove_dead_staging(Path(self.args.out).resolve())  # the chunks the stopped workers left
+        return False
+
+
+def _alive(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass
+    return True
 
 
 if __name__ == "__main__":

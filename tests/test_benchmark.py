@@ -95,27 +95,30 @@ def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
     pairs = [(TINY, "hokusai_great_wave")]
     methods = ["density_ramp", "smooth_noise", "tuned_noise", "uniform"]
     lines = []
-    rows = run(tmp_path, pairs, methods, res=16, spp=1, cache=tmp_path / "cache", log=lines.append)
+    out, cache = tmp_path / "bench", tmp_path / "cache"
+    rows = run(out, pairs, methods, res=16, spp=1, cache=cache, log=lines.append)
     assert len(rows) == 4 and len(lines) == 4
-    stored = read_rows(tmp_path / "rows.jsonl")
+    stored = read_rows(out / "rows.jsonl")
     assert [row.method for row in stored] == methods
     row = stored[0]
     assert row.density == "pyroclastic16" and row.settings["res"] == 16 and row.checkpoint.startswith("skpn_noise.pt:")
     assert np.isfinite([row.rgb_swd, row.patch_swd, row.hue_coverage]).all() and row.commit
     medians = summary(stored)
     assert medians["uniform"]["rgb_swd_x_uniform"] == 1.0 and medians["tuned_noise"]["patch_swd_x_tuned"] == 1.0
-    table = (tmp_path / "table.md").read_text()
+    table = (out / "table.md").read_text()
     assert all(f"| {name} |" in table for name in methods) and "| x tuned |" in table
-    assert (tmp_path / "sheet.jpg").stat().st_size > 0 and (tmp_path / "index.html").exists()
-    # Resume: nothing is recomputed; another setting gives rows of its own beside the first ones.
+    assert (out / "sheet.jpg").stat().st_size > 0 and (out / "index.html").exists()
+    # Resume: nothing is recomputed; another setting gives rows of its own beside the first ones, and a
+    # table of its own.
     lines.clear()
-    run(tmp_path, pairs, methods, res=16, spp=1, cache=tmp_path / "cache", resume=True, log=lines.append)
-    assert lines == [] and read_rows(tmp_path / "rows.jsonl") == stored
-    run(tmp_path, pairs, ["uniform"], res=16, spp=2, cache=tmp_path / "cache", log=lines.append)
-    assert len(read_rows(tmp_path / "rows.jsonl")) == 5
+    run(out, pairs, methods, res=16, spp=1, cache=cache, resume=True, log=lines.append)
+    assert lines == [] and read_rows(out / "rows.jsonl") == stored
+    run(out, pairs, ["uniform"], res=16, spp=2, cache=cache, log=lines.append)
+    assert len(read_rows(out / "rows.jsonl")) == 5
+    assert "rows at 2 different settings" in (out / "table.md").read_text()
     # The validation split's pairs draw their styles from the validation set.
     pairs = [(HeldOutDensity("val_pyroclastic16", "pyroclastic", 16, HELD_OUT_SEED_BASE + 103), "klimt_the_kiss")]
-    run(tmp_path / "validation", pairs, ["uniform"], res=16, spp=1, cache=tmp_path / "cache", split="validation")
+    run(tmp_path / "validation", pairs, ["uniform"], res=16, spp=1, cache=cache, split="validation")
     assert [row.split for row in read_rows(tmp_path / "validation" / "rows.jsonl")] == ["validation"]
     assert (tmp_path / "validation" / "sheet.jpg").stat().st_size > 0
     # Without tuned_noise rows the ratios to it are n/a, not an error.

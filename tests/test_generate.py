@@ -136,7 +136,11 @@ def test_a_full_disk_leaves_no_half_written_frame(tmp_path, mi, monkeypatch, cap
         ]
     )
     assert status == 1 and "disk" in capsys.readouterr().err
-    files = sorted(p.name for p in tmp_path.rglob("*") if p.is_file())
-    assert files == ["frame0002.npz", "frame0003.npz"]  # no temporary leftovers, no manifest yet
+    from mistyle.ownership import MANIFEST_FILE, read_manifest
+
+    files = sorted(p.name for p in tmp_path.rglob("*") if p.is_file() and p.name != MANIFEST_FILE)
+    assert files == ["frame0002.npz", "frame0003.npz"]  # no temporary leftovers, no manifest.json yet
+    # The frames written are recorded as mistyle's, so that the next run completes the folder.
+    assert sorted(read_manifest(tmp_path)["files"]) == ["plume0000/frame0002.npz", "plume0000/frame0003.npz"]
     for path in tmp_path.rglob("*.npz"):
         load_frame(path)

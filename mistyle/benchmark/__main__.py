@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 DEFAULT_OUT = Path("results") / "benchmark"
+MAX_OPTIMISE_FACTOR = 100.0
 
 
 def parser() -> argparse.ArgumentParser:
@@ -28,13 +29,13 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--densities", default=None, help="comma-separated density names of the split (default: all)")
     p.add_argument("--styles", default=None, help="comma-separated style names of the split (default: all)")
     p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated, of {', '.join(METHODS)}")
-    p.add_argument("--res", type=int, default=128, help="metric renders' side")
-    p.add_argument("--spp", type=int, default=16, help="metric renders' paths per pixel")
+    p.add_argument("--res", type=int, default=None, help="metric renders' side (default 128; 32 with --quick)")
+    p.add_argument("--spp", type=int, default=None, help="metric renders' paths per pixel (default 16; 4 with --quick)")
     p.add_argument(
         "--optimise-factor",
         type=float,
         default=2.0,
-        help="direct optimisation's steps as a multiple of the default refinement's",
+        help=f"direct optimisation's steps as a multiple of the default refinement's, in (0, {MAX_OPTIMISE_FACTOR:g}]",
     )
     p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
     p.add_argument(
@@ -46,7 +47,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--cache", type=Path, default=Path("data") / "heldout", help="where held-out densities are cached")
     p.add_argument("--resume", action="store_true", help="skip rows already in rows.jsonl (same settings)")
     p.add_argument("--report-only", action="store_true", help="rewrite the report from rows.jsonl")
-    p.add_argument("--quick", action="store_true", help="the quick split at 32^2, 4 spp, 4+1 refinement steps")
+    p.add_argument(
+        "--quick", action="store_true", help="the quick split at 32^2, 4 spp (unless given), 4+1 refinement steps"
+    )
     return p
 
 
@@ -55,48 +58,66 @@ def main(argv=None) -> int:
     out = args.out or (DEFAULT_OUT.with_name(DEFAULT_OUT.name + "-quick") if args.quick else DEFAULT_OUT)
     try:
         from ..stops import run_stoppable
-        from .runner import report, run
+        from .runner import REPORT_FILES, ROWS_FILE, check_methods, folder_files, owned_folder, report, run
         from .splits import split_pairs
 
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
         if args.report_only:
-            if not (out / "rows.jsonl").exists():
-                raise ValueError(f"{out / 'rows.jsonl'} does not exist; run the benchmark first.")
-            print(report(out), end="")
+            if not (out / ROWS_FILE).exists():
+                raise ValueError(f"{out / ROWS_FILE} does not exist; run the benchmark first.")
+            with owned_folder(out, list(REPORT_FILES)):
+                print(report(out), end="")
             return 0
         split = "quick" if args.quick else args.split
-        res, spp = (32, 4) if args.quick else (args.res, args.spp)
-        for name, value, low in (("--res", res, 8), ("--spp", spp, 1)):
-            if not low <= value <= 4096:
-                raise ValueError(f"{name} must lie in [{low}, 4096], got {value}.")
+        res, spp = check_settings(args)
         pairs = split_pairs(
             split,
             args.densities.split(",") if args.densities else None,
             args.styles.split(",") if args.styles else None,
         )
+        methods = args.methods.split(",")
+        check_methods(methods)
 
         def score() -> int:
-            run(
-                out,
-                pairs,
-                args.methods.split(","),
-                res=res,
-                spp=spp,
-                quick=args.quick,
-                resume=args.resume,
-                checkpoint=args.checkpoint,
-                optimise_factor=args.optimise_factor,
-                cache=args.cache,
-                split=split,
-            )
+            with owned_folder(out, folder_files(pairs, methods)):
+                run(
+                    out,
+                    pairs,
+                    methods,
+                    res=res,
+                    spp=spp,
+                    quick=args.quick,
+                    resume=args.resume,
+                    checkpoint=args.checkpoint,
+                    optimise_factor=args.optimise_factor,
+                    cache=args.cache,
+                    split=split,
+                )
             print((out / "table.md").read_text(), end="")
             print(f"wrote {out}/: rows.jsonl, table.md, sheet.jpg, index.html")
             return 0
 
-        kept = f"the rows scored so far are kept in {out / 'rows.jsonl'}; add --resume to go on from them"
+        kept = f"the rows scored so far are kept in {out / ROWS_FILE}; add --resume to go on from them"
         return run_stoppable(score, kept, in_process=argv is not None)
     except (ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+
+
+def check_settings(args) -> tuple[int, int]:
+    """``(res, spp)`` of the metric renders (``--quick``'s unless given), every setting checked first."""
+    import math
+
+    res = args.res if args.res is not None else (32 if args.quick else 128)
+    spp = args.spp if args.spp is not None else (4 if args.quick else 16)
+    for name, value, low in (("--res", res, 8), ("--spp", spp, 1)):
+        if not low <= value <= 4096:
+            raise ValueError(f"{name} must lie in [{low}, 4096], got {value}.")
+    factor = args.optimise_factor
+    if not (math.isfinite(factor) and 0 < factor <= MAX_OPTIMISE_FACTOR):
+        raise ValueError(f"--optimise-factor must lie in (0, {MAX_OPTIMISE_FACTOR:g}], got {factor:g}.")
+    return res, spp
 
 
 if __name__ == "__main__":

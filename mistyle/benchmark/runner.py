@@ -5,23 +5,35 @@ settings (``Row.key``): running again replaces the rows it recomputes and keeps 
 ``resume`` skips the ones already there. ``report`` rewrites ``<out>/table.md`` (medians per method,
 and medians of per-pair ratios to the uniform baseline on the same pairs and settings),
 ``<out>/sheet.jpg`` (per pair: the style, then each method's first metric view) and
-``<out>/index.html``.
+``<out>/index.html``. Rows of several settings (or splits) in one file each get their own table,
+under a line saying so: medians and ratios never mix them.
+
+``mistyle-bench`` holds its folder as mistyle's (``owned_folder``, ``mistyle.ownership``): one run writes
+it at a time, a folder holding a file the benchmark did not write is refused, and the files written
+are recorded in its manifest. A damaged ``rows.jsonl`` is refused with its line number, never read
+in part.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
+import re
 import subprocess
-from dataclasses import asdict, dataclass
+from dataclasses import MISSING, asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
 METRIC_VIEWS = 3
 """Metric views, evenly around the orbit from the held-out view."""
-ROWS_FILE, TABLE_FILE, SHEET_FILE = "rows.jsonl", "table.md", "sheet.jpg"
+ROWS_FILE, TABLE_FILE, SHEET_FILE, INDEX_FILE = "rows.jsonl", "table.md", "sheet.jpg", "index.html"
+REPORT_FILES = (TABLE_FILE, SHEET_FILE, INDEX_FILE)
 TILE = 128
+BENCHMARK_KIND = "benchmark"
+LAYOUT = re.compile(r"rows\.jsonl|table\.md|sheet\.jpg|index\.html|tiles/[^/]+\.png")
+"""The files a benchmark folder holds: what one an older mistyle wrote (no manifest) may hold."""
 
 
 @dataclass
@@ -96,10 +108,43 @@ def code_commit(checkout=None) -> str:
     return commit + ("+changes" if changed else "")
 
 
+_NUMBERS = ("rgb_swd", "patch_swd", "hue_coverage", "seconds")
+
+
 def read_rows(path: Path) -> list[Row]:
+    """The rows of ``path`` (none if it does not exist); ``ValueError`` naming the file, the line and the
+    fix for a line that is not a row (a damaged or foreign file is never read in part)."""
+    path = Path(path)
     if not path.exists():
         return []
-    return [Row(**json.loads(line)) for line in path.read_text().splitlines() if line.strip()]
+    if not path.is_file():
+        raise ValueError(f"{path} is not a file; move it away, or choose another --out.")
+    known = {field.name for field in fields(Row)}
+    rows = []
+    for number, raw in enumerate(path.read_bytes().splitlines(), 1):
+        try:
+            line = raw.decode("utf-8")
+            if not line.strip():
+                continue
+            record = json.loads(line)
+            if not isinstance(record, dict):
+                raise ValueError("not a JSON object")
+            missing = sorted({f.name for f in fields(Row) if f.default is MISSING} - record.keys())
+            unknown = sorted(record.keys() - known)
+            if missing or unknown:
+                raise ValueError(f"missing {missing}" if missing else f"unknown keys {unknown}")
+            if not all(isinstance(record[key], (int, float)) for key in _NUMBERS):
+                raise ValueError(f"{', '.join(_NUMBERS)} must be numbers")
+            if not isinstance(record["settings"], dict):
+                raise ValueError("settings must be an object")
+            rows.append(Row(**record))
+        except (UnicodeDecodeError, ValueError) as error:
+            what = "not UTF-8 text" if isinstance(error, UnicodeDecodeError) else str(error).splitlines()[0]
+            raise ValueError(
+                f"{path}, line {number}, is not a row of mistyle-bench ({what}); the file is damaged: restore it, "
+                "delete that line, or move the file away and score again."
+            ) from None
+    return rows
 
 
 def write_rows(path: Path, rows: list[Row]) -> None:
@@ -132,19 +177,31 @@ def run(
     from .methods import METHODS, Context, timed
     from .splits import split_styles
 
-    unknown = [name for name in method_names if name not in METHODS]
-    if unknown:
-        raise ValueError(f"Unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}.")
+    check_methods(method_names)
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
     out.mkdir(parents=True, exist_ok=True)
     rows_path, tiles = out / ROWS_FILE, out / "tiles"
     rows = read_rows(rows_path)
+    settings = {"res": res, "spp": spp, "views": METRIC_VIEWS, "quick": quick, "optimise_factor": optimise_factor}
+    if any(_group(row) != _group_of(settings, split) for row in rows):
+        from ..progress import status
+
+        status(f"note: {rows_path} also holds rows at other settings; {TABLE_FILE} gives each settings its table")
     stylizer = Stylizer(checkpoint)
     context = Context(
-        stylizer, metric_views(stylizer.config.render.camera_distance), quick=quick, optimise_factor=optimise_factor
+        stylizer,
+        metric_views(stylizer.config.render.camera_distance),
+        quick=quick,
+        optimise_factor=optimise_factor,
     )
-    settings = {"res": res, "spp": spp, "views": METRIC_VIEWS, "quick": quick, "optimise_factor": optimise_factor}
-    common = {"settings": settings, "checkpoint": checkpoint_id(stylizer.path), "commit": code_commit(), "split": split}
+    common = {
+        "settings": settings,
+        "checkpoint": checkpoint_id(stylizer.path),
+        "commit": code_commit(),
+        "split": split,
+    }
     styles = split_styles(split or "heldout")
     for spec in dict.fromkeys(spec for spec, _ in pairs):
         density = held_out_density(spec, cache)
@@ -181,11 +238,60 @@ def run(
                 write_rows(rows_path, rows)
                 save_tile(tiles, row, images[0])
                 log(
-                    f"{name:18s} {spec.name:14s} {style_name:34s} RGB {row.rgb_swd:.4f} patch {row.patch_swd:.4f} "
-                    f"hue {row.hue_coverage:.2f} structure {row.structure or float('nan'):.3f} {seconds:6.1f} s"
+                    f"{name:18s} {spec.name:14s} {style_name:34s} RGB {row.rgb_swd:.4f} "
+                    f"patch {row.patch_swd:.4f} hue {row.hue_coverage:.2f} "
+                    f"structure {row.structure or float('nan'):.3f} {seconds:6.1f} s"
                 )
     report(out)
     return rows
+
+
+def check_methods(method_names: list[str]) -> None:
+    from .methods import METHODS
+
+    unknown = [name for name in method_names if name not in METHODS]
+    if unknown:
+        raise ValueError(f"Unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}.")
+
+
+def folder_files(pairs: list, method_names: list[str]) -> list[str]:
+    """The files (relative) a run of ``method_names`` on ``pairs`` may write into its folder."""
+    tiles = [f"tiles/{spec.name}__{style}__{name}.png" for spec, style in pairs for name in method_names]
+    return [ROWS_FILE, *REPORT_FILES, *tiles]
+
+
+@contextlib.contextmanager
+def owned_folder(out: Path, names: list[str]):
+    """Hold the benchmark folder ``out`` for a run that writes ``names`` (relative paths) there, and
+    yield its rows: a ``ValueError`` (one line), before anything is written, when it is a file, holds a
+    file the benchmark did not write or a damaged ``rows.jsonl``, or another run writes it. The files
+    written are recorded in its manifest however the run ends."""
+    from ..ownership import adding, adopt_older, check_replaceable, output_lock, read_manifest
+
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
+    with output_lock(out):
+        older = out.is_dir() and read_manifest(out) is None  # an older mistyle's folder: its layout is ours
+        check_replaceable(out, "--out", also_ours=lambda name: older and LAYOUT.fullmatch(name) is not None)
+        rows = read_rows(out / ROWS_FILE)
+        adopt_older(out, BENCHMARK_KIND, LAYOUT)
+        with adding(out, BENCHMARK_KIND, names, rewritten=names, locked=True):
+            yield rows
+
+
+def _group_of(settings: dict, split: str) -> str:
+    return json.dumps({**settings, "split": split or "heldout"}, sort_keys=True)
+
+
+def _group(row: Row) -> str:
+    return _group_of(row.settings, row.split)
+
+
+def describe_settings(row: Row) -> str:
+    """A row's settings and split in words, for a table's heading."""
+    shown = ", ".join(f"{key} {value}" for key, value in sorted(row.settings.items()))
+    return f"{shown}; split {row.split or 'heldout'}"
 
 
 # ---------------------------------------------------------------------------- report
@@ -271,20 +377,41 @@ def table(rows: list[Row]) -> str:
 
 
 def report(out) -> str:
-    """Rewrite ``table.md`` (all pairs, then each density's), ``sheet.jpg`` and ``index.html`` in ``out``
-    from its rows; returns the table."""
+    """Rewrite ``table.md`` (all pairs, then each density's; one table per settings when the rows hold
+    several), ``sheet.jpg`` and ``index.html`` in ``out`` from its rows; returns the table."""
     from ..io import atomic_write_bytes
     from ..pages import write_index
 
     out = Path(out)
     rows = read_rows(out / ROWS_FILE)
+    groups: dict[str, list[Row]] = {}
+    for row in rows:
+        groups.setdefault(_group(row), []).append(row)
+    if len(groups) > 1:
+        text = (
+            f"{ROWS_FILE} holds rows at {len(groups)} different settings; each has its own table below "
+            "(rows compare only at equal settings).\n"
+        )
+        for members in groups.values():
+            pairs = len({(row.density, row.style) for row in members})
+            text += f"\n## {describe_settings(members[0])}: {pairs} pairs\n\n" + _tables(members)
+    else:
+        text = _tables(rows)
+    atomic_write_bytes(out / TABLE_FILE, text.encode())
+    write_sheet(rows, out / "tiles", out / SHEET_FILE)
+    lines = [f"{len(rows)} rows; the table is {TABLE_FILE}"]
+    if len(groups) > 1:
+        lines.append(f"the rows hold {len(groups)} different settings; the table gives each its own")
+    write_index(out, "mistyle: style-fidelity benchmark", lines)
+    return text
+
+
+def _tables(rows: list[Row]) -> str:
+    """The table of ``rows`` (one settings), then one per density when there are several."""
     text = table(rows)
     densities = list(dict.fromkeys(row.density for row in rows))
     if len(densities) > 1:  # a method can lead on one kind of density and not on another
         text += "".join(f"\n### {name}\n\n" + table([r for r in rows if r.density == name]) for name in densities)
-    atomic_write_bytes(out / TABLE_FILE, text.encode())
-    write_sheet(rows, out / "tiles", out / SHEET_FILE)
-    write_index(out, "mistyle: style-fidelity benchmark", [f"{len(rows)} rows; the table is {TABLE_FILE}"])
     return text
 
 
@@ -296,8 +423,8 @@ def save_tile(folder: Path, row: Row, image: np.ndarray) -> None:
     """The first metric view of a row, on display, as a ``TILE``^2 PNG for the contact sheet."""
     from PIL import Image
 
-    from ..display import display
     from ..io import write_png
+    from ..tone import display
 
     shown = Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8)).resize((TILE, TILE), Image.LANCZOS)
     folder.mkdir(parents=True, exist_ok=True)

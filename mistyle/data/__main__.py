@@ -6,12 +6,20 @@ python -m mistyle.data smoke ... --shard 0/4      # one of four processes or mac
 python -m mistyle.data fire --res 64 --frames 120 --out data/fire
 python -m mistyle.data styles --out data/styles
 python -m mistyle.data mesh --mesh bunny.ply --res 64 --out bunny.vol
+
+Every option's range is checked before any work, with one line naming the option. A dataset folder
+is mistyle's own (``mistyle.ownership``): it carries a manifest of the files written there, and a
+folder holding a file mistyle did not write is refused; a folder an older mistyle wrote (no manifest,
+nothing but its layout's files) is taken over as it is. ``smoke`` and ``fire`` keep the frames already
+there (a re-run completes a dataset); ``tiny`` is made whole beside its folder and replaces it.
+``mesh`` writes one new file and never replaces one.
 """
 
 from __future__ import annotations
 
 import argparse
 import errno
+import re
 import sys
 from pathlib import Path
 
@@ -38,6 +46,17 @@ def _frames(text: str) -> tuple[int, int]:
 
 RES_RANGE = {"smoke": (8, 256), "fire": (8, 256), "mesh": (8, 512)}
 """Grid sizes each command accepts: a 256^3 simulation holds a few GB of fields; 512^3 voxels as mistyle-render."""
+STYLE_SIZE_RANGE = (8, 512)
+"""``styles --size``: the set's 336 images are held at once, 1 GB at 512^2."""
+MAX_SEED = 2**31 - 1
+DATASET_KIND = "dataset"
+LAYOUTS = {
+    "smoke": re.compile(r"manifest(\.shard-\d+-of-\d+)?\.json|plume\d{4}/frame\d{4}(_crop\d+)?\.npz"),
+    "fire": re.compile(r"frame\d{4}\.npz"),
+    "styles": re.compile(r"(photo|texture|material|painting)/[A-Za-z0-9_.-]+\.png|styles\.json"),
+    "tiny": re.compile(r"smoke/(manifest\.json|plume\d{4}/frame\d{4}\.npz)|styles/[A-Za-z0-9_.-]+\.png"),
+}
+"""The files each command writes into ``--out``: what a folder of an older mistyle's (no manifest) may hold."""
 
 
 def main(argv=None) -> int:
@@ -82,7 +101,9 @@ def main(argv=None) -> int:
     fire.add_argument("--seed", type=int, default=0)
     fire.add_argument("--out", type=Path, required=True)
     styles = commands.add_parser("styles", help="write the offline default style set as PNGs, with a summary")
-    styles.add_argument("--size", type=int, default=128)
+    styles.add_argument(
+        "--size", type=int, default=128, help=f"side in pixels, in [{STYLE_SIZE_RANGE[0]}, {STYLE_SIZE_RANGE[1]}]"
+    )
     styles.add_argument("--seed", type=int, default=0)
     styles.add_argument("--out", type=Path, required=True)
     tiny = commands.add_parser("tiny", help="the tiny fixed dataset for tests and CI (seconds)")
@@ -93,7 +114,7 @@ def main(argv=None) -> int:
     mesh.add_argument("--res", type=int, default=64, help="voxels along the longest side")
     mesh.add_argument("--margin", type=float, default=0.05, help="empty border per side, fraction of the box")
     mesh.add_argument("--supersample", type=int, default=2, help="s: s^3 inside tests per voxel (soft edge)")
-    mesh.add_argument("--out", type=Path, required=True, help="output .vol or .npy")
+    mesh.add_argument("--out", type=Path, required=True, help="output .vol or .npy (a new file)")
     args = parser.parse_args(argv)
     from ..progress import set_quiet
 
@@ -101,18 +122,95 @@ def main(argv=None) -> int:
     from ..stops import run_stoppable
 
     kept = f"the files finished so far under {args.out} are kept, none half-written; run the same command again"
-    return run_stoppable(lambda: _command(args), kept, in_process=argv is not None)
+    try:
+        check_options(args)
+        return run_stoppable(lambda: _command(args), kept, in_process=argv is not None)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+
+
+def check_options(args) -> None:
+    """Every option's range, before anything is read or written: ``ValueError`` naming the option."""
+    from ..scenes.medium import validate_density_scale
+
+    low, high = RES_RANGE.get(args.command, (None, None))
+    checks = []
+    if low is not None:
+        checks.append(
+            (low <= args.res <= high, f"--res must lie in [{low}, {high}] for {args.command}, got {args.res}")
+        )
+    if args.command in ("smoke", "fire"):
+        least = 2 if args.command == "smoke" else 1  # smoke trains on pairs of consecutive frames
+        checks.append((least <= args.frames <= 10000, f"--frames must lie in [{least}, 10000], got {args.frames}"))
+        if args.keep is not None:
+            first, last = args.keep
+            checks.append(
+                (
+                    1 <= first <= last <= args.frames,
+                    f"--keep {first}-{last}: the kept frames must lie within 1-{args.frames} (first <= last)",
+                )
+            )
+    if args.command in ("smoke", "fire", "styles"):
+        checks.append((0 <= args.seed <= MAX_SEED, f"--seed must lie in [0, {MAX_SEED}], got {args.seed}"))
+    if args.command == "smoke":
+        validate_density_scale(args.density_scale, "--density-scale")
+        checks += [
+            (1 <= args.plumes <= 100000, f"--plumes must lie in [1, 100000], got {args.plumes}"),
+            (
+                args.crop == 0 or 4 <= args.crop <= args.res,
+                f"--crop must be 0 (whole frames) or lie in [4, --res {args.res}], got {args.crop}",
+            ),
+            (
+                1 <= args.crops_per_frame <= 1000,
+                f"--crops-per-frame must lie in [1, 1000], got {args.crops_per_frame}",
+            ),
+            (1 <= args.directions <= 4096, f"--directions must lie in [1, 4096], got {args.directions}"),
+        ]
+    if args.command == "styles":
+        low, high = STYLE_SIZE_RANGE
+        checks.append((low <= args.size <= high, f"--size must lie in [{low}, {high}] pixels, got {args.size}"))
+    if args.command == "mesh":
+        checks += [
+            (0 <= args.margin < 0.5, f"--margin must lie in [0, 0.5) of the box, got {args.margin}"),
+            (1 <= args.supersample <= 8, f"--supersample must lie in [1, 8], got {args.supersample}"),
+            (
+                args.out.suffix.lower() in (".vol", ".npy"),
+                f"--out must end in .vol or .npy, got {args.out}",
+            ),
+            (args.mesh is None or args.mesh.is_file(), f"--mesh {args.mesh} is not a file"),
+            (
+                not (args.out.exists() or args.out.is_symlink()),
+                f"--out {args.out} already exists; mistyle-data mesh writes a new file: choose another name, "
+                "or remove that one",
+            ),
+        ]
+    for ok, message in checks:
+        if not ok:
+            raise ValueError(message + ".")
+    if args.command != "mesh":
+        check_dataset_out(args.out, LAYOUTS[args.command])
+
+
+def check_dataset_out(out: Path, layout: re.Pattern) -> None:
+    """``ValueError`` unless ``out`` is missing, or a folder holding only mistyle's files. A folder of an
+    older mistyle's (no manifest; nothing but ``layout``'s files) gets its manifest here."""
+    from ..ownership import adopt_older, check_replaceable, output_lock, read_manifest
+
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
+    older = out.is_dir() and read_manifest(out) is None  # then its layout's files are not what is refused
+    check_replaceable(out, "--out", also_ours=lambda name: older and layout.fullmatch(name) is not None)
+    if older:
+        with output_lock(out, wait=True):
+            adopt_older(out, DATASET_KIND, layout)
 
 
 def _command(args) -> int:
-    """The chosen command's work; 2 for bad input, after one line on stderr."""
-    low, high = RES_RANGE[args.command] if args.command in RES_RANGE else (None, None)
-    if low is not None and not low <= args.res <= high:
-        print(f"error: --res must lie in [{low}, {high}] for {args.command}, got {args.res}.", file=sys.stderr)
-        return 2
-    if args.command in ("smoke", "fire") and args.frames < 1:
-        print(f"error: --frames must be at least 1, got {args.frames}.", file=sys.stderr)
-        return 2
+    """The chosen command's work; 2 for bad input, after one line on stderr. The files written into a
+    dataset folder are recorded in its manifest as they end (``ownership.adding``)."""
+    from ..ownership import adding
+
     if args.command == "mesh":
         return _mesh_command(args)
     if getattr(args, "device", None):
@@ -124,9 +222,12 @@ def _command(args) -> int:
             print(f"error: {error}", file=sys.stderr)
             return 2
     if args.command == "tiny":
+        from ..ownership import staged_directory
         from .tiny import make_tiny_dataset
 
-        print(f"wrote {make_tiny_dataset(args.out)}")
+        with staged_directory(args.out, DATASET_KIND) as staging:
+            make_tiny_dataset(staging)
+        print(f"wrote {args.out}")
         return 0
     if args.command == "styles":
         import json
@@ -135,24 +236,28 @@ def _command(args) -> int:
         from .styles import offline_style_set, style_set_diversity
 
         styles = offline_style_set(size=args.size, seed=args.seed)
-        for name, image in styles:
-            write_png(args.out / f"{name}.png", image, srgb=False)  # already sRGB-encoded
-        summary = style_set_diversity(styles)
-        atomic_write_bytes(args.out / "styles.json", (json.dumps(summary, indent=1) + "\n").encode())
+        names = [f"{name}.png" for name, _ in styles] + ["styles.json"]
+        with adding(args.out, DATASET_KIND, names, rewritten=names):
+            for name, image in styles:
+                write_png(args.out / f"{name}.png", image, srgb=False)  # already sRGB-encoded
+            summary = style_set_diversity(styles)
+            atomic_write_bytes(args.out / "styles.json", (json.dumps(summary, indent=1) + "\n").encode())
         print(json.dumps(summary))
         return 0
     if args.command == "fire":
         from .generate import generate_fire
 
-        keep = args.keep or (args.frames // 2 + 1, args.frames)
+        first, last = keep = args.keep or (args.frames // 2 + 1, args.frames)
+        names = [f"frame{frame:04d}.npz" for frame in range(first, last + 1)]
         try:
-            generate_fire(args.res, args.frames, keep, args.out, args.seed)
+            with adding(args.out, DATASET_KIND, names):
+                generate_fire(args.res, args.frames, keep, args.out, args.seed)
         except ValueError as error:
             print(f"error: {error}", file=sys.stderr)
             return 2
         return 0
 
-    from .generate import SmokeDatasetSpec, generate_smoke
+    from .generate import SmokeDatasetSpec, frame_path, generate_smoke
 
     first, last = args.keep if args.keep else (args.frames - max(1, args.frames // 3) + 1, args.frames)
     spec = SmokeDatasetSpec(
@@ -169,8 +274,18 @@ def _command(args) -> int:
     )
     from ..backend import BackendError
 
+    index, count = args.shard
+    manifest_name = "manifest.json" if count == 1 else f"manifest.shard-{index}-of-{count}.json"
+    crops = range(spec.crops_per_frame) if spec.crop else [None]
+    names = [
+        frame_path(Path(), plume, frame, crop).as_posix()
+        for plume in range(index, spec.plumes, count)
+        for frame in range(first, last + 1)
+        for crop in crops
+    ]
     try:
-        manifest = generate_smoke(spec, args.out, args.shard)
+        with adding(args.out, DATASET_KIND, names + [manifest_name], rewritten=[manifest_name]):
+            manifest = generate_smoke(spec, args.out, args.shard)
     except (ValueError, BackendError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -196,14 +311,11 @@ def _mesh_command(args) -> int:
     try:
         vertices, faces = load_mesh(args.mesh) if args.mesh else icosphere(4)
         density = voxelize(vertices, faces, args.res, args.margin, args.supersample)
-        suffix = args.out.suffix.lower()
-        if suffix == ".vol":
+        if args.out.suffix.lower() == ".vol":
             box = MediumBox(density.shape)
             write_vol(args.out, density, box.bbox_min, box.bbox_max)
-        elif suffix == ".npy":
-            write_npy(args.out, density)
         else:
-            raise ValueError(f"--out must end in .vol or .npy, got {args.out}.")
+            write_npy(args.out, density)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

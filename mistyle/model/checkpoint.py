@@ -5,10 +5,16 @@ code ever runs): ``format``, ``mistyle_version``, ``step``, ``seconds``, ``confi
 (``config_to_dict``), ``extractor`` (the feature extractor's ``name``), ``density_scale`` and
 ``model`` (the state dict); training checkpoints add ``optimizer``, ``scheduler``, ``rng`` and
 ``world_size``, which ``export_checkpoint`` strips for inference.
+
+Loading checks what it can of the bytes: every tensor finite, the model's weights a dict of tensors,
+and, in checkpoints that carry it, ``tensors_sha256`` (a digest of every tensor, written by
+``save_checkpoint``) unchanged, so a damaged file is named as such rather than blamed on what it
+stylizes. The weights' shapes are checked against the network by ``load_state_dict`` where it is built.
 """
 
 from __future__ import annotations
 
+import hashlib
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,10 +42,11 @@ INFERENCE_KEYS = (
     "averaged_from",
     "recipe",
 )
+DIGEST_KEY = "tensors_sha256"
 
 
 def load_checkpoint(path) -> dict:
-    """Read a checkpoint; ``ValueError`` naming the problem for a missing, damaged or foreign file."""
+    """Read a checkpoint; ``ValueError`` naming the file and the problem for a missing, damaged or foreign file."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"No checkpoint file at {path}.")
@@ -55,11 +62,51 @@ def load_checkpoint(path) -> dict:
         ) from None
     if not isinstance(checkpoint, dict) or checkpoint.get("format") != CHECKPOINT_FORMAT or "model" not in checkpoint:
         raise ValueError(f"{path} is not a mistyle SKPN checkpoint (format {CHECKPOINT_FORMAT}).")
+    check_tensors(checkpoint, path)
     return checkpoint
 
 
+def _tensors(value, where: str = ""):
+    """``(where, tensor)`` for every tensor in a checkpoint's nested dicts and lists, in a fixed order."""
+    if isinstance(value, torch.Tensor):
+        yield where, value
+    elif isinstance(value, dict):
+        for key in sorted(value, key=str):
+            if key != DIGEST_KEY:
+                yield from _tensors(value[key], f"{where}/{key}")
+    elif isinstance(value, (list, tuple)):
+        for index, item in enumerate(value):
+            yield from _tensors(item, f"{where}/{index}")
+
+
+def tensors_digest(checkpoint: dict) -> str:
+    """SHA-256 of every tensor of ``checkpoint`` (names, dtypes, shapes and bytes)."""
+    digest = hashlib.sha256()
+    for where, tensor in _tensors(checkpoint):
+        digest.update(f"{where}:{tensor.dtype}:{tuple(tensor.shape)};".encode())
+        digest.update(tensor.detach().cpu().contiguous().view(-1).view(torch.uint8).numpy().tobytes())
+    return digest.hexdigest()
+
+
+def check_tensors(checkpoint: dict, path) -> None:
+    """``ValueError`` naming ``path`` unless the weights are a dict of tensors, every floating tensor is
+    finite, and the digest (where the file has one) matches its tensors."""
+    fix = "use another checkpoint (e.g. an earlier steps/step_*.pt of the run), or train it again"
+    model = checkpoint["model"]
+    if not isinstance(model, dict) or not all(isinstance(v, torch.Tensor) for v in model.values()):
+        raise ValueError(f"{path}: its model weights are not a dict of tensors; {fix}.")
+    expected = checkpoint.get(DIGEST_KEY)
+    if expected is not None and tensors_digest(checkpoint) != expected:
+        raise ValueError(f"{path} is damaged: its tensors no longer match the SHA-256 written with them; {fix}.")
+    for where, tensor in _tensors(checkpoint):
+        if tensor.is_floating_point() and not bool(torch.isfinite(tensor).all()):
+            why = "the file is intact: the run that wrote it diverged" if expected else "damaged, or its run diverged"
+            raise ValueError(f"{path}: {where.lstrip('/')} holds NaN or inf values ({why}); {fix}.")
+
+
 def save_checkpoint(path, payload: dict) -> Path:
-    """Write ``payload`` (see the module docstring) atomically."""
+    """Write ``payload`` (see the module docstring) atomically, with the digest of its tensors."""
+    payload = {**payload, DIGEST_KEY: tensors_digest(payload)}
     with atomic_output(path) as tmp:
         torch.save(payload, tmp)
     return Path(path)

@@ -11,6 +11,9 @@
 ``--optimize`` fits albedo grids directly (no network) to held-out styles on held-out densities
 with the run's objective and light, and compares them with the network's feed-forward albedo
 (``--checkpoint``) in quality (sliced Wasserstein distance on held-out views) and time.
+
+``--out`` is refused before any work when it is a file or holds a file mistyle did not write (the
+run folder's manifest, ``mistyle.ownership``), and one run writes it at a time (its lock).
 """
 
 from __future__ import annotations
@@ -89,7 +92,20 @@ def main(argv=None) -> int:
 
 
 def _train(args, overrides: list[str]) -> int:
-    """The command's work: a recipe, a direct optimisation or a training run."""
+    """The command's work, holding ``--out``'s lock (the first process of a distributed run holds it)."""
+    import contextlib
+
+    from ..ownership import output_lock
+
+    if args.out.exists() and not args.out.is_dir():
+        raise ValueError(f"The output path {args.out} is a file; choose a folder for --out.")
+    first = int(os.environ.get("RANK", "0")) == 0
+    with output_lock(args.out) if first else contextlib.nullcontext():
+        return _train_locked(args, overrides)
+
+
+def _train_locked(args, overrides: list[str]) -> int:
+    """A recipe, a direct optimisation or a training run."""
     from ..model.config import load_config
 
     distributed = int(os.environ.get("WORLD_SIZE", "1")) > 1
@@ -112,8 +128,12 @@ def _train(args, overrides: list[str]) -> int:
     config = load_config(args.config, overrides)
     if args.optimize:
         from .baseline import compare_with_direct_fit
+        from .trainer import check_run_folder, record_files
 
-        return compare_with_direct_fit(config, args.out, args.checkpoint, args.optimize_steps, args.optimize_styles)
+        check_run_folder(args.out, resume=False)
+        code = compare_with_direct_fit(config, args.out, args.checkpoint, args.optimize_steps, args.optimize_styles)
+        record_files(args.out, rewritten=["baseline.json"])
+        return code
     if distributed:
         _init_distributed(config)
     from .trainer import Interrupted, Trainer

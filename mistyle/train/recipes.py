@@ -37,6 +37,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
+RECIPE_FILE, RECIPE_KIND = "recipe.json", "recipe"
 SELECTIONS = ("last", "step:N", "validation", "validation:noise")
 VALIDATION_RES, VALIDATION_SPP = 128, 16
 
@@ -170,15 +171,18 @@ def run_recipe(chosen: Recipe, out: Path, overrides: list[str] | None = None, lo
 
     A stage whose ``chosen.pt`` exists is kept as it is; one with a ``last.pt`` resumes. ``overrides``
     (``--set``) apply to every stage, after the stage's own (e.g. ``run.device="cuda"``)."""
+    from ..io import atomic_write_bytes
     from ..model.config import load_config
-    from .trainer import Trainer
+    from ..ownership import write_manifest
+    from .trainer import Trainer, record_files
 
     out = Path(out)
+    check_recipe_folder(out, chosen)
     out.mkdir(parents=True, exist_ok=True)
     results: list[StageResult] = []
     previous = None
     for number, stage in enumerate(chosen.stages, 1):
-        folder = out / f"{number}_{stage.name}"
+        folder = out / stage_folder(number, stage)
         pick = folder / "chosen.pt"
         if not pick.exists():
             keep = ["run.keep_checkpoints=true"]
@@ -193,16 +197,44 @@ def run_recipe(chosen: Recipe, out: Path, overrides: list[str] | None = None, lo
             stamp = {"name": chosen.name, "stage": stage.name, "recipe": chosen.as_dict()}
             Trainer(config, folder, resume=resume, init=init, recipe=stamp).run()
             result = select(stage, folder, log=log)
+            record_files(folder, add=["chosen.pt"])
             shutil.copyfile(result.chosen, pick)
+            record_files(folder, rewritten=["chosen.pt"], done=["chosen.pt"])
             result.chosen = str(pick)
         else:
             result = StageResult(stage.name, str(folder), str(pick), "kept from an earlier run")
         results.append(result)
         previous = pick
-        (out / "recipe.json").write_text(
-            json.dumps({"recipe": chosen.as_dict(), "stages": [asdict(r) for r in results]}, indent=1) + "\n"
-        )
+        record = {"recipe": chosen.as_dict(), "stages": [asdict(r) for r in results]}
+        atomic_write_bytes(out / RECIPE_FILE, (json.dumps(record, indent=1) + "\n").encode())
+        write_manifest(out, RECIPE_KIND, [RECIPE_FILE])
     return previous
+
+
+def stage_folder(number: int, stage: Stage) -> str:
+    return f"{number}_{stage.name}"
+
+
+def check_recipe_folder(out: Path, chosen: Recipe) -> None:
+    """``ValueError`` (one line) unless ``out`` may take the recipe: missing, or holding its stages'
+    folders (each checked by its run) and its own ``recipe.json``, nothing else."""
+    from ..ownership import check_replaceable, read_manifest, write_manifest
+
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
+    stages = {stage_folder(number, stage) for number, stage in enumerate(chosen.stages, 1)}
+
+    def in_a_stage(name: str) -> bool:
+        return name.split("/")[0] in stages
+
+    if (out / RECIPE_FILE).is_file() and read_manifest(out) is None:  # an older mistyle's recipe folder
+        try:
+            older = json.loads((out / RECIPE_FILE).read_text()).get("recipe", {}).get("name") == chosen.name
+        except (OSError, ValueError, UnicodeDecodeError, AttributeError):
+            older = False
+        if older:
+            write_manifest(out, RECIPE_KIND, [RECIPE_FILE])
+    check_replaceable(out, "--out", also_ours=in_a_stage)
 
 
 def kept_checkpoints(folder: Path) -> list[Path]:

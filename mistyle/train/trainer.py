@@ -12,6 +12,12 @@ Outputs in ``<out>/``: ``config.toml`` (resolved), ``metrics.jsonl`` (one object
 ``best.pt`` (weights of the lowest fast-layer validation RGB SWD), ``steps/step_XXXXXX.pt`` (weights
 at every checkpoint, with ``run.keep_checkpoints``), ``previews/step_XXXXXX.png`` and TensorBoard
 events in ``tb/``. With ``loss.objective = "sliced"`` the style term is ``objective.style.SlicedObjective``.
+
+The run folder is mistyle's (``mistyle.ownership``): its manifest (kind ``train``) records each file as
+it is written, only the files just written being hashed, and what is being written counts as
+mistyle's should the run be killed. A folder holding any file mistyle did not write is refused
+before anything is written; a run an older mistyle wrote (no manifest, nothing but a run's files) is
+taken over when resumed from its ``last.pt``.
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import resource
 import signal
 import time
@@ -29,7 +36,6 @@ import torch
 import torch.distributed as dist
 
 from .. import __version__
-from ..display import tone_map
 from ..integrators import prepare_density
 from ..io import atomic_write_bytes, check_writable_dir, write_png
 from ..model.checkpoint import (
@@ -53,7 +59,38 @@ from ..objective.metrics import (
 from ..objective.style import make_objective
 from ..progress import bar, status
 from ..scenes import CameraPath
+from ..tone import tone_map
 from .dataset import SmokePairs, StyleSet, augment_styles
+
+RUN_KIND = "train"
+RUN_LAYOUT = re.compile(
+    r"config\.toml|metrics\.jsonl|(last|final|best|chosen)\.pt|steps/step_\d{6}\.pt|previews/step_\d{6}\.png"
+    r"|tb/events\.out\.tfevents\.[^/]+|baseline\.json"
+)
+"""The files of a run folder: what one an older mistyle wrote (no manifest) may hold to be resumed."""
+TENSORBOARD_FILE = re.compile(r"tb/events\.out\.tfevents\.[^/]+")
+"""TensorBoard's event files: each writer makes a new one (never replacing a file), named as it starts."""
+RUN_FILES = ["config.toml", "metrics.jsonl", "last.pt", "final.pt", "best.pt"]
+"""The files a run writes whose names are known before it starts."""
+
+
+def check_run_folder(out: Path, resume: bool) -> None:
+    """``ValueError`` (one line) unless ``out`` may take this run: missing, or a folder holding only
+    mistyle's files (with ``resume``, also a run folder an older mistyle wrote)."""
+    from ..ownership import check_replaceable, read_manifest
+
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
+    older = resume and out.is_dir() and read_manifest(out) is None
+    layout = RUN_LAYOUT if older else TENSORBOARD_FILE
+    check_replaceable(out, "--out", also_ours=lambda name: layout.fullmatch(name) is not None)
+
+
+def record_files(out: Path, **changes) -> None:
+    """``ownership.update_manifest`` of the run folder ``out`` (kind ``train``)."""
+    from ..ownership import update_manifest
+
+    update_manifest(out, RUN_KIND, **changes)
 
 
 class Interrupted(Exception):
@@ -91,8 +128,6 @@ class Trainer:
         self._bar = None  # the progress bar of ``run`` (rank 0)
         if config.optim.batch % self.world:
             raise ValueError(f"optim.batch={config.optim.batch} must be divisible by the {self.world} processes.")
-        if self.rank == 0:
-            check_writable_dir(self.out)
         checkpoint = None
         if not resume and (self.out / "last.pt").exists():
             raise ValueError(
@@ -113,6 +148,13 @@ class Trainer:
             if config_to_dict(saved) != config_to_dict(config):
                 self.log("resume: continuing with the checkpoint's config (only optim.steps may change on --resume)")
             self.config = config = saved
+        check_run_folder(self.out, resume)
+        if resume and self.rank == 0:
+            from ..ownership import adopt_older
+
+            adopt_older(self.out, RUN_KIND, RUN_LAYOUT)  # its last.pt proves it a run of mistyle's
+        if self.rank == 0:
+            check_writable_dir(self.out)
         if config.run.threads:
             torch.set_num_threads(config.run.threads)
         self.device = device_for(config)
@@ -318,14 +360,12 @@ class Trainer:
         config = self.config
         if self.rank == 0:
             self.out.mkdir(parents=True, exist_ok=True)
+            record_files(self.out, add=RUN_FILES)
             atomic_write_bytes(self.out / "config.toml", to_toml(config_to_dict(config)).encode())
-            self._trim_metrics()
-            if (self.out / "metrics.jsonl").is_file():  # a resumed run's best so far, so best.pt only improves
-                seen = [
-                    json.loads(line).get("val_rgb_swd")
-                    for line in (self.out / "metrics.jsonl").read_text().splitlines()
-                ]
-                self.best = min([value for value in seen if value is not None], default=math.inf)
+            record_files(self.out, rewritten=["config.toml"])
+            seen = [record.get("val_rgb_swd") for record in self._trim_metrics()]
+            # A resumed run's best so far, so that best.pt only improves.
+            self.best = min([value for value in seen if isinstance(value, (int, float))], default=math.inf)
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         self._bar = bar(config.optim.steps, "training", initial=self.step) if self.rank == 0 else None
         try:
@@ -362,11 +402,14 @@ class Trainer:
                     self._log_record(record)
                     self._progress(record)
                 if self.step % config.run.checkpoint_every == 0 or self.interrupted:
+                    kept = [f"steps/step_{self.step:06d}.pt"] if config.run.keep_checkpoints else []
+                    if self.rank == 0:
+                        record_files(self.out, add=kept)
                     self.save(self.out / "last.pt")
-                    if (
-                        config.run.keep_checkpoints and self.rank == 0
-                    ):  # weights only, for experiments/validation_curve.py
-                        export_checkpoint(self.out / "last.pt", self.out / "steps" / f"step_{self.step:06d}.pt")
+                    if kept and self.rank == 0:  # weights only, for experiments/validation_curve.py
+                        export_checkpoint(self.out / "last.pt", self.out / kept[0])
+                    if self.rank == 0:
+                        record_files(self.out, rewritten=["last.pt", "metrics.jsonl", *kept], done=kept)
                 if self.interrupted:
                     raise Interrupted()
             self.save(self.out / "last.pt")
@@ -380,6 +423,9 @@ class Trainer:
                 self._tensorboard.close()
             if self._bar is not None:
                 self._bar.close()
+            if self.rank == 0:
+                events = [p.relative_to(self.out).as_posix() for p in (self.out / "tb").glob("events.out.tfevents.*")]
+                record_files(self.out, rewritten=[*RUN_FILES, *events], done=RUN_FILES)
         return final
 
     def _keep_best(self, record: dict) -> None:
@@ -389,6 +435,7 @@ class Trainer:
         if self.rank == 0 and value is not None and value < self.best:
             self.best = value
             save_checkpoint(self.out / "best.pt", self._inference_payload())
+            record_files(self.out, rewritten=["best.pt"])
 
     def _initialise_from(self, path: Path) -> None:
         """Start from another run's weights (a training or exported checkpoint): same architecture and extractor."""
@@ -476,7 +523,10 @@ class Trainer:
         self.model.train()
         if rows:
             preview = torch.cat(rows, dim=-2).permute(1, 2, 0).clamp(0, 1).cpu().numpy()
-            write_png(self.out / "previews" / f"step_{self.step:06d}.png", preview, srgb=False)
+            name = f"previews/step_{self.step:06d}.png"
+            record_files(self.out, add=[name])
+            write_png(self.out / name, preview, srgb=False)
+            record_files(self.out, rewritten=[name], done=[name])
             self._tb().add_image("val/preview", preview, self.step, dataformats="HWC")
         record = {"val_dark_renders": dark} if dark else {}
         if not fidelity:
@@ -501,15 +551,31 @@ class Trainer:
             if key != "step":
                 tb.add_scalar(("val/" if key.startswith("val_") else "train/") + key, value, record["step"])
 
-    def _trim_metrics(self) -> None:
-        """Drop records past the restored step (written after the checkpoint a killed run resumed from)."""
+    def _trim_metrics(self) -> list[dict]:
+        """Drop records past the restored step (written after the checkpoint a killed run resumed from;
+        a new run keeps none) and a last line cut short by a kill; the records kept. ``ValueError``
+        naming the file and line for any other line that is not a record."""
         path = self.out / "metrics.jsonl"
         if not path.is_file():
-            return
-        kept = [
-            line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= self.step
-        ]
-        atomic_write_bytes(path, ("".join(line + "\n" for line in kept)).encode())
+            return []
+        lines = path.read_bytes().splitlines()
+        kept = []
+        for number, raw in enumerate(lines, 1):
+            try:
+                record = json.loads(raw.decode("utf-8")) if raw.strip() else None
+                if record is not None and not (isinstance(record, dict) and isinstance(record.get("step"), int)):
+                    raise ValueError("not a record with a step")
+            except (UnicodeDecodeError, ValueError):
+                if number == len(lines):
+                    continue  # the line a killed run was appending
+                raise ValueError(
+                    f"{path}, line {number}, is not a training record; the file is damaged: restore it, or "
+                    "delete that line, and resume again."
+                ) from None
+            if record is not None and self.step > 0 and record["step"] <= self.step:
+                kept.append(record)
+        atomic_write_bytes(path, "".join(json.dumps(record) + "\n" for record in kept).encode())
+        return kept
 
     def _tb(self):
         if self._tensorboard is None:
@@ -586,13 +652,19 @@ class Trainer:
             raise ValueError(
                 f"The checkpoint was written by {checkpoint['world_size']} processes; resume with the same number."
             )
-        self.model.load_state_dict(checkpoint["model"])
-        self.optimizer.load_state_dict(checkpoint["optimizer"])
-        self.scheduler.load_state_dict(checkpoint["scheduler"])
-        state = checkpoint["rng"][self.rank]
-        self.rng.bit_generator.state = state["numpy"]
-        torch.set_rng_state(state["torch"])
-        self.step, self.seconds = int(checkpoint["step"]), float(checkpoint["seconds"])
+        try:
+            self.model.load_state_dict(checkpoint["model"])
+            self.optimizer.load_state_dict(checkpoint["optimizer"])
+            self.scheduler.load_state_dict(checkpoint["scheduler"])
+            state = checkpoint["rng"][self.rank]
+            self.rng.bit_generator.state = state["numpy"]
+            torch.set_rng_state(state["torch"])
+            self.step, self.seconds = int(checkpoint["step"]), float(checkpoint["seconds"])
+        except (KeyError, IndexError, TypeError, ValueError, RuntimeError) as error:
+            raise ValueError(
+                f"{self.out / 'last.pt'} does not fit this run ({type(error).__name__}: {str(error).splitlines()[0]}); "
+                "resume with the config and mistyle version that wrote it, or start a new run in another --out."
+            ) from None
         self.log(f"resumed from {self.out / 'last.pt'} at step {self.step}")
 
 

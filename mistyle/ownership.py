@@ -132,6 +132,9 @@ def write_manifest(folder, kind: str, names: list[str] | None = None, pending: l
     data = json.dumps(record, indent=1)
     fd, tmp = tempfile.mkstemp(prefix=f"{MANIFEST_FILE}.", suffix=".tmp", dir=folder)
     try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)  # mkstemp's 0600 would hide it from the farm's other users
         with os.fdopen(fd, "w") as handle:
             handle.write(data + "\n")
         os.replace(tmp, folder / MANIFEST_FILE)

@@ -170,12 +170,11 @@ def run(
 ) -> list[Row]:
     """Score ``method_names`` on ``pairs`` (``splits.split_pairs``), writing rows as they come, then the
     report. Returns every row in ``<out>/rows.jsonl``."""
-    from ..data.heldout import held_out_density
     from ..io import load_style
     from ..pipeline import Stylizer
     from ..stops import raise_if_requested
     from .methods import METHODS, Context, timed
-    from .splits import split_styles
+    from .splits import split_density, split_styles
 
     check_methods(method_names)
     out = Path(out)
@@ -204,7 +203,7 @@ def run(
     }
     styles = split_styles(split or "heldout")
     for spec in dict.fromkeys(spec for spec, _ in pairs):
-        density = held_out_density(spec, cache)
+        density = split_density(spec, cache)
         for style_name in [name for density_spec, name in pairs if density_spec == spec]:
             style = load_style(styles[style_name]["path"])
             for name in method_names:

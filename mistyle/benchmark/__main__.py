@@ -29,8 +29,21 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--densities", default=None, help="comma-separated density names of the split (default: all)")
     p.add_argument("--styles", default=None, help="comma-separated style names of the split (default: all)")
     p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated, of {', '.join(METHODS)}")
-    p.add_argument("--res", type=int, default=None, help="metric renders' side (default 128; 32 with --quick)")
-    p.add_argument("--spp", type=int, default=None, help="metric renders' paths per pixel (default 16; 4 with --quick)")
+    p.add_argument(
+        "--res", type=int, default=None, help="metric renders' side (default 256, as mistyle-render; 32 with --quick)"
+    )
+    p.add_argument(
+        "--spp",
+        type=int,
+        default=None,
+        help="metric renders' paths per pixel (default 64, as mistyle-render; 4 with --quick)",
+    )
+    p.add_argument(
+        "--denoise",
+        choices=["oidn", "none"],
+        default=None,
+        help="denoise the metric renders as mistyle-render does (default oidn; none with --quick)",
+    )
     p.add_argument(
         "--optimise-factor",
         type=float,
@@ -70,7 +83,7 @@ def main(argv=None) -> int:
                 print(report(out), end="")
             return 0
         split = "quick" if args.quick else args.split
-        res, spp = check_settings(args)
+        res, spp, denoise = check_settings(args)
         pairs = split_pairs(
             split,
             args.densities.split(",") if args.densities else None,
@@ -87,6 +100,7 @@ def main(argv=None) -> int:
                     methods,
                     res=res,
                     spp=spp,
+                    denoise=denoise,
                     quick=args.quick,
                     resume=args.resume,
                     checkpoint=args.checkpoint,
@@ -105,19 +119,25 @@ def main(argv=None) -> int:
         return 2
 
 
-def check_settings(args) -> tuple[int, int]:
-    """``(res, spp)`` of the metric renders (``--quick``'s unless given), every setting checked first."""
+def check_settings(args) -> tuple[int, int, str]:
+    """``(res, spp, denoise)`` of the metric renders: by default what ``mistyle-render`` shows a user
+    (256^2, 64 spp, denoised), ``--quick``'s unless given; every setting checked first."""
     import math
 
-    res = args.res if args.res is not None else (32 if args.quick else 128)
-    spp = args.spp if args.spp is not None else (4 if args.quick else 16)
+    from ..denoise import oidn_missing
+
+    res = args.res if args.res is not None else (32 if args.quick else 256)
+    spp = args.spp if args.spp is not None else (4 if args.quick else 64)
+    denoise = args.denoise or ("none" if args.quick else "oidn")
+    if denoise == "oidn" and oidn_missing() is not None:
+        raise ValueError(oidn_missing().replace("--denoise none", "mistyle-bench --denoise none"))
     for name, value, low in (("--res", res, 8), ("--spp", spp, 1)):
         if not low <= value <= 4096:
             raise ValueError(f"{name} must lie in [{low}, 4096], got {value}.")
     factor = args.optimise_factor
     if not (math.isfinite(factor) and 0 < factor <= MAX_OPTIMISE_FACTOR):
         raise ValueError(f"--optimise-factor must lie in (0, {MAX_OPTIMISE_FACTOR:g}], got {factor:g}.")
-    return res, spp
+    return res, spp, denoise
 
 
 if __name__ == "__main__":

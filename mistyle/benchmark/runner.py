@@ -63,14 +63,21 @@ def metric_views(camera_distance: float, count: int = METRIC_VIEWS) -> list:
     return CameraPath(distance=camera_distance).turntable(count, offset=HELD_OUT_VIEW)
 
 
-def score(density, albedo, style, views, *, res: int, spp: int, density_scale: float, radiance: float):
-    """``(style_fidelity metrics, images)`` of ``albedo`` on ``density`` path traced from ``views``."""
+def score(
+    density, albedo, style, views, *, res: int, spp: int, density_scale: float, radiance: float, denoise: str = "none"
+):
+    """``(style_fidelity metrics, images)`` of ``albedo`` on ``density`` path traced from ``views``, and
+    denoised as ``mistyle-render`` denoises its final images when ``denoise`` is ``"oidn"``."""
     from ..objective.metrics import style_fidelity
     from ..pathtrace import path_trace
 
     images, _ = path_trace(
         density, albedo, views, res=res, spp=spp, density_scale=density_scale, light=f"constant:{radiance}"
     )
+    if denoise == "oidn":
+        from ..denoise import denoise as oidn
+
+        images = [oidn(image) for image in images]
     return style_fidelity(images, style), images
 
 
@@ -160,6 +167,7 @@ def run(
     *,
     res: int = 128,
     spp: int = 16,
+    denoise: str = "none",
     quick: bool = False,
     resume: bool = False,
     checkpoint=None,
@@ -169,7 +177,8 @@ def run(
     log=print,
 ) -> list[Row]:
     """Score ``method_names`` on ``pairs`` (``splits.split_pairs``), writing rows as they come, then the
-    report. Returns every row in ``<out>/rows.jsonl``."""
+    report. Returns every row in ``<out>/rows.jsonl``. ``denoise``: ``"oidn"`` scores the images as
+    ``mistyle-render`` shows them (its rows' settings say so; rows made before it have no such key)."""
     from ..io import load_style
     from ..pipeline import Stylizer
     from ..stops import raise_if_requested
@@ -184,6 +193,8 @@ def run(
     rows_path, tiles = out / ROWS_FILE, out / "tiles"
     rows = read_rows(rows_path)
     settings = {"res": res, "spp": spp, "views": METRIC_VIEWS, "quick": quick, "optimise_factor": optimise_factor}
+    if denoise != "none":
+        settings["denoise"] = denoise
     if any(_group(row) != _group_of(settings, split) for row in rows):
         from ..progress import status
 
@@ -221,6 +232,7 @@ def run(
                     spp=spp,
                     density_scale=context.density_scale,
                     radiance=context.radiance,
+                    denoise=denoise,
                 )
                 row = Row(
                     name,

@@ -299,11 +299,11 @@ class Job:
     transforms: list | None = None  # per frame, the vdb.VdbTransform of a .vdb density
     up: str = "y"  # the world up axis volume.vdb is written in (conventions.UP_AXES)
     notes: list[str] = field(default_factory=list)
-    out: Path | None = None  # the staging folder of the run (``io.staged_directory``), set in ``run``
+    out: Path | None = None  # the staging folder of the run (``ownership.staged_directory``), set in ``run``
     first: int = 0  # the index of the first frame in the whole sequence (``--frames``)
     total_frames: int = 1  # the whole sequence's frames
     look: object = None  # look.Look: stylize with it instead of the style
-    merged: bool = False  # the output merges frame by frame into its folder (``io.chunk_staging``)
+    merged: bool = False  # the output merges frame by frame into its folder (``ownership.chunk_staging``)
     report: dict = field(default_factory=dict)
 
     @property
@@ -984,7 +984,7 @@ FRAME_METRICS = ("rgb_swd", "patch_swd", "hue_coverage", "structure")
 
 
 def merge_chunk(job: Job, folder: Path) -> None:
-    """Move a chunk's files from ``job.out`` into ``folder`` (``io.merge_files``), then write the folder's
+    """Move a chunk's files from ``job.out`` into ``folder`` (``ownership.merge_files``), then write the folder's
     ``report.json`` (every frame present, each with its metrics; the chunks that made them), its video,
     ``sheet.png`` (its first frame) and ``index.html``. Two chunks give the files one run gives.
     The folder's manifest takes the files in, so a later chunk or ``--overwrite`` knows them for mistyle's."""

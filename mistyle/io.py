@@ -385,7 +385,13 @@ def load_density_frames(path, grid: str | None = None, up: str | None = None) ->
     """Density frames from a file or a folder of frame files (sorted by name).
 
     ``.npz`` frames of ``python -m mistyle.data`` carry each frame's velocity ``(Z, Y, X, 3)``; the
-    velocities are returned only when every frame has one. All frames must share one grid size.
+    velocities are returned only when every frame has one. ``.vol``/``.npy``/``.npz`` frames must share
+    one grid size.
+
+    ``.vdb`` frames are placed in one index space (``vdb_frames_in_one_box``): a simulation's smoke grows
+    and moves, so each file's active voxels span another box; every frame is padded with zeros to the
+    union of those boxes, so that element ``[z, y, x]`` is the same place in the world in every frame,
+    and each frame's transform follows (its output VDB lands where the source was).
 
     ``up``: the world up axis of ``.vdb`` frames (``conventions.UP_AXES``; ``z`` for Blender's). Each grid
     is turned so that the index axis closest to it is the array's Y, which mistyle renders as up, and its
@@ -394,7 +400,10 @@ def load_density_frames(path, grid: str | None = None, up: str | None = None) ->
     """
     path = Path(path)
     files = density_frame_files(path)
-    frames = [_read_density_file(file, grid, up) for file in files]
+    frames = [_read_density_file(file, grid, up, turn=False) for file in files]
+    if len(frames) > 1 and all(frame.get("transform") is not None for frame in frames):
+        frames = vdb_frames_in_one_box(files, frames)
+    frames = [_turned(frame) for frame in frames]
     shapes = {frame["density"].shape for frame in frames}
     if len(shapes) > 1:
         raise ValueError(
@@ -409,6 +418,86 @@ def load_density_frames(path, grid: str | None = None, up: str | None = None) ->
         transforms if all(t is not None for t in transforms) else None,
         frames[0].get("up"),
     )
+
+
+def vdb_frames_in_one_box(files: list[Path], frames: list[dict]) -> list[dict]:
+    """``.vdb`` frames (``_read_density_file(..., turn=False)``: arrays in their files' index order) padded
+    with zeros to the union of their index boxes, with transforms that keep every voxel where it was.
+
+    The union is taken in the first frame's index space. Another frame's index space must be the same
+    lattice: the same index-to-world linear part (a simulation keeps its voxel size and orientation) and
+    an origin a whole number of voxels away (Blender's adaptive domain moves by whole voxels), else
+    ``ValueError`` naming the two files, since mistyle would have to resample. Each returned frame keeps
+    its own file's matrix, its ``index_min`` moved to the union's corner, so its output VDB has the
+    source's own index coordinates and matrix.
+    """
+    first = frames[0]["transform"]
+    linear, origin = first.matrix[:3, :3], first.matrix[:3, 3]
+    scale = float(np.abs(linear).max())
+    boxes, shifts = [], []
+    for file, frame in zip(files, frames):
+        transform = frame["transform"]
+        if not np.allclose(transform.matrix[:3, :3], linear, rtol=0.0, atol=1e-9 * scale):
+            sizes = [_format_size(t.voxel_size) for t in (first, transform)]
+            if sizes[0] != sizes[1]:
+                raise ValueError(
+                    f"The .vdb frames {files[0].name} and {file.name} have different voxel sizes ({sizes[0]} and "
+                    f"{sizes[1]}); frames of one sequence share one voxel size. Resample them onto one grid "
+                    "(e.g. Houdini's VDB Resample), or render them separately."
+                )
+            raise ValueError(
+                f"The .vdb frames {files[0].name} and {file.name} are rotated against each other (their "
+                "index-to-world matrices differ); frames of one sequence share one grid orientation. Resample "
+                "them onto one grid, or render them separately."
+            )
+        # Where this frame's index origin lies in the first frame's index space: a whole number of voxels.
+        shift = np.linalg.solve(linear, transform.matrix[:3, 3] - origin)
+        whole = np.round(shift)
+        if np.abs(shift - whole).max() > 1e-6:
+            raise ValueError(
+                f"The .vdb frame {file.name}'s voxels are offset by a fraction of a voxel from {files[0].name}'s "
+                f"({np.round(shift - whole, 4).tolist()} voxels along i, j, k); frames of one sequence share one "
+                "voxel lattice. Resample them onto one grid, or render them separately."
+            )
+        shifts.append(whole.astype(np.int64))
+        low = np.array(transform.index_min, dtype=np.int64) + shifts[-1]
+        boxes.append((low, low + np.array(frame["density"].shape[::-1]) - 1))
+    union_low = np.min([low for low, _ in boxes], axis=0)
+    union_high = np.max([high for _, high in boxes], axis=0)
+    size_xyz = union_high - union_low + 1
+    if int(np.prod(size_xyz)) > MAX_GRID_VOXELS:
+        raise ValueError(
+            f"The .vdb frames from {files[0].name} to {files[-1].name} span {'x'.join(map(str, size_xyz))} "
+            f"voxels together (the union of their boxes), more than the {MAX_GRID_VOXELS} mistyle renders "
+            "(conventions.MAX_GRID_VOXELS); crop or resample the frames, or split the sequence into folders "
+            "of fewer frames."
+        )
+    from .vdb import VdbTransform
+
+    placed = []
+    for frame, (low, _), shift in zip(frames, boxes, shifts):
+        density = np.zeros(tuple(size_xyz[::-1]), dtype=np.float32)
+        x, y, z = (low - union_low).tolist()
+        depth, height, width = frame["density"].shape
+        density[z : z + depth, y : y + height, x : x + width] = frame["density"]
+        corner = tuple((union_low - shift).tolist())  # the union's corner in this frame's own index space
+        placed.append({**frame, "density": density, "transform": VdbTransform(frame["transform"].matrix, corner)})
+    return placed
+
+
+def _format_size(voxel_size) -> str:
+    values = [float(f"{v:.6g}") for v in voxel_size]
+    return f"{values[0]:g}" if values[0] == values[1] == values[2] else "x".join(f"{v:g}" for v in values)
+
+
+def _turned(frame: dict) -> dict:
+    """A ``.vdb`` frame read with ``turn=False``, turned to its up axis (``vdb.upright``); others as they are."""
+    if frame.get("transform") is None:
+        return frame
+    from .vdb import upright
+
+    density, transform = upright(frame["density"], frame["transform"], frame["up"])
+    return {**frame, "density": density, "transform": transform}
 
 
 def check_link(path: Path, what: str, fix: str) -> None:
@@ -426,7 +515,12 @@ def check_link(path: Path, what: str, fix: str) -> None:
             ) from None
 
 
-def _read_density_file(path: Path, grid: str | None = None, up: str | None = None) -> dict:
+def _read_density_file(path: Path, grid: str | None = None, up: str | None = None, turn: bool = True) -> dict:
+    """One frame: ``{"density", "velocity"}``, and for ``.vdb`` files ``"transform"`` and ``"up"``.
+
+    ``turn``: turn a ``.vdb`` grid to its up axis here (``vdb.upright``); False leaves it in the file's
+    index order (``"up"`` says where to turn it), for ``load_density_frames`` to line frames up first.
+    """
     check_link(path, "Density", "point --density at a density file")
     if not path.exists():
         raise ValueError(f"Density {path} does not exist.")
@@ -448,7 +542,7 @@ def _read_density_file(path: Path, grid: str | None = None, up: str | None = Non
 
         read = read_vdb_grid(path, grid)  # names the file and its grids in its errors
         up = recorded_up_axis(read.file_metadata) if up is None else up
-        array, transform = upright(read.array, read.transform, up)
+        array, transform = upright(read.array, read.transform, up) if turn else (read.array, read.transform)
         return {
             "density": validate_density(array, name=os.fspath(path)),
             "velocity": None,

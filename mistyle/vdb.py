@@ -29,6 +29,13 @@ empty. The matrix is stored as doubles and comes back bit for bit, scale-and-tra
 alike (``vdb_convert.linear_transform`` and ``index_to_world_matrix`` say how; an ulp at worst). Files
 from other tools read as the bounding box of their active voxels.
 
+Files as DCCs write them: a file's grids -- names, types, classes, transforms, metadata -- are listed in
+Python from its header (``check_vdb_layout``, ``vdb_info``; no binding needed), and only the grid asked
+for is read with the binding, so grids of types the binding cannot read (Debian's OpenVDB 10 knows float,
+bool and vec3s; Blender's Mantaflow cache also holds an int32 'flags' grid) never stop a read.
+``mistyle-vdb FILE`` (``main``) prints what a file holds. Sequences whose active box changes from frame
+to frame are lined up in ``io.load_density_frames``.
+
 Up axes: mistyle renders with +y up. ``upright`` turns a grid read from a Z-up world (Blender) so that
 its y axis is that world's up, with the transform that keeps every voxel in place, and
 ``VdbTransform.for_medium_box(shape, "z")`` places mistyle's box in such a world; ``mistyle_metadata`` is
@@ -377,95 +384,34 @@ def _convert_in_process(function, *args):
         raise ValueError(str(error)) from None
 
 
-def _existing_file(path) -> Path:
+def _existing_file(path) -> tuple[Path, dict]:
+    """``path`` and what its header says (``check_vdb_layout``), or ``ValueError`` naming the file."""
     path = Path(path)
     if not path.exists():
         raise ValueError(f"VDB file {path} does not exist.")
     if not path.is_file():
         raise ValueError(f"VDB file {path} is not a file.")
-    check_vdb_layout(path)
-    return path
+    return path, check_vdb_layout(path)
 
 
-# OpenVDB's file layout (io/Archive.cc, io/File.cc, io/GridDescriptor.cc), all little-endian: the header
-# (int64 magic, uint32 file version, two uint32 library version numbers from version 211, a uint8 "has
-# grid offsets" from 212, a uint8 compression flag in 220-221, a 36-character UUID from 218, else 16
-# bytes), the file metadata (uint32 count; each entry a name and a type name, then a uint32 size and that
-# many bytes), an int32 grid count and one descriptor per grid (name, type and, from 216, instance parent:
-# uint32-length strings; then the int64 file offsets of the grid, its voxel data and its end), where the
-# next descriptor starts at the end offset.
-_VDB_MAGIC = 0x56444220
-_VDB_GRID_OFFSETS_VERSION = 212
-_VDB_KNOWN_VERSION = 224  # the newest layout this check knows (OpenVDB 10 writes it)
+def check_vdb_layout(path) -> dict:
+    """What ``path``'s header, grid descriptors and each grid's metadata and transform say
+    (``vdb_convert.scan_file``: every grid of every type, read in Python, no voxel read and no binding
+    needed), or ``ValueError`` unless the file is an OpenVDB file whose declared sizes and offsets lie
+    inside it.
 
+    OpenVDB trusts those sizes: a string length or an offset read past the end of a truncated file makes
+    it allocate that many bytes, gigabytes for a minute over a file of a few kilobytes before its error.
+    Reading the grid list here rather than with the binding is also what lets a file hold grids the
+    binding cannot read (a Blender Mantaflow cache's int32 'flags' grid, for Debian's OpenVDB 10)."""
+    from . import vdb_convert
 
-def check_vdb_layout(path) -> None:
-    """``ValueError`` unless the sizes and offsets that ``path``'s header and grid descriptors declare lie
-    inside the file.
-
-    OpenVDB trusts them: a string length or an offset read past the end of a truncated file makes it
-    allocate that many bytes, gigabytes for a minute over a file of a few kilobytes before its error. This
-    reads only the header and the descriptors (a few hundred bytes), in Python."""
-    path = Path(path)
-    size = path.stat().st_size
-    fix = "it is damaged or truncated (an interrupted copy or download?); copy or export it again"
-    with open(path, "rb") as handle:
-
-        def read(count: int, what: str) -> bytes:
-            data = handle.read(count)
-            if len(data) != count:
-                raise ValueError(f"{path} ends inside its {what} at byte {size}; {fix}.")
-            return data
-
-        def number(form: str, what: str) -> int:
-            return int(np.frombuffer(read(np.dtype(form).itemsize, what), dtype=form)[0])
-
-        def string(what: str) -> None:
-            length = number("<u4", what)
-            if length > size - handle.tell():
-                raise ValueError(
-                    f"{path} declares a {what} of {length} bytes at byte {handle.tell() - 4}, past its end at "
-                    f"byte {size}; {fix}."
-                )
-            handle.seek(length, os.SEEK_CUR)
-
-        if size < 8 or number("<i8", "header") != _VDB_MAGIC:
-            raise ValueError(f"{path} is not a readable OpenVDB file (it does not start with OpenVDB's magic number).")
-        version = number("<u4", "header")
-        if version > _VDB_KNOWN_VERSION:  # a newer layout than this check knows: the binding decides
-            return
-        if version < 211:  # separate major, minor and patch numbers
-            version = 100 * version + 10 * number("<u4", "header") + number("<u4", "header")
-        else:
-            read(8, "header")  # the library's major and minor version
-        offsets = version < _VDB_GRID_OFFSETS_VERSION or read(1, "header") != b"\x00"
-        if 220 <= version < 222:
-            read(1, "header")  # the file-wide compression flag
-        read(36 if version >= 218 else 16, "header")  # the UUID
-        for _ in range(number("<u4", "file metadata")):
-            string("metadata name")
-            string("metadata type name")
-            string("metadata value")
-        if not offsets:  # grids written to a stream follow inline, with no offsets to check
-            return
-        grids = number("<i4", "grid count")
-        if not 0 <= grids <= (size - handle.tell()) // 36:  # a descriptor takes at least 36 bytes
-            raise ValueError(
-                f"{path} declares {grids} grid(s), more than its last {size - handle.tell()} bytes can describe; {fix}."
-            )
-        for _ in range(grids):
-            string("grid name")
-            string("grid type name")
-            if version >= 216:
-                string("grid instance parent name")
-            start = handle.tell() + 24
-            grid, block, end = (number("<i8", "grid descriptor") for _ in range(3))
-            if not start <= grid <= block <= end <= size:
-                raise ValueError(
-                    f"{path} declares a grid spanning bytes {grid}..{end} (voxel data from {block}), but the file "
-                    f"holds {size} bytes; {fix}."
-                )
-            handle.seek(end)
+    try:
+        return vdb_convert.scan_file(os.fspath(path))
+    except vdb_convert.ConvertError as error:
+        raise ValueError(str(error)) from None
+    except OSError as error:
+        raise ValueError(f"Cannot read {path}: {error.strerror}.") from None
 
 
 # ----------------------------------------------------------------------------- reading
@@ -487,7 +433,9 @@ def read_vdb_grid(path, grid: str | None = None) -> VdbGrid:
     """Read one grid of a ``.vdb`` file as a dense array: ``(array, transform, grid_name)``.
 
     The grid is ``grid`` if given (a float grid reads as ``(Z, Y, X)``, a vec3 grid such as 'Cd' as
-    ``(Z, Y, X, 3)``), else the float grid named 'density', else the file's only float grid. The array
+    ``(Z, Y, X, 3)``), else the float grid named 'density', else the file's only float grid
+    (``choose_grid``). Only that grid is read: the file's other grids may be of any type, including
+    those the binding cannot read (a Mantaflow cache's int32 'flags'). The array
     is float32 and covers the written array's box for files from ``write_vdb``, the active voxels'
     bounding box otherwise; ``transform.index_min`` is the index of its element ``[0, 0, 0]``.
 
@@ -496,7 +444,9 @@ def read_vdb_grid(path, grid: str | None = None) -> VdbGrid:
         ValueError: a missing or unreadable file, no such grid (the message lists the file's grids),
             several float grids and no 'density', an empty grid, or a non-linear (frustum) transform.
     """
-    path = _existing_file(path)
+    path, scan = _existing_file(path)
+    if scan["grids"] is not None:  # choose here, so a bad choice fails before any binding is looked for
+        grid = choose_grid(path, scan, grid)["name"]
     route = _find_route(os.environ.get(INTERPRETER_ENV) or None)
     if route.in_process:
         array, meta = _convert_in_process("read_grid", os.fspath(path), grid)
@@ -517,21 +467,49 @@ def read_vdb_grid(path, grid: str | None = None) -> VdbGrid:
     return VdbGrid(np.ascontiguousarray(array, dtype=np.float32), transform, meta["grid"], meta["file_metadata"])
 
 
-def vdb_info(path) -> dict:
-    """What a ``.vdb`` file holds, without reading its voxels.
+def choose_grid(path, scan: dict, grid: str | None) -> dict:
+    """The grid of ``scan`` (``check_vdb_layout``'s) that ``read_vdb_grid`` reads: ``grid``, else 'density',
+    else the only float grid. ``ValueError`` naming the file and listing its grids when there is no such
+    grid, it is of a type mistyle does not read, or there are several float grids and no 'density'."""
+    from . import vdb_convert
 
-    ``{"grids": [{"name", "type" ('float', 'vec3s', ...), "class" ('fog volume', ...),
-    "active_voxel_count", "index_min", "index_max" (None where the file does not record them),
-    "is_linear", "matrix" (OpenVDB's row-vector convention), "metadata"}, ...], "file_metadata": {...}}``.
+    try:
+        return vdb_convert.choose_grid(os.fspath(path), scan["grids"], grid)
+    except vdb_convert.ConvertError as error:
+        raise ValueError(str(error)) from None
+
+
+def vdb_info(path) -> dict:
+    """What a ``.vdb`` file holds, without reading its voxels; every grid, whatever its type.
+
+    ``{"file", "version", "library_version", "grids": [{"name", "type" ('float', 'vec3s', 'int32', ...),
+    "class" ('fog volume', ...), "readable" (mistyle reads float and vec3s grids), "half_float",
+    "active_voxel_count", "index_min", "index_max" (inclusive (i, j, k); None where the file does not
+    record them or the grid is empty), "map", "is_linear", "matrix" (OpenVDB's row-vector convention;
+    ``VdbTransform`` takes its transpose), "voxel_size", "metadata"}, ...], "file_metadata": {...}}``.
+
+    Read in Python from the file's header (``check_vdb_layout``), so it needs no OpenVDB binding; only a
+    file written to a stream, which has no grid offsets, goes through the converter.
     """
-    path = _existing_file(path)
-    route = _find_route(os.environ.get(INTERPRETER_ENV) or None)
-    if route.in_process:
-        return _convert_in_process("file_info", os.fspath(path))
-    with tempfile.TemporaryDirectory(prefix="mistyle-vdb-") as workdir:
-        _run_converter(route, "info", os.fspath(path), workdir)
-        with open(Path(workdir) / "meta.json") as handle:
-            return json.load(handle)
+    from . import vdb_convert
+
+    path, scan = _existing_file(path)
+    if scan["grids"] is not None:
+        info = vdb_convert.describe(scan)
+    else:
+        route = _find_route(os.environ.get(INTERPRETER_ENV) or None)
+        if route.in_process:
+            info = _convert_in_process("file_info", os.fspath(path))
+        else:
+            with tempfile.TemporaryDirectory(prefix="mistyle-vdb-") as workdir:
+                _run_converter(route, "info", os.fspath(path), workdir)
+                with open(Path(workdir) / "meta.json") as handle:
+                    info = json.load(handle)
+    for grid in info["grids"]:  # an empty grid's recorded box is inverted (INT_MAX..INT_MIN): no box
+        low, high = grid.get("index_min"), grid.get("index_max")
+        if low is not None and high is not None and any(a > b for a, b in zip(low, high)):
+            grid["index_min"] = grid["index_max"] = None
+    return info
 
 
 # ----------------------------------------------------------------------------- writing
@@ -636,3 +614,109 @@ def write_vdb(
             json.dump(sidecar, handle, allow_nan=False)
         _run_converter(route, "write", os.fspath(path), workdir)
     return path
+
+
+# ----------------------------------------------------------------------------- mistyle-vdb
+# Shown in each grid's line, or OpenVDB's own bookkeeping (per-leaf sizes for delayed loading), so left
+# out of its metadata lines.
+_SHOWN_KEYS = (
+    "class",
+    "name",
+    "file_bbox_min",
+    "file_bbox_max",
+    "file_voxel_count",
+    "file_voxel_size",
+    "file_delayed_load",
+)
+
+
+def _format_value(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.9g}"
+    if isinstance(value, list):
+        return "(" + ", ".join(_format_value(v) for v in value) + ")"
+    return str(value)
+
+
+def describe_vdb(info: dict) -> str:
+    """``vdb_info``'s result as text: one line per grid (name, type, class, active voxels, index box and
+    its size, voxel size, world box, whether mistyle reads it), then the file's and each grid's metadata."""
+    version = f"OpenVDB file format {info['version']}"
+    if info.get("library_version"):
+        version += f", written by OpenVDB {'.'.join(str(v) for v in info['library_version'])}"
+    lines = [f"{info['file']}: {version}, {len(info['grids'])} grid(s)"]
+    for grid in info["grids"]:
+        kind = grid["type"] + (" (saved as half)" if grid.get("half_float") else "")
+        words = [f"  {grid['name']}: {kind}, class {grid['class']}"]
+        count, low, high = grid.get("active_voxel_count"), grid.get("index_min"), grid.get("index_max")
+        if count is not None:
+            words.append(f"{count} active voxels")
+        if low is not None and high is not None:
+            size = "x".join(str(b - a + 1) for a, b in zip(low, high))
+            words.append(f"index box {tuple(low)}..{tuple(high)} ({size})")
+        matrix, voxel = grid.get("matrix"), grid.get("voxel_size")
+        if voxel is not None:
+            same = max(voxel) - min(voxel) <= 1e-12 * max(voxel)
+            words.append(f"voxel size {_format_value(voxel[0] if same else voxel)}")
+        if matrix is not None and low is not None and high is not None:
+            corner = VdbTransform(np.array(matrix).T, tuple(low))
+            shape = tuple(b - a + 1 for a, b in zip(low, high))[::-1]
+            world_low, world_high = corner.world_bbox(shape)
+            words.append(f"world box {_format_value(world_low.tolist())}..{_format_value(world_high.tolist())}")
+        elif grid.get("is_linear") is False:
+            words.append(f"non-linear transform ({grid.get('map')})")
+        readable = grid.get("readable", grid["type"] in ("float", "vec3s"))
+        words.append("mistyle reads it" if readable else "not read by mistyle (float and vec3s grids only)")
+        lines.append(", ".join(words))
+    if info.get("file_metadata"):
+        lines.append("file metadata:")
+        lines += [f"  {key} = {_format_value(value)}" for key, value in sorted(info["file_metadata"].items())]
+    for grid in info["grids"]:
+        rest = {k: v for k, v in grid.get("metadata", {}).items() if k not in _SHOWN_KEYS}
+        if rest:
+            lines.append(f"grid '{grid['name']}' metadata:")
+            lines += [f"  {key} = {_format_value(value)}" for key, value in sorted(rest.items())]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``mistyle-vdb FILE...`` (also ``python -m mistyle.vdb``): list what ``.vdb`` files hold.
+
+    A command of its own rather than a ``mistyle-render --info`` flag: it reads only the files' headers,
+    in Python, so it answers at once and needs neither the renderer nor an OpenVDB binding, and it
+    lists every grid, including those ``mistyle-render`` cannot read, to pick ``--grid`` from."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="mistyle-vdb",
+        description="List the grids of OpenVDB files (types, classes, voxel counts, index and world boxes, "
+        "voxel sizes, metadata), read from their headers: no voxel is read and no OpenVDB module is needed.",
+    )
+    parser.add_argument("files", nargs="+", type=Path, metavar="FILE", help=".vdb files, or folders of them")
+    parser.add_argument("--json", action="store_true", help="print vdb_info's JSON instead of text")
+    args = parser.parse_args(argv)
+    files = []
+    for path in args.files:
+        files += sorted(p for p in path.iterdir() if p.suffix.lower() == ".vdb") if path.is_dir() else [path]
+    failed, reports = 0, []
+    for path in files:
+        try:
+            info = vdb_info(path)
+        except (ValueError, OSError) as error:
+            print(f"error: {error}", file=sys.stderr)
+            failed += 1
+            continue
+        reports.append(info)
+        if not args.json:
+            print(describe_vdb(info))
+    if args.json:  # one file: its object; several, or a folder: a list
+        single = len(args.files) == 1 and not args.files[0].is_dir() and len(reports) == 1
+        print(json.dumps(reports[0] if single else reports, indent=1))
+    if not files:
+        print(f"error: no .vdb files in {', '.join(map(str, args.files))}.", file=sys.stderr)
+        return 2
+    return 2 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -5,6 +5,7 @@ reason, on machines where none has it. References that do not go through mistyle
 written by the binding directly, and ``MediumBox`` for the medium-box transform.
 """
 
+import json
 import os
 import subprocess
 import sys
@@ -412,3 +413,214 @@ def test_the_converter_names_its_binding(subprocess_route):
 
     found = json.loads(result.stdout)
     assert found["version"][0] >= 10 and "openvdb" in found["module"].lower()
+
+
+# ----------------------------------------------------------------------------- files as DCCs write them
+MANTAFLOW = REPO / "tests" / "data" / "mantaflow"  # a real Blender cache, cut down (tests/data/SOURCES.toml)
+
+
+def test_a_mantaflow_cache_lists_every_grid_without_any_binding(tmp_path, monkeypatch, capsys):
+    """The grids of a Blender Mantaflow cache, int32 'flags' among them, list from the file's header in
+    Python: no OpenVDB module is asked (the interpreter named here does not even exist)."""
+    monkeypatch.setenv(vdb.INTERPRETER_ENV, str(tmp_path / "no-such-python"))
+    info = vdb_info(MANTAFLOW / "fluid_data_0001.vdb")
+    grids = {grid["name"]: grid for grid in info["grids"]}
+    assert list(grids) == ["velocity", "flags", "density", "temperature", "flame"]
+    assert (info["version"], info["library_version"]) == (224, [8, 0])
+    assert {name: (g["type"], g["class"], g["readable"]) for name, g in grids.items()} == {
+        "velocity": ("vec3s", "staggered", True),
+        "flags": ("int32", "unknown", False),
+        "density": ("float", "fog volume", True),
+        "temperature": ("float", "fog volume", True),
+        "flame": ("float", "fog volume", True),
+    }
+    density = grids["density"]
+    assert density["half_float"] and density["active_voxel_count"] == 1665
+    assert (density["index_min"], density["index_max"]) == ([63, 115, 7], [73, 123, 34])  # 11 x 9 x 28
+    assert density["map"] == "UniformScaleMap" and density["is_linear"]
+    np.testing.assert_array_equal(density["matrix"], np.diag([0.8, 0.8, 0.8, 1.0]).astype(np.float32))
+    assert density["metadata"]["file_base_resolution"] == [125, 125, 60]  # Blender's domain, in voxels
+    assert grids["flame"]["active_voxel_count"] == 0 and grids["flame"]["index_min"] is None  # empty
+
+    assert vdb.main([str(MANTAFLOW / "fluid_data_0001.vdb")]) == 0
+    text = capsys.readouterr().out
+    assert "flags: int32 (saved as half), class unknown, 937500 active voxels" in text
+    assert "not read by mistyle" in text and "index box (63, 115, 7)..(73, 123, 34) (11x9x28)" in text
+    assert vdb.main([str(tmp_path / "missing.vdb")]) == 2
+    assert capsys.readouterr().err.startswith("error: VDB file") and not vdb.main([str(MANTAFLOW), "--json"])
+
+
+@needs_vdb
+def test_a_mantaflow_cache_reads_its_density_despite_grids_the_binding_cannot_read(subprocess_route):
+    """Debian's OpenVDB 10 cannot read the cache's int32 'flags' grid, nor list a file that holds one;
+    mistyle lists the grids itself and reads only the one it needs."""
+    path = MANTAFLOW / "fluid_data_0001.vdb"
+    array, transform, name = read_vdb(path)  # no --grid: 'density'
+    assert name == DENSITY_GRID and array.shape == (28, 9, 11) and transform.index_min == (63, 115, 7)
+    assert np.count_nonzero(array) == 1665 and 0.0 < array.max() <= 1.0
+    np.testing.assert_array_equal(transform.voxel_size, [np.float32(0.8)] * 3)
+    velocity, velocity_transform, _ = read_vdb(path, grid="velocity")
+    assert velocity.shape == (26, 9, 11, 3) and velocity_transform.index_min == (63, 115, 9)
+    assert read_vdb(path, grid="temperature")[0].shape == (28, 9, 11)
+    with pytest.raises(ValueError, match=r"Grid 'flags' of .*fluid_data_0001.vdb holds int32 values; mistyle reads"):
+        read_vdb(path, grid="flags")
+    with pytest.raises(ValueError, match=r"no grid named 'smoke'; it holds 'velocity' \(vec3s\), 'flags' \(int32\)"):
+        read_vdb(path, grid="smoke")
+
+
+@needs_vdb
+def test_without_a_float_grid_the_error_lists_the_grids(tmp_path, subprocess_route):
+    path = tmp_path / "colour.vdb"
+    _run_binding(
+        "import sys\n"
+        "grid = vdb.Vec3SGrid()\n"
+        "grid.name = 'Cd'\n"
+        "grid.getAccessor().setValueOn((0, 0, 0), (1.0, 0.5, 0.0))\n"
+        "vdb.write(sys.argv[1], grids=[grid])\n",
+        str(path),
+    )
+    with pytest.raises(ValueError, match=r"colour.vdb holds no float grid .*'Cd' \(vec3s\)"):
+        read_vdb(path)
+
+
+@needs_vdb
+@pytest.mark.parametrize(
+    "transform", [VdbTransform.for_medium_box((3, 4, 5)), _rotated_transform()], ids=["scale", "affine"]
+)
+def test_info_reads_transforms_and_metadata_bit_for_bit(tmp_path, transform, subprocess_route):
+    """The transform and metadata that ``vdb_info`` reads in Python are what was written, to the bit."""
+    density = np.ones((3, 4, 5), np.float32)
+    metadata = {"text": "smoke", "count": 3, "scale": 0.1, "flag": True}
+    path = write_vdb(tmp_path / "t.vdb", transform, {DENSITY_GRID: density}, metadata=metadata)
+    (grid,) = vdb_info(path)["grids"]
+    np.testing.assert_array_equal(np.array(grid["matrix"]).T, transform.matrix)
+    np.testing.assert_array_equal(grid["voxel_size"], transform.voxel_size)
+    assert vdb_info(path)["file_metadata"] == metadata
+    assert vdb.read_vdb_grid(path).file_metadata == metadata
+
+
+# ----------------------------------------------------------------------------- sequences in world space
+VOXEL, ORIGIN = 0.1, (1.0, 2.0, 3.0)
+MARK = (20, 21, 22)  # index (i, j, k) of a voxel at one world position in every frame, value 5
+# Frames of a sphere that grows and moves: (centre (i, j, k), radius) in the first frame's index space,
+# and whole voxels by which a frame's own index origin is moved (as an adaptive domain moves).
+SPHERES = [((18, 20, 22), 2.0, (0, 0, 0)), ((21, 22, 21), 3.5, (0, 0, 0)), ((25, 19, 24), 4.5, (3, -2, 0))]
+
+
+def _write_sphere_frames(folder: Path, frames=SPHERES, voxel=VOXEL) -> None:
+    """One .vdb per frame, written by the binding itself, voxels set one by one."""
+    folder.mkdir()
+    _run_binding(
+        "import sys, json, math\n"
+        "frames, voxel, origin, mark = json.loads(sys.argv[1])\n"
+        "for n, ((centre, radius, moved), size) in enumerate(zip(frames, voxel)):\n"
+        "    grid = vdb.FloatGrid()\n"
+        "    grid.name = 'density'\n"
+        "    grid.transform = vdb.createLinearTransform(size)\n"
+        "    grid.transform.translate(tuple(o + m * size for o, m in zip(origin, moved)))\n"
+        "    access = grid.getAccessor()\n"
+        "    r = int(math.ceil(radius))\n"
+        "    for i in range(-r, r + 1):\n"
+        "        for j in range(-r, r + 1):\n"
+        "            for k in range(-r, r + 1):\n"
+        "                if i * i + j * j + k * k <= radius * radius:\n"
+        "                    ijk = (centre[0] + i - moved[0], centre[1] + j - moved[1], centre[2] + k - moved[2])\n"
+        "                    access.setValueOn(ijk, 0.5)\n"
+        "    access.setValueOn(tuple(m - d for m, d in zip(mark, moved)), 5.0)\n"
+        "    vdb.write(sys.argv[2] + '/frame%04d.vdb' % n, grids=[grid])\n",
+        json.dumps([frames, voxel if isinstance(voxel, list) else [voxel] * len(frames), ORIGIN, MARK]),
+        str(folder),
+    )
+
+
+@needs_vdb
+def test_a_sequence_whose_box_grows_and_moves_shares_one_world_aligned_box(tmp_path, subprocess_route):
+    from mistyle.io import load_density_frames
+
+    _write_sphere_frames(tmp_path / "seq")
+    # The union of the frames' active boxes, in the first frame's index space (spheres and the mark).
+    lows = [np.subtract(c, int(r)) for c, r, _ in SPHERES] + [np.array(MARK)]
+    highs = [np.add(c, int(r)) for c, r, _ in SPHERES] + [np.array(MARK)]
+    low, high = np.min(lows, axis=0), np.max(highs, axis=0)
+    mark_world = VOXEL * np.array(MARK) + ORIGIN
+
+    loaded = load_density_frames(tmp_path / "seq")
+    assert {d.shape for d in loaded.densities} == {tuple((high - low + 1)[::-1])}
+    marks = [tuple(np.argwhere(d == 5.0)[0]) for d in loaded.densities]  # [z, y, x]
+    assert marks == [tuple((np.array(MARK) - low)[::-1])] * 3  # the same index in every frame
+    for transform, (_, _, moved) in zip(loaded.transforms, SPHERES):
+        # Index (0, 0, 0) is the union's corner voxel; the mark sits where it was written.
+        np.testing.assert_allclose(transform.voxel_centre(0, 0, 0), VOXEL * low + ORIGIN, atol=1e-12)
+        np.testing.assert_allclose(transform.voxel_centre(*marks[0][::-1]), mark_world, atol=1e-12)
+        assert transform.index_min == tuple(low - moved)  # in the frame's own file's index space
+    sums = [float(d.sum()) for d in loaded.densities]
+    assert sums == [5.0 + 0.5 * (np.count_nonzero(d) - 1) for d in loaded.densities]  # nothing cut off
+
+    # Written back with its transform, a frame drops onto the source: the mark at the same world place.
+    out = write_vdb(tmp_path / "out.vdb", loaded.transforms[2], {DENSITY_GRID: loaded.densities[2]})
+    array, transform, _ = read_vdb(out)
+    z, y, x = np.argwhere(array == 5.0)[0]
+    np.testing.assert_allclose(transform.voxel_centre(x, y, z), mark_world, atol=1e-12)
+
+    # Blender's up axis: every frame turns the same way and still lines up.
+    upright = load_density_frames(tmp_path / "seq", up="z")
+    assert len({d.shape for d in upright.densities}) == 1
+    turned = [tuple(np.argwhere(d == 5.0)[0]) for d in upright.densities]
+    assert len(set(turned)) == 1
+    for transform in upright.transforms:
+        np.testing.assert_allclose(transform.voxel_centre(*turned[0][::-1]), mark_world, atol=1e-12)
+
+
+@needs_vdb
+def test_frames_on_different_lattices_are_refused(tmp_path, subprocess_route):
+    from mistyle.io import load_density_frames
+
+    frames = [((5, 5, 5), 1.0, (0, 0, 0))] * 2
+    _write_sphere_frames(tmp_path / "sizes", frames, voxel=[0.1, 0.2])
+    with pytest.raises(ValueError, match=r"frame0000.vdb and frame0001.vdb have different voxel sizes \(0.1 and 0.2\)"):
+        load_density_frames(tmp_path / "sizes")
+
+
+@needs_vdb
+def test_a_real_mantaflow_sequence_loads_as_one_box(subprocess_route):
+    """Frames 1 and 10 of the cache: the density's active box grows from 11x9x28 to 51x71x29."""
+    from mistyle.io import load_density_frames
+
+    first, _, _ = read_vdb(MANTAFLOW / "fluid_data_0001.vdb")
+    loaded = load_density_frames(MANTAFLOW)
+    assert [d.shape for d in loaded.densities] == [(29, 71, 51)] * 2  # index box (44, 53, 7)..(94, 123, 35)
+    assert [t.index_min for t in loaded.transforms] == [(44, 53, 7)] * 2
+    placed = loaded.densities[0][0:28, 115 - 53 : 124 - 53, 63 - 44 : 74 - 44]
+    np.testing.assert_array_equal(placed, first)
+    assert np.count_nonzero(loaded.densities[0]) == np.count_nonzero(first)  # nothing else in the margins
+    blender = load_density_frames(MANTAFLOW, up="z")
+    assert [d.shape for d in blender.densities] == [(71, 29, 51)] * 2
+
+
+def test_frames_are_lined_up_by_whole_voxels_only():
+    """``vdb_frames_in_one_box`` on its own: a frame whose origin is whole voxels away is padded into the
+    union; a fraction of a voxel or a turned grid would need resampling, and is refused by name."""
+    from mistyle.io import vdb_frames_in_one_box
+
+    def frame(matrix, index_min, shape=(2, 3, 4)):
+        return {"density": np.ones(shape, np.float32), "transform": VdbTransform(matrix, index_min), "up": "y"}
+
+    base = np.diag([0.5, 0.5, 0.5, 1.0])
+    moved = base.copy()
+    moved[:3, 3] = [1.0, 0.0, -0.5]  # (2, 0, -1) voxels
+    files = [Path("a.vdb"), Path("b.vdb")]
+    first, second = vdb_frames_in_one_box(files, [frame(base, (0, 0, 0)), frame(moved, (0, 0, 0))])
+    assert first["density"].shape == second["density"].shape == (3, 3, 6)  # x 0..5, y 0..2, z -1..1
+    assert first["transform"].index_min == (0, 0, -1) and second["transform"].index_min == (-2, 0, 0)
+    for placed in (first, second):
+        np.testing.assert_array_equal(placed["transform"].voxel_centre(0, 0, 0), [0.0, 0.0, -0.5])
+    assert first["density"][1:3, :, 0:4].all() and second["density"][0:2, :, 2:6].all()
+    assert first["density"].sum() == second["density"].sum() == 24
+
+    shifted = base.copy()
+    shifted[0, 3] = 0.2
+    with pytest.raises(ValueError, match=r"b.vdb's voxels are offset by a fraction of a voxel from a.vdb's"):
+        vdb_frames_in_one_box(files, [frame(base, (0, 0, 0)), frame(shifted, (0, 0, 0))])
+    turned = base @ vdb.up_axis_matrix("z")
+    with pytest.raises(ValueError, match="a.vdb and b.vdb are rotated against each other"):
+        vdb_frames_in_one_box(files, [frame(base, (0, 0, 0)), frame(turned, (0, 0, 0))])

@@ -381,12 +381,31 @@ def density_frame_files(path) -> list[Path]:
     return files
 
 
-def load_density_frames(path, grid: str | None = None, up: str | None = None) -> DensityFrames:
+def load_density_frames(
+    path,
+    grid: str | None = None,
+    up: str | None = None,
+    *,
+    velocity_grid: str | None = None,
+    fps: float | None = None,
+    notes: list | None = None,
+) -> DensityFrames:
     """Density frames from a file or a folder of frame files (sorted by name).
 
-    ``.npz`` frames of ``python -m mistyle.data`` carry each frame's velocity ``(Z, Y, X, 3)``; the
-    velocities are returned only when every frame has one. ``.vol``/``.npy``/``.npz`` frames must share
-    one grid size.
+    Velocities, ``(Z, Y, X, 3)`` per frame in ``mistyle.warp``'s units: voxels per frame, components
+    ``(x, y, z)`` along the array's last, middle and first axes, frame t's velocity carrying it towards
+    frame t + 1. They are returned only for a sequence of two or more frames in which every frame has
+    one; where some frames have one and others do not, none are, and ``notes`` says which frames lack
+    it (flicker is then measured unwarped). ``.npz`` frames of ``python -m mistyle.data`` carry theirs
+    as the array ``velocity``. ``.vdb`` frames: the grid ``velocity_grid`` (a vec3s grid, or three float
+    grids ``NAME.x``/``.y``/``.z``; ``ValueError`` naming the file when one lacks it), else the first of
+    ``velocity``, ``vel``, ``v`` that a file has (``vdb.find_velocity``); ``''`` reads none. A file's
+    world units per second (OpenVDB's, Houdini's and Blender's volume convention) or Mantaflow's solver
+    units (Blender's fluid cache, recognised by its metadata) are turned into voxels of the density per
+    frame with the density's transform and ``fps`` (else the file's ``fps`` metadata, else 24, which
+    ``notes`` then says); a staggered grid is averaged to cell centres and a grid on another lattice is
+    resampled onto the density's voxels (``vdb.read_vdb_frame``). Components turn with the grid (``up``).
+    ``.vol``/``.npy``/``.npz`` frames must share one grid size.
 
     ``.vdb`` frames are placed in one index space (``vdb_frames_in_one_box``): a simulation's smoke grows
     and moves, so each file's active voxels span another box; every frame is padded with zeros to the
@@ -399,8 +418,11 @@ def load_density_frames(path, grid: str | None = None, up: str | None = None) ->
     says (``mistyle_up_axis``), else ``y``. Other files are in mistyle's own box, whose up is y.
     """
     path = Path(path)
+    notes = [] if notes is None else notes
     files = density_frame_files(path)
-    frames = [_read_density_file(file, grid, up, turn=False) for file in files]
+    # A single frame has nothing to be warped towards: its velocity would be read for nothing.
+    motion = {"velocity_grid": velocity_grid, "fps": fps} if len(files) > 1 and velocity_grid != "" else None
+    frames = [_read_density_file(file, grid, up, turn=False, motion=motion) for file in files]
     if len(frames) > 1 and all(frame.get("transform") is not None for frame in frames):
         frames = vdb_frames_in_one_box(files, frames)
     frames = [_turned(frame) for frame in frames]
@@ -410,10 +432,19 @@ def load_density_frames(path, grid: str | None = None, up: str | None = None) ->
             f"The frames in {path} have different shapes {sorted(shapes)}; a sequence needs one grid size."
         )
     velocities = [frame.get("velocity") for frame in frames]
+    lacking = [file.name for file, velocity in zip(files, velocities) if velocity is None]
+    if lacking and len(lacking) < len(files):
+        shown = ", ".join(lacking[:5]) + (f" and {len(lacking) - 5} more" if len(lacking) > 5 else "")
+        notes.append(
+            f"{shown} of {path} carr{'ies' if len(lacking) == 1 else 'y'} no velocity, so the sequence is read "
+            "without velocities: frames are not warped by their motion, and flicker is measured unwarped"
+        )
+    elif not lacking and frames[0].get("velocity_source") is not None:
+        notes.append(f"{path}: {frames[0]['velocity_source'].describe()}")
     transforms = [frame.get("transform") for frame in frames]
     return DensityFrames(
         [frame["density"] for frame in frames],
-        velocities if all(v is not None for v in velocities) else None,
+        velocities if not lacking else None,
         [file.stem for file in files],
         transforms if all(t is not None for t in transforms) else None,
         frames[0].get("up"),
@@ -423,6 +454,9 @@ def load_density_frames(path, grid: str | None = None, up: str | None = None) ->
 def vdb_frames_in_one_box(files: list[Path], frames: list[dict]) -> list[dict]:
     """``.vdb`` frames (``_read_density_file(..., turn=False)``: arrays in their files' index order) padded
     with zeros to the union of their index boxes, with transforms that keep every voxel where it was.
+    Their velocities are still the grids as read (``"vdb_velocity"``), sampled over the whole union box
+    when the frame is turned (``_turned``): the warp reads a frame's velocity where its smoke goes next,
+    outside the box of its smoke now, and the file has it there (zero only where its grid has no voxel).
 
     The union is taken in the first frame's index space. Another frame's index space must be the same
     lattice: the same index-to-world linear part (a simulation keeps its voxel size and orientation) and
@@ -491,13 +525,24 @@ def _format_size(voxel_size) -> str:
 
 
 def _turned(frame: dict) -> dict:
-    """A ``.vdb`` frame read with ``turn=False``, turned to its up axis (``vdb.upright``); others as they are."""
+    """A ``.vdb`` frame read with ``turn=False``, turned to its up axis (``vdb.upright``); others as they are.
+
+    Its velocity (``"vdb_velocity"``, the grids as read) is sampled at the voxels of the density's box
+    (``vdb.VdbVelocity.at``: world displacement per frame), turned with them, and its world components
+    become index steps of the turned transform (``vdb.world_to_index``), so they follow the turn:
+    ``(x, y, z)`` of the array as rendered, in voxels per frame, the units of ``mistyle.warp``."""
     if frame.get("transform") is None:
         return frame
-    from .vdb import upright
+    from .vdb import upright, world_to_index
 
     density, transform = upright(frame["density"], frame["transform"], frame["up"])
-    return {**frame, "density": density, "transform": transform}
+    turned = {**frame, "density": density, "transform": transform}
+    read = turned.pop("vdb_velocity", None)
+    if read is not None:
+        world = read.at(frame["transform"], frame["density"].shape)
+        turned["velocity"] = world_to_index(upright(world, frame["transform"], frame["up"])[0], transform)
+        turned["velocity_source"] = read.source
+    return turned
 
 
 def check_link(path: Path, what: str, fix: str) -> None:
@@ -515,11 +560,15 @@ def check_link(path: Path, what: str, fix: str) -> None:
             ) from None
 
 
-def _read_density_file(path: Path, grid: str | None = None, up: str | None = None, turn: bool = True) -> dict:
+def _read_density_file(
+    path: Path, grid: str | None = None, up: str | None = None, turn: bool = True, motion: dict | None = None
+) -> dict:
     """One frame: ``{"density", "velocity"}``, and for ``.vdb`` files ``"transform"`` and ``"up"``.
 
     ``turn``: turn a ``.vdb`` grid to its up axis here (``vdb.upright``); False leaves it in the file's
     index order (``"up"`` says where to turn it), for ``load_density_frames`` to line frames up first.
+    ``motion``: ``{"velocity_grid", "fps"}`` to read a ``.vdb`` file's velocity too (``vdb.read_vdb_frame``);
+    until the frame is turned it is the grids as read (``"vdb_velocity"``), then ``"velocity"``.
     """
     check_link(path, "Density", "point --density at a density file")
     if not path.exists():
@@ -538,17 +587,19 @@ def _read_density_file(path: Path, grid: str | None = None, up: str | None = Non
             "(Z, Y, X) grid or an .npz with a 'density' array."
         )
     if suffix == ".vdb":
-        from .vdb import read_vdb_grid, recorded_up_axis, upright
+        from .vdb import read_vdb_frame, recorded_up_axis
 
-        read = read_vdb_grid(path, grid)  # names the file and its grids in its errors
-        up = recorded_up_axis(read.file_metadata) if up is None else up
-        array, transform = upright(read.array, read.transform, up) if turn else (read.array, read.transform)
-        return {
-            "density": validate_density(array, name=os.fspath(path)),
+        # Both name the file and its grids in their errors.
+        read = read_vdb_frame(path, grid, **motion) if motion is not None else read_vdb_frame(path, grid, "")
+        up = recorded_up_axis(read.density.file_metadata) if up is None else up
+        frame = {
+            "density": validate_density(read.density.array, name=os.fspath(path)),
             "velocity": None,
-            "transform": transform,
+            "vdb_velocity": read.velocity,
+            "transform": read.density.transform,
             "up": up,
         }
+        return _turned(frame) if turn else frame
     if suffix == ".vol":
         array, velocity = read_vol(path), None  # read_vol names the file in its own errors
     else:

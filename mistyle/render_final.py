@@ -432,7 +432,7 @@ def save_look(args, pipeline, styles: dict):
         densities = [voxelize(*load_mesh(source), args.mesh_res, supersample=2)]
         names = [Path(source).stem]
     else:
-        loaded = load_density_frames(source, grid=args.grid, up=args.up)
+        loaded = load_density_frames(source, grid=args.grid, up=args.up, velocity_grid="")  # a fit needs none
         densities, names = loaded.densities, loaded.names
     frames = pipeline.frames(densities, None, names)
     keys = None if args.key_frames is None else parse_key_frames(args.key_frames, len(frames.densities))
@@ -627,7 +627,8 @@ def load(args, output, pipeline, styles: dict) -> Job:
             placed, _ = fit_to_box(np.asarray(vertices, np.float64), args.mesh_res, 0.05)
             coat_mesh = (placed, faces)
     else:
-        loaded = load_density_frames(output.density.path, grid=args.grid, up=args.up)
+        # notes: a VDB sequence's velocity units and frame rate as assumed, frames without a velocity
+        loaded = load_density_frames(output.density.path, grid=args.grid, up=args.up, notes=notes)
         densities, velocities, names, transforms = loaded.densities, loaded.velocities, loaded.names, loaded.transforms
         up = loaded.up or up
     total, first = len(densities), 0

@@ -8,7 +8,8 @@ under that other interpreter; its functions are also importable where the bindin
 
 Commands (arrays in ``.npy`` files and a ``meta.json`` in a work folder)::
 
-    python vdb_convert.py read IN.vdb WORKDIR [--grid NAME]   ->  WORKDIR/grid.npy, WORKDIR/meta.json
+    python vdb_convert.py read IN.vdb WORKDIR [--grid NAME] [--also NAME]...
+                                                              ->  WORKDIR/grid.npy (also0.npy, ...), meta.json
     python vdb_convert.py write OUT.vdb WORKDIR               <-  WORKDIR/meta.json and the .npy it names
     python vdb_convert.py info IN.vdb WORKDIR                 ->  WORKDIR/meta.json (no voxel data read)
     python vdb_convert.py probe                               ->  {"module": ..., "version": [13, 0, 0]} on stdout
@@ -573,9 +574,25 @@ def read_grid(path: str, grid_name: str | None = None) -> tuple[np.ndarray, dict
     ``background``, ``matrix`` (row-vector convention, see the module docstring), ``voxel_size``,
     ``is_linear``, ``transform_type``, ``grid_metadata`` and ``file_metadata``.
     """
+    return read_grids(path, grid_name)[0]
+
+
+def read_grids(path: str, grid_name: str | None = None, also=()) -> list[tuple[np.ndarray | None, dict]]:
+    """``read_grid``'s grid, then each grid named in ``also`` (float or vec3s: a density's velocity), in
+    one run of this helper, which costs a start of the interpreter and the binding per call.
+
+    A grid of ``also`` may be empty (a velocity is all background where the smoke is still): its array is
+    None and its ``meta`` has ``active_voxel_count`` 0 and no index box. The main grid may not."""
     summaries, file_metadata = grid_summaries(path)  # before the binding: a bad file fails in Python
-    chosen = choose_grid(path, summaries, grid_name)
+    chosen = [choose_grid(path, summaries, grid_name)] + [choose_grid(path, summaries, name) for name in also]
     vdb = openvdb_module()
+    return [
+        _read_chosen(vdb, path, grid, summaries, file_metadata, empty_ok=number > 0)
+        for number, grid in enumerate(chosen)
+    ]
+
+
+def _read_chosen(vdb, path: str, chosen: dict, summaries, file_metadata, empty_ok: bool):
     name = chosen["name"]
     try:
         grid = vdb.read(path, name)
@@ -588,8 +605,26 @@ def read_grid(path: str, grid_name: str | None = None) -> tuple[np.ndarray, dict
             "transform, which has no single voxel box; resample it onto a linear transform "
             "first (e.g. Houdini's VDB Resample)."
         )
+    vector = chosen["type"] == VEC3_TYPE
+    background = grid.background
+    meta = {
+        "file": path,
+        "grid": name,
+        "value_type": chosen["type"],
+        "grid_class": chosen["class"],
+        "grids": summaries,
+        "background": _jsonable(tuple(background) if vector else float(background)),
+        "matrix": index_to_world_matrix(transform),
+        "voxel_size": [float(v) for v in transform.voxelSize()],
+        "is_linear": True,
+        "transform_type": str(transform.typeName),
+        "grid_metadata": {str(k): _jsonable(v) for k, v in dict(grid.metadata).items()},
+        "file_metadata": file_metadata,
+    }
     active = int(grid.activeVoxelCount())
     if active == 0:
+        if empty_ok:
+            return None, {**meta, "index_min": None, "index_max": None, "dense_extent": None, "active_voxel_count": 0}
         raise ConvertError(f"Grid '{name}' of {path} is empty (it has no active voxels).")
     active_min, active_max = (tuple(int(v) for v in corner) for corner in grid.evalActiveVoxelBoundingBox())
     index_min, index_max, extent_from = _dense_box(grid, active_min, active_max)
@@ -601,29 +636,12 @@ def read_grid(path: str, grid_name: str | None = None) -> tuple[np.ndarray, dict
             f"({count} dense), more than the {MAX_DENSE_VOXELS} mistyle copies into memory; "
             "crop or resample it first."
         )
-    vector = chosen["type"] == VEC3_TYPE
     dense = np.zeros(size_xyz + ((3,) if vector else ()), dtype=np.float32)  # C-contiguous, as the binding needs
     grid.copyToArray(dense, ijk=index_min)
     array = np.ascontiguousarray(dense.transpose((2, 1, 0, 3) if vector else (2, 1, 0)))  # [i,j,k] -> [z,y,x]
-    background = grid.background
-    meta = {
-        "file": path,
-        "grid": name,
-        "value_type": chosen["type"],
-        "grid_class": chosen["class"],
-        "grids": summaries,
-        "index_min": list(index_min),
-        "index_max": list(index_max),
-        "dense_extent": extent_from,
-        "active_voxel_count": active,
-        "background": _jsonable(tuple(background) if vector else float(background)),
-        "matrix": index_to_world_matrix(transform),
-        "voxel_size": [float(v) for v in transform.voxelSize()],
-        "is_linear": True,
-        "transform_type": str(transform.typeName),
-        "grid_metadata": {str(k): _jsonable(v) for k, v in dict(grid.metadata).items()},
-        "file_metadata": file_metadata,
-    }
+    meta.update(
+        index_min=list(index_min), index_max=list(index_max), dense_extent=extent_from, active_voxel_count=active
+    )
     return array, meta
 
 
@@ -767,10 +785,17 @@ def _write_atomically(vdb, path: str, grids: list, metadata: dict) -> None:
 
 
 # ----------------------------------------------------------------------------- command line
-def _read_command(path: str, workdir: str, grid: str | None) -> None:
-    array, meta = read_grid(path, grid)
+def _read_command(path: str, workdir: str, grid: str | None, also: list[str]) -> None:
+    (array, meta), *others = read_grids(path, grid, also)
     np.save(os.path.join(workdir, "grid.npy"), array, allow_pickle=False)
     meta["array"] = "grid.npy"
+    meta["also"] = []
+    for number, (other, other_meta) in enumerate(others):
+        other_meta["array"] = None if other is None else f"also{number}.npy"
+        if other is not None:
+            np.save(os.path.join(workdir, other_meta["array"]), other, allow_pickle=False)
+        other_meta.pop("grids", None)  # the same list as the main grid's
+        meta["also"].append(other_meta)
     _write_json(os.path.join(workdir, "meta.json"), meta)
 
 
@@ -809,7 +834,8 @@ def main(argv: list[str] | None = None) -> int:
     class Parser(argparse.ArgumentParser):
         def error(self, message):  # one line, like every other error of this script
             raise ConvertError(
-                f"{message} (usage: vdb_convert.py read|write|info FILE WORKDIR [--grid NAME], or vdb_convert.py probe)"
+                f"{message} (usage: vdb_convert.py read|write|info FILE WORKDIR [--grid NAME] [--also NAME]..., "
+                "or vdb_convert.py probe)"
             )
 
     parser = Parser(prog="vdb_convert.py", description=__doc__.split("\n\n")[0])
@@ -817,6 +843,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("file", nargs="?")
     parser.add_argument("workdir", nargs="?")
     parser.add_argument("--grid", default=None, help="grid to read (default: 'density', else the only float grid)")
+    parser.add_argument("--also", action="append", default=[], help="read this grid too (may be empty); repeatable")
     try:
         args = parser.parse_args(argv)
         if args.command == "probe":  # which binding loads here, as one JSON line on stdout
@@ -827,7 +854,7 @@ def main(argv: list[str] | None = None) -> int:
         if not os.path.isdir(args.workdir):
             raise ConvertError(f"The work folder {args.workdir} does not exist.")
         if args.command == "read":
-            _read_command(args.file, args.workdir, args.grid)
+            _read_command(args.file, args.workdir, args.grid, args.also)
         elif args.command == "write":
             _write_command(args.file, args.workdir)
         else:

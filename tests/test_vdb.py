@@ -587,7 +587,14 @@ def test_a_real_mantaflow_sequence_loads_as_one_box(subprocess_route):
     from mistyle.io import load_density_frames
 
     first, _, _ = read_vdb(MANTAFLOW / "fluid_data_0001.vdb")
-    loaded = load_density_frames(MANTAFLOW)
+    notes = []
+    loaded = load_density_frames(MANTAFLOW, notes=notes)
+    # Frame 10 has no velocity grid (cut from the file), so the sequence has no velocities, and says why.
+    assert loaded.velocities is None
+    assert notes == [
+        f"fluid_data_0010.vdb of {MANTAFLOW} carries no velocity, so the sequence is read without "
+        "velocities: frames are not warped by their motion, and flicker is measured unwarped"
+    ]
     assert [d.shape for d in loaded.densities] == [(29, 71, 51)] * 2  # index box (44, 53, 7)..(94, 123, 35)
     assert [t.index_min for t in loaded.transforms] == [(44, 53, 7)] * 2
     placed = loaded.densities[0][0:28, 115 - 53 : 124 - 53, 63 - 44 : 74 - 44]
@@ -624,3 +631,193 @@ def test_frames_are_lined_up_by_whole_voxels_only():
     turned = base @ vdb.up_axis_matrix("z")
     with pytest.raises(ValueError, match="a.vdb and b.vdb are rotated against each other"):
         vdb_frames_in_one_box(files, [frame(base, (0, 0, 0)), frame(turned, (0, 0, 0))])
+
+
+# ----------------------------------------------------------------------------- velocities
+# A block of smoke that moves by whole voxels from frame 0 to frame 1, and a uniform velocity that says
+# so, written by the binding in world units per second: (0, 2, 1) voxels per frame along (i, j, k) at
+# voxel size 0.25 and 30 fps (the files' 'fps' metadata) is (0, 15, 7.5) world units per second.
+MOTION_VOXELS, MOTION_FPS, MOTION_SIZE = (0, 2, 1), 30.0, 0.25
+BLOCK = (10, 20, 30)  # the block's low corner (i, j, k) in frame 0
+
+
+def _write_moving_block(folder: Path) -> None:
+    folder.mkdir()
+    world_per_second = [v * MOTION_SIZE * MOTION_FPS for v in MOTION_VOXELS]
+    _run_binding(
+        "import sys, json\n"
+        "corner, step, velocity, size, fps = json.loads(sys.argv[1])\n"
+        "for frame in range(2):\n"
+        "    density = vdb.FloatGrid()\n"
+        "    density.name = 'density'\n"
+        "    access = density.getAccessor()\n"
+        "    for n in range(27):\n"  # 27 distinct values, so that a wrong shift cannot match
+        "        i, j, k = n % 3, n // 3 % 3, n // 9\n"
+        "        at = tuple(c + d + frame * s for c, d, s in zip(corner, (i, j, k), step))\n"
+        "        access.setValueOn(at, 0.1 + n / 30)\n"
+        "    vel = vdb.Vec3SGrid()\n"
+        "    vel.name = 'vel'\n"
+        "    low = tuple(c - 3 for c in corner)\n"
+        "    vel.fill(low, tuple(c + 6 for c in corner), tuple(velocity), True)\n"
+        "    for grid in (density, vel):\n"
+        "        grid.transform = vdb.createLinearTransform(size)\n"
+        "        grid.transform.translate((1.0, 2.0, 3.0))\n"
+        "    vdb.write(sys.argv[2] + '/block%04d.vdb' % frame, grids=[density, vel], metadata={'fps': fps})\n",
+        json.dumps([BLOCK, MOTION_VOXELS, world_per_second, MOTION_SIZE, MOTION_FPS]),
+        str(folder),
+    )
+
+
+def _inside_after_warp(velocity: np.ndarray) -> tuple:
+    """The part of a grid where ``x - velocity`` (uniform, whole voxels) stays inside it: what the warp
+    can predict without reading its clamped border."""
+    shift = velocity.reshape(-1, 3)[0].round().astype(int)[::-1]  # (z, y, x)
+    return tuple(slice(max(d, 0), None if d >= 0 else d) for d in shift)
+
+
+@needs_vdb
+def test_vdb_velocities_are_voxels_per_frame_along_the_axes_mistyle_renders(tmp_path, subprocess_route):
+    """A file's velocity in world units per second reads as the voxels per frame of ``mistyle.warp``,
+    components along the array's (x, y, z); with Blender's up axis the components turn with the voxels;
+    and warping frame 0 by its velocity gives frame 1, which is what the temporal terms rely on."""
+    from mistyle.io import load_density_frames
+    from mistyle.warp import warp_grid
+
+    _write_moving_block(tmp_path / "seq")
+    # up y: the file's (i, j, k) are the array's (x, y, z). up z: the file's k (world up) becomes the
+    # array's y and its j the array's -z (vdb.upright), so (0, 2, 1) along (i, j, k) reads as (0, 1, -2).
+    for up, expected in ((None, (0.0, 2.0, 1.0)), ("z", (0.0, 1.0, -2.0))):
+        notes = []
+        loaded = load_density_frames(tmp_path / "seq", up=up, notes=notes)
+        assert loaded.velocities is not None and len(loaded.velocities) == 2
+        for density, velocity in zip(loaded.densities, loaded.velocities):
+            assert velocity.shape == density.shape + (3,) and velocity.dtype == np.float32
+            np.testing.assert_allclose(velocity.reshape(-1, 3), np.tile(expected, (density.size, 1)), atol=1e-6)
+        assert notes == [
+            f"{tmp_path / 'seq'}: velocity from grid 'vel', in world units per second, at 30 fps "
+            "(the file's 'fps' metadata)"
+        ]
+        first, second = loaded.densities
+        inside = _inside_after_warp(loaded.velocities[0])
+        assert np.count_nonzero(second[inside]) == 27  # the whole block lies where the warp can predict it
+        np.testing.assert_allclose(warp_grid(first, loaded.velocities[0])[inside], second[inside], atol=1e-5)
+        assert np.abs(first - second).sum() > 1.0  # they do differ unwarped
+
+    # The frame rate given wins over the file's: at 24 fps each frame lasts 30/24 times as long.
+    frame = vdb.read_vdb_frame(tmp_path / "seq" / "block0000.vdb", velocity_grid="vel", fps=24)
+    assert (frame.velocity.source.fps, frame.velocity.source.fps_from) == (24.0, "given")
+    steps = vdb.world_to_index(frame.velocity.at(frame.density.transform, (3, 3, 3)), frame.density.transform)
+    np.testing.assert_allclose(steps.reshape(-1, 3), np.tile(MOTION_VOXELS, (27, 1)) * 30 / 24, rtol=1e-6)
+
+
+def test_velocities_are_sampled_at_the_density_voxels_through_both_transforms():
+    """No binding: a staggered grid is averaged to cell centres, a grid on a coarser, shifted lattice is
+    sampled trilinearly (exact for a linear field), and the units follow what the grid says."""
+    from mistyle.vdb import VdbGrid, VelocitySource, _velocity_per_frame
+
+    density = VdbTransform(np.diag([0.5, 0.5, 0.5, 1.0]), (4, 5, 6))
+    shape = (6, 5, 4)  # (Z, Y, X): index box (4..7, 5..9, 6..11)
+
+    # Staggered, in the grid's own cells per solver time unit (Mantaflow): the x faces of voxel i hold i.
+    faces = np.zeros((8, 7, 6, 3), np.float32)
+    faces[..., 0] = np.arange(6)[None, None, :] + 3.0  # index_min i = 3: face values i
+    mac = VdbGrid(faces, VdbTransform(density.matrix, (3, 4, 5)), "velocity", {})
+    source = VelocitySource("f.vdb", ("velocity",), True, "mantaflow", 25.0, "given")
+    world = _velocity_per_frame(source, [mac], density, shape)
+    # The centre of voxel i lies between faces i and i + 1: (2i + 1) / 2 cells per solver unit, 0.1 solver
+    # units per frame (2.5 / 25 fps), 0.5 world units per cell; voxel i = 8 has no face i + 1 = 9 (zero).
+    i = np.arange(4, 8)
+    expected = np.where(i + 1 <= 8, (2 * i + 1) / 2, i / 2) * 0.1 * 0.5
+    np.testing.assert_allclose(world[0, 0, :, 0], expected, rtol=1e-6)
+    assert not world[..., 1:].any()
+
+    # A coarser (voxel 1.0), shifted lattice in world units per second: a linear field, sampled exactly.
+    coarse = np.diag([1.0, 1.0, 1.0, 1.0])
+    coarse[:3, 3] = [0.25, -0.5, 0.75]
+    centres = VdbTransform(coarse, (-2, -2, -2)).index_to_world(
+        np.stack(np.meshgrid(*[np.arange(-2, 10)] * 3, indexing="ij"), axis=-1).transpose(2, 1, 0, 3) + 0.0
+    )  # (z, y, x, 3) world centres of the coarse voxels
+    field = np.stack([centres[..., 0] + 2 * centres[..., 2], -centres[..., 1], 0.5 + 0 * centres[..., 0]], -1)
+    grid = VdbGrid(field.astype(np.float32), VdbTransform(coarse, (-2, -2, -2)), "vel", {})
+    sampled = _velocity_per_frame(
+        VelocitySource("f.vdb", ("vel",), False, "world", 2.0, "given"), [grid], density, shape
+    )
+    z, y, x = np.meshgrid(*[np.arange(n) for n in shape], indexing="ij")
+    where = density.index_to_world(np.stack([x, y, z], -1) + np.array(density.index_min))
+    truth = np.stack([where[..., 0] + 2 * where[..., 2], -where[..., 1], 0.5 + 0 * where[..., 0]], -1) / 2.0
+    np.testing.assert_allclose(sampled, truth, atol=1e-5)
+
+
+def test_the_velocity_grid_is_found_by_name_and_its_units_by_its_metadata():
+    """No binding: ``find_velocity`` on scans like Blender's, Houdini's and others' files."""
+    from mistyle.vdb import find_velocity
+
+    def scan(*grids, **file_metadata):
+        return {
+            "grids": [{"name": n, "type": t, "class": c, "metadata": m} for n, t, c, m in grids],
+            "file_metadata": file_metadata,
+        }
+
+    blender = scan(
+        ("density", "float", "fog volume", {}), ("velocity", "vec3s", "staggered", {"file_base_resolution": [8, 8, 8]})
+    )
+    found = find_velocity("b.vdb", blender)
+    assert (found.grids, found.staggered, found.units, found.fps) == (("velocity",), True, "mantaflow", 24.0)
+    assert found.per_frame == 2.5 / 24 and "assumed" in found.fps_from
+    houdini = scan(
+        ("density", "float", "fog volume", {}), *[(f"vel.{a}", "float", "unknown", {}) for a in "xyz"], fps=25.0
+    )
+    found = find_velocity("h.vdb", houdini)
+    assert (found.grids, found.units, found.fps, found.per_frame) == (
+        ("vel.x", "vel.y", "vel.z"),
+        "world",
+        25.0,
+        1 / 25,
+    )
+    local = scan(("v", "vec3s", "unknown", {"is_local_space": True}))
+    assert find_velocity("l.vdb", local, fps=48).units == "index"
+    assert find_velocity("n.vdb", scan(("density", "float", "fog volume", {}))) is None
+    with pytest.raises(ValueError, match=r"n.vdb has no velocity grid 'wind' .*it holds 'density' \(float\)"):
+        find_velocity("n.vdb", scan(("density", "float", "fog volume", {})), "wind")
+    with pytest.raises(ValueError, match="Frames per second must be a positive number"):
+        find_velocity("b.vdb", blender, fps=0)
+
+
+@needs_vdb
+def test_a_real_mantaflow_velocity_reads_at_the_density_voxels(tmp_path, subprocess_route):
+    """Frame 1 of the cache, twice: its staggered 'velocity' in Mantaflow's units, averaged to the cell
+    centres of the density's box and scaled to voxels per frame (2.5 / 24 at the assumed 24 fps)."""
+    from mistyle.io import load_density_frames
+
+    path = MANTAFLOW / "fluid_data_0001.vdb"
+    (tmp_path / "seq").mkdir()
+    for name in ("fluid_data_0001.vdb", "fluid_data_0002.vdb"):
+        (tmp_path / "seq" / name).write_bytes(path.read_bytes())
+    notes = []
+    loaded = load_density_frames(tmp_path / "seq", notes=notes)
+    velocity = loaded.velocities[0]
+    assert velocity.shape == (28, 9, 11, 3) == loaded.densities[0].shape + (3,)
+    assert np.all(np.isfinite(velocity)) and np.abs(velocity).max() > 1.0
+    assert "Blender Mantaflow's solver units" in notes[0] and "24 fps (assumed" in notes[0]
+    # Independently: the raw faces (index box (63, 115, 9)..) in the density's box (63, 115, 7).., with
+    # one zero face beyond it, and the centre of each voxel the mean of its two faces along each axis.
+    raw, _, _ = read_vdb(path, grid="velocity")  # (26, 9, 11, 3)
+    faces = np.zeros((29, 10, 12, 3), np.float32)
+    faces[2:28, 0:9, 0:11] = raw
+    centred = np.stack(
+        [
+            (faces[:28, :9, :11, 0] + faces[:28, :9, 1:12, 0]) / 2,
+            (faces[:28, :9, :11, 1] + faces[:28, 1:10, :11, 1]) / 2,
+            (faces[:28, :9, :11, 2] + faces[1:29, :9, :11, 2]) / 2,
+        ],
+        axis=-1,
+    )
+    np.testing.assert_allclose(velocity, centred * 2.5 / 24, rtol=1e-5, atol=1e-6)
+
+    # A grid read beside the density may be empty (a velocity where nothing moves yet): None, not an error.
+    density, (flame, temperature) = vdb.read_vdb_grids(path, also=["flame", "temperature"])
+    assert flame is None and temperature.array.shape == density.array.shape == (28, 9, 11)
+
+    # The real sequence: frame 10's velocity was cut, so no frame has one; a name asked for must be there.
+    with pytest.raises(ValueError, match=r"fluid_data_0010.vdb has no velocity grid 'velocity'"):
+        load_density_frames(MANTAFLOW, velocity_grid="velocity")

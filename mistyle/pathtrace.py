@@ -2,7 +2,8 @@
 
 ``path_trace`` renders a density and an albedo grid with Mitsuba's ``volpath`` from several views
 of one scene (``scenes.pathtraced_scene`` builds it); everything that shows a final image calls it
-(``mistyle.render``, the pipeline, the benchmark). The differentiable path-traced views used in a
+(``mistyle.render``, the pipeline, the benchmark). It keeps its scene for the next frame
+(``SceneCache``), so a sequence compiles its kernels once. The differentiable path-traced views used in a
 fit are ``bridge_torch.PathTracedViews``, since torch meets Dr.Jit only there.
 
 The layer shoots one ray through each pixel centre; Mitsuba's ``mi.render`` averages paths over
@@ -14,7 +15,10 @@ rays that the layer uses, many paths per ray.
 from __future__ import annotations
 
 import functools
+import os
+import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -107,9 +111,13 @@ def path_trace(
     that a stop asked for by a signal is honoured between passes. ``ValueError`` for settings that render
     every pixel black or NaN: ``max_depth`` 1 (``check_max_depth``), an environment map holding NaN/inf
     (``check_light``).
+
+    The scene is kept for the next call (``SCENES``, a ``SceneCache``): a frame of the same grid shape,
+    settings and (bricked) majorant levels updates its grids, face meshes and cameras and renders with
+    the kernels compiled for the first, bit for bit as a scene loaded anew. ``release_scenes()`` frees it.
     """
     from .backend import use_variant
-    from .scenes import LightSpec, pathtraced_scene
+    from .scenes import LightSpec
     from .scenes.bricks import DEFAULT_BRICK
     from .volume import validate_albedo, validate_density
 
@@ -123,61 +131,166 @@ def path_trace(
     check_light(light)
     if bricks is None:
         bricks = 0 if coat_ior is not None else DEFAULT_BRICK
-    scene = mi.load_dict(
-        pathtraced_scene(
-            grid,
-            colours,
-            views,
-            res=res,
-            density_scale=density_scale,
-            spp=spp,
-            max_depth=max_depth,
-            light=light,
-            coat_ior=coat_ior,
-            coat_mesh=coat_mesh,
-            seed=seed,
-            bricks=bricks,
-        )
-    )
+    options = {
+        "res": res,
+        "density_scale": density_scale,
+        "spp": spp,
+        "max_depth": max_depth,
+        "light": light,
+        "coat_ior": coat_ior,
+        "coat_mesh": coat_mesh,
+        "seed": seed,
+        "bricks": bricks,
+    }
     passes = sample_passes(res, spp, PASS_SAMPLES if max_pass_samples is None else max_pass_samples)
     images, seconds = [], []
-    for index in range(len(views)):
-        raise_if_requested()
-        started = time.perf_counter()
-        images.append(render_passes(scene, index, passes, seed))
-        seconds.append(time.perf_counter() - started)
-        if progress is not None:
-            progress(index + 1, len(views), seconds[-1])
+    with SCENES.lock:  # the kept scene is one: another thread's frame waits rather than rewrite it
+        entry = SCENES.frame(mi, grid, colours, views, options)
+        for index in range(len(views)):
+            raise_if_requested()
+            started = time.perf_counter()
+            images.append(render_passes(entry.scene, index, passes, seed, entry.render_pass))
+            seconds.append(time.perf_counter() - started)
+            if progress is not None:
+                progress(index + 1, len(views), seconds[-1])
     return images, seconds
 
 
-def render_passes(scene, sensor: int, passes: list[int], seed: int) -> np.ndarray:
+def _frozen_pass():
+    """A frozen ``mi.render`` of one pass (``render_passes``), for one scene object: its recordings
+    hold the kernels of that scene's structure, which a scene of other settings (``max_depth``, a
+    medium's bounds: literals in the kernel, invisible to ``dr.freeze``'s key) does not share."""
+    import drjit as dr
+
+    mi = active_variant()
+
+    # Passes differ in their seed alone (an opaque UInt32): the kernels are compiled once, and freezing
+    # spares re-tracing the integrator at each pass (30-60 ms on two cores, 10-20% of a pass; a replay: 1 ms).
+    # ``count`` and ``sensor`` are Python ints, part of the frozen function's key: near-equal passes take
+    # two sizes at most. Kept across frames (``SceneCache``), it replays a frame of one medium; a bricked
+    # frame re-records once (a trace of the integrator, whose kernels are compiled already): measured,
+    # new vertices in more than one face mesh plus the scene's rebuild re-record even with the same data,
+    # a cause not found in dr.freeze's log. A new function per frame recorded three times. So no warning
+    # for re-recording, and the recordings kept are bounded (the least recently used go).
+    @dr.freeze(warn_after=1 << 30, limit=8)
+    def render_pass(scene, sensor, count, pass_seed):
+        return mi.render(scene, sensor=sensor, spp=count, seed=pass_seed)
+
+    return render_pass
+
+
+@dataclass
+class KeptScene:
+    """A loaded scene with the settings it was built for (``key``), its frozen pass and the views its
+    sensors show now."""
+
+    key: tuple
+    scene: object
+    render_pass: object
+    views: list
+
+
+class SceneCache:
+    """The scene of the last ``path_trace``, kept so that the next frame of the same structure updates
+    its data (``scenes.update_pathtraced_scene``: grids, majorants, face meshes, cameras through
+    ``mi.traverse``) instead of loading a new scene, and renders with the kernels already compiled.
+
+    Why one scene and not a few: Dr.Jit traces a call to a medium (or shape) for every live instance
+    of its class, so a second scene kept alive changes the kernel of the first (a compilation); a new
+    structure releases the old scene before loading its own, which then reuses its instance ids.
+    Frames with a coat mesh (a file) are loaded anew each time. ``release()`` frees the grids held.
+
+    ``builds`` and ``updates`` count the scenes loaded and the frames that reused one (tests, reports).
+    """
+
+    def __init__(self):
+        self.lock = threading.RLock()
+        self.kept: KeptScene | None = None
+        self.builds = 0
+        self.updates = 0
+
+    def release(self) -> None:
+        with self.lock:
+            self.kept = None
+
+    def frame(self, mi, density: np.ndarray, albedo: np.ndarray, views: list, options: dict) -> KeptScene:
+        """The kept scene set to this frame, or a new one for it (``path_trace``'s ``options``)."""
+        from .scenes import pathtraced_scene, update_pathtraced_scene
+        from .scenes.bricks import DEFAULT_LEVELS, brick_levels
+
+        with self.lock:
+            bricks = options["bricks"]
+            split = brick_levels(density, bricks, DEFAULT_LEVELS) if bricks else None
+            key = self.structure(mi, density, views, options, split)
+            if key is not None and self.kept is not None and self.kept.key == key:
+                # Cameras left where they are when the views are too: their update runs a kernel of its own.
+                moved = None if list(views) == self.kept.views else views
+                try:
+                    params = mi.traverse(self.kept.scene)
+                    update_pathtraced_scene(params, density, albedo, moved, bricks=bricks, brick_split=split)
+                    params.update()
+                except BaseException:
+                    self.kept = None  # half updated: never render it again
+                    raise
+                self.kept.views = list(views)
+                self.updates += 1
+                return self.kept
+            self.kept = None  # first: its objects' instance ids go back for the new scene's
+            scene = mi.load_dict(pathtraced_scene(density, albedo, views, **options, brick_split=split))
+            kept = KeptScene(key, scene, _frozen_pass(), list(views))
+            self.builds += 1
+            if key is not None:
+                self.kept = kept
+            return kept
+
+    @staticmethod
+    def structure(mi, density: np.ndarray, views: list, options: dict, split) -> tuple | None:
+        """What a kept scene must share with a frame to be updated to it (``None``: never kept): the
+        variant, the grid's shape, the number of views, every setting, the present brick levels, and an
+        environment map's file's time and size (its pixels are loaded with the scene)."""
+        from .scenes.bricks import present_levels
+
+        if options["coat_mesh"] is not None:
+            return None
+        light = options["light"]
+        stamp = None
+        if light.kind == "envmap":
+            stat = os.stat(light.filename)
+            stamp = (stat.st_mtime_ns, stat.st_size)
+        settings = tuple(sorted((name, value) for name, value in options.items() if name != "coat_mesh"))
+        levels = present_levels(split[0]) if split is not None else None
+        return (mi.variant(), tuple(density.shape), len(views), settings, stamp, levels)
+
+
+SCENES = SceneCache()
+"""The one ``SceneCache`` of this process, which ``path_trace`` renders through."""
+
+
+def release_scenes() -> None:
+    """Free the scene that ``path_trace`` keeps for the next frame (its grids, on the device too)."""
+    SCENES.release()
+
+
+def render_passes(scene, sensor: int, passes: list[int], seed: int, render_pass=None) -> np.ndarray:
     """View ``sensor`` of a loaded ``scene`` in ``passes`` (samples per pixel of each, ``sample_passes``):
     ``(H, W, 3)`` float32, the mean of the passes weighted by their samples. With a box filter each pixel
     is the mean of its samples, so this is the estimator of one launch of ``sum(passes)`` samples: the same
     expectation and noise. One pass is the sensor's own launch (its ``spp`` and seed ``seed + sensor``,
     what the exported ``scene.xml`` renders); pass ``n`` of ``P`` is seeded ``(seed + sensor) * P + n``.
+    ``render_pass``: the scene's frozen pass (``_frozen_pass``), kept with the scene across frames; by
+    default a new one.
 
     A stop asked for by a signal is raised between passes (``stops.raise_if_requested``, should the
     handler's own exception have been lost)."""
-    import drjit as dr
-
     mi = active_variant()
     if len(passes) == 1:
         return np.array(mi.render(scene, sensor=sensor), dtype=np.float32)
-
-    # Passes differ in their seed alone (an opaque UInt32): the kernels are compiled once, and freezing
-    # spares re-tracing the integrator at each pass (30-60 ms on two cores, 10-20% of a pass; a replay: 1 ms).
-    # ``count`` is a Python int, part of the frozen function's key: near-equal passes take two sizes at most.
-    @dr.freeze
-    def render_pass(scene, count, pass_seed):
-        return mi.render(scene, sensor=sensor, spp=count, seed=pass_seed)
-
+    render_pass = _frozen_pass() if render_pass is None else render_pass
     total = None
     for number, count in enumerate(passes):
         raise_if_requested()
         pass_seed = ((seed + sensor) * len(passes) + number) % (1 << 32)
-        image = np.array(render_pass(scene, count, mi.UInt32(pass_seed)), dtype=np.float64) * count
+        image = np.array(render_pass(scene, sensor, count, mi.UInt32(pass_seed)), dtype=np.float64) * count
         total = image if total is None else total + image
     return (total / sum(passes)).astype(np.float32)
 

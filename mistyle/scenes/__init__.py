@@ -11,7 +11,7 @@ from .medium import (
     medium_cube,
     validate_density_scale,
 )
-from .pathtraced import pathtraced_scene
+from .pathtraced import pathtraced_scene, update_pathtraced_scene
 
 __all__ = [
     "CameraPath",
@@ -26,5 +26,6 @@ __all__ = [
     "pathtraced_scene",
     "sensor_dict",
     "split_views",
+    "update_pathtraced_scene",
     "validate_density_scale",
 ]

@@ -11,6 +11,21 @@ dispatch in each tracking step.) The faces between regions of different media ar
 whose two sides name the media (Mitsuba's interior/exterior), so ``volpath`` changes medium as a
 path crosses them. Null interactions do not count towards ``max_depth``.
 
+Every level's medium spans the whole box (its grid is zero outside its bricks) and all levels share
+one albedo grid, and every pair of the regions present (vacuum and the levels) has its face mesh, a
+degenerate one where they do not touch, plus one mesh of two degenerate triangles at the box's corners
+that holds the scene's bounds at the box. Memory: ``levels`` density grids of the box and one albedo
+grid, about what the crops held (bundled smoke, 64^3: the four crops summed to 1.6 boxes, each with
+its density and albedo: 6.5 box-sized float grids then, 7 now).
+
+So the scene's structure, and every scalar that Mitsuba bakes into the kernel as a literal (a
+medium's bounding box and grid transform, the scene's bounding sphere, the media each mesh names, how
+many shapes and media the calls dispatch over), depends on the grid's shape and on which levels are
+present (``present_levels``) alone. A new frame of the same structure is the same kernel with new
+data (``update_bricked_media``: grids and face meshes through ``mi.traverse``), compiled once for a
+sequence (``pathtrace.SceneCache``). Cropping each level to its bricks, as this module did before,
+baked each frame's crop into the kernel: one compilation per frame.
+
 The field is unchanged: a brick's grids carry one extra voxel on each side (where the volume has
 one), so trilinear interpolation inside the brick sees the same eight voxels as in the whole grid,
 and a brick is empty only when it and that halo hold no density. Every brick's medium therefore
@@ -26,8 +41,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..backend import require_variant
+from ..volume import validate_albedo
 from .box import MediumBox
-from .medium import heterogeneous_medium
+from .medium import grid_volume, heterogeneous_medium
 
 DEFAULT_BRICK = 8
 DEFAULT_LEVELS = 4
@@ -72,12 +88,36 @@ def brick_levels(density: np.ndarray, brick: int, levels: int) -> tuple[np.ndarr
     return level, edges
 
 
+BOUNDS_MESH = "brick_faces_vacuum_vacuum"
+"""The mesh of two degenerate triangles at the box's corners: it keeps the scene's bounding box (whose
+sphere Mitsuba bakes into the kernel, e.g. the constant emitter's) the medium box whatever the faces;
+named as a face mesh with vacuum on both sides (no media)."""
+
+
+def present_levels(level: np.ndarray) -> tuple[int, ...]:
+    """The majorant levels that hold bricks (``brick_levels``'s ``level``), ascending: with the grid's
+    shape, all that the structure of a bricked scene depends on."""
+    return tuple(int(k) for k in np.unique(level[level >= 0]))
+
+
+def region_pairs(present: tuple[int, ...]) -> list[tuple[int, int]]:
+    """Every ``(below, above)`` pair of different regions among vacuum (-1) and the ``present`` levels:
+    the face meshes of a bricked scene, in a fixed order."""
+    regions = (-1, *present)
+    return [(inner, outer) for inner in regions for outer in regions if inner != outer]
+
+
+def face_mesh_name(inner: int, outer: int) -> str:
+    return f"brick_faces_{_region_name(inner)}_{_region_name(outer)}"
+
+
 def bricked_media(
     density: np.ndarray,
     density_scale: float,
     albedo: np.ndarray,
     brick: int = DEFAULT_BRICK,
     levels: int = DEFAULT_LEVELS,
+    split: tuple[np.ndarray, list[np.ndarray]] | None = None,
 ) -> dict:
     """Scene entries (``null`` face meshes carrying the media) that replace ``medium.medium_cube``.
 
@@ -85,59 +125,116 @@ def bricked_media(
         density: ``(Z, Y, X)`` >= 0; albedo: ``(Z, Y, X, 3)``; density_scale: as ``heterogeneous_medium``.
         brick: voxels per brick side.
         levels: number of majorant levels (media); see ``brick_levels``.
+        split: ``brick_levels(density, brick, levels)`` when the caller has it already.
 
     Returns:
-        a dict to merge into a scene dictionary: one ``brick_faces_A_B`` mesh per pair of regions
-        that touch (``A``, ``B``: level or ``vacuum``), already instantiated, with its media.
+        a dict to merge into a scene dictionary, already instantiated: one ``brick_faces_A_B`` mesh per
+        pair of regions (``region_pairs``; ``A``, ``B``: level or ``vacuum``), degenerate where they
+        do not touch, carrying the media of ``A`` (interior) and ``B`` (exterior), and ``BOUNDS_MESH``.
     """
     mi = require_variant()
     box = MediumBox(density.shape)
-    level, edges = brick_levels(density, brick, levels)
+    level, edges = brick_levels(density, brick, levels) if split is None else split
+    # One albedo grid for every level: inside a level's bricks the whole grid gives the same field.
+    shared = mi.load_dict(grid_volume(validate_albedo(albedo, density.shape), box.unit_to_world_matrix()))
     media = {
-        int(k): mi.load_dict(_level_medium(density, density_scale, albedo, level, edges, k))
-        for k in np.unique(level[level >= 0])
+        k: mi.load_dict(heterogeneous_medium(grid, density_scale, shared))
+        for k, grid in level_densities(density, level, edges).items()
     }
+    quads = face_quads(box, level, edges)
+    entries = {}
+    for inner, outer in region_pairs(present_levels(level)):
+        name = face_mesh_name(inner, outer)
+        entries[name] = _face_mesh(mi, name, quads[inner, outer], media.get(inner), media.get(outer))
+    entries[BOUNDS_MESH] = _face_mesh(mi, BOUNDS_MESH, _bounds_quads(box), None, None)
+    return entries
 
-    # Faces perpendicular to each axis where the media on the two sides differ, one mesh per pair
-    # (below, above). Each triangle's geometric normal points to +axis, so the region above is the
-    # mesh's exterior (Mitsuba: the target medium of a direction with dot(n, d) > 0).
-    # Meshes, not ``rectangle`` shapes: through rectangles, volpath renders a thin medium ~1% too
-    # bright (measured against the box's ``cube`` and against meshes; tests/test_bricks.py).
-    quads: dict[tuple[int, int], list[np.ndarray]] = {}
+
+def update_bricked_media(
+    params,
+    density: np.ndarray,
+    albedo: np.ndarray,
+    brick: int = DEFAULT_BRICK,
+    levels: int = DEFAULT_LEVELS,
+    split: tuple[np.ndarray, list[np.ndarray]] | None = None,
+) -> None:
+    """Set a new frame's grids and face meshes in the parameters (``mi.traverse(scene)``, not yet
+    updated) of a scene holding ``bricked_media`` of a frame of the same shape and ``present_levels``;
+    the caller checks both. The scene then renders as one built from this frame (bit for bit: the same
+    objects in the same order, the same data), without compiling a kernel anew.
+
+    Args:
+        density: ``(Z, Y, X)``; albedo: ``(Z, Y, X, 3)`` in [0, 1]; brick, levels, split: as ``bricked_media``.
+    """
+    mi = require_variant()
+    box = MediumBox(density.shape)
+    level, edges = brick_levels(density, brick, levels) if split is None else split
+    grids = level_densities(density, level, edges)
+    quads = face_quads(box, level, edges)
+    for key in params.keys():
+        # A shared object is listed once, under the first mesh that names it: the key's mesh and side
+        # (interior: the name's first region, exterior: its second) tell which level's medium it is.
+        parts = key.split(".")  # e.g. brick_faces_0_vacuum.interior_medium.sigma_t.data
+        if parts[2:] == ["sigma_t", "data"]:
+            inner, outer = parts[0].split("_")[-2:]
+            k = int(inner if parts[1] == "interior_medium" else outer)
+            params[key] = mi.TensorXf(grids[k][..., None])
+        elif parts[2:] == ["albedo", "data"]:
+            params[key] = mi.TensorXf(validate_albedo(albedo, density.shape))
+    for inner, outer in region_pairs(present_levels(level)):
+        vertices, faces = _mesh_buffers(quads[inner, outer])
+        name = face_mesh_name(inner, outer)
+        params[f"{name}.vertex_positions"] = vertices
+        params[f"{name}.faces"] = faces
+
+
+def level_densities(density: np.ndarray, level: np.ndarray, edges: list[np.ndarray]) -> dict[int, np.ndarray]:
+    """Each present level's density grid ``(Z, Y, X)`` float32: ``density`` in its bricks and their halos,
+    zero elsewhere (its maximum is the level's majorant), over the whole box so that its transform and
+    bounding box (literals in the kernel) are the box's whatever the frame."""
+    # Each voxel's brick level, then a level's bricks grown by the one-voxel halo (a 3x3x3 maximum,
+    # separable: one axis at a time): the union of its bricks' windows, each a brick and one voxel
+    # more on every side, clipped to the grid.
+    brick_of = [np.searchsorted(bounds, np.arange(n), side="right") - 1 for bounds, n in zip(edges, density.shape)]
+    voxel_level = level[np.ix_(*brick_of)]
+    grids = {}
+    for k in present_levels(level):
+        mask = voxel_level == k
+        for axis in range(3):
+            grown = mask.copy()
+            ahead = [slice(None)] * 3
+            behind = [slice(None)] * 3
+            ahead[axis], behind[axis] = slice(1, None), slice(None, -1)
+            grown[tuple(behind)] |= mask[tuple(ahead)]
+            grown[tuple(ahead)] |= mask[tuple(behind)]
+            mask = grown
+        grids[k] = np.where(mask, density, 0.0).astype(np.float32)
+    return grids
+
+
+def face_quads(box: MediumBox, level: np.ndarray, edges: list[np.ndarray]) -> dict[tuple[int, int], np.ndarray]:
+    """The faces between regions: ``(below, above) -> corners (Q, 4, 3)`` for every pair of
+    ``region_pairs`` (one degenerate quad where the two do not touch).
+
+    Faces perpendicular to each axis where the media on the two sides differ, one mesh per pair
+    (below, above). Each triangle's geometric normal points to +axis, so the region above is the
+    mesh's exterior (Mitsuba: the target medium of a direction with dot(n, d) > 0).
+    Meshes, not ``rectangle`` shapes: through rectangles, volpath renders a thin medium ~1% too
+    bright (measured against the box's ``cube`` and against meshes; tests/test_bricks.py).
+    """
+    quads: dict[tuple[int, int], list[np.ndarray]] = {pair: [] for pair in region_pairs(present_levels(level))}
     for axis in range(3):  # 0: z, 1: y, 2: x (grid order)
         padded = np.pad(level, [(1, 1) if a == axis else (0, 0) for a in range(3)], constant_values=-1)
         below = np.take(padded, np.arange(0, padded.shape[axis] - 1), axis=axis)
         above = np.take(padded, np.arange(1, padded.shape[axis]), axis=axis)
         for position in zip(*np.nonzero(below != above)):
             pair = (int(below[position]), int(above[position]))
-            quads.setdefault(pair, []).append(_quad(box, edges, axis, position))
-    entries = {}
-    for (inner, outer), corners in quads.items():
-        name = f"brick_faces_{_region_name(inner)}_{_region_name(outer)}"
-        entries[name] = _face_mesh(mi, name, np.stack(corners), media.get(inner), media.get(outer))
-    return entries
-
-
-def _level_medium(density, density_scale, albedo, level, edges, k) -> dict:
-    """Level ``k``'s medium: its bricks' density and albedo with their halos, zero elsewhere, cropped
-    to the bounding box of those windows (its maximum is the level's majorant)."""
-    box = MediumBox(density.shape)
-    mask = np.zeros(density.shape, dtype=bool)
-    for position in zip(*np.nonzero(level == k)):
-        mask[_window(edges, position, density.shape)] = True
-    bounds = [np.nonzero(mask.any(axis=tuple(b for b in range(3) if b != a)))[0] for a in range(3)]
-    window = tuple(slice(int(b[0]), int(b[-1]) + 1) for b in bounds)
-    grid = np.where(mask[window], density[window], 0.0).astype(np.float32)
-    unit_to_world = box.window_to_world_matrix([w.start for w in window], [w.stop for w in window])
-    return heterogeneous_medium(grid, density_scale, np.ascontiguousarray(albedo[window]), unit_to_world)
-
-
-def _window(edges, position, shape) -> tuple[slice, slice, slice]:
-    """Voxel ranges of the brick at ``position`` (z, y, x) with a one-voxel halo, clipped to the grid."""
-    return tuple(
-        slice(max(int(edges[a][position[a]]) - 1, 0), min(int(edges[a][position[a] + 1]) + 1, shape[a]))
-        for a in range(3)
-    )
+            quads[pair].append(_quad(box, edges, axis, position))
+    # A pair that does not touch keeps one degenerate quad at the box's corner (no area, so no ray meets
+    # it but with probability zero): a mesh without faces makes Mitsuba's traced calls gather from an
+    # empty buffer, and the mesh must exist for the next frame.
+    nothing = _bounds_quads(box)[:1]
+    return {pair: np.stack(corners) if corners else nothing for pair, corners in quads.items()}
 
 
 def _region_name(level: int) -> str:
@@ -160,6 +257,24 @@ def _quad(box: MediumBox, edges, axis: int, position) -> np.ndarray:
     return corners
 
 
+def _bounds_quads(box: MediumBox) -> np.ndarray:
+    """Two degenerate quads ``(2, 4, 3)``, each four times one corner of the box: bounds, no area."""
+    return np.stack([np.repeat(box.bbox_min[None], 4, axis=0), np.repeat(box.bbox_max[None], 4, axis=0)])
+
+
+def _mesh_buffers(quads: np.ndarray):
+    """The flat ``mi.Float`` vertex positions and ``mi.UInt32`` faces of ``quads (Q, 4, 3)``, two
+    triangles each (both counter-clockwise seen from the quad's normal)."""
+    mi = require_variant()
+    count = len(quads)
+    base = 4 * np.arange(count, dtype=np.uint32)[:, None]
+    faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]], axis=1).reshape(-1, 3)
+    return (
+        mi.Float(np.asarray(quads, dtype=np.float32).reshape(-1)),
+        mi.UInt32(faces.reshape(-1).astype(np.uint32)),
+    )
+
+
 def _face_mesh(mi, name: str, quads: np.ndarray, interior, exterior):
     """One ``null`` triangle mesh of ``quads (Q, 4, 3)`` (two triangles each) with the given media."""
     props = mi.Properties()
@@ -170,10 +285,7 @@ def _face_mesh(mi, name: str, quads: np.ndarray, interior, exterior):
         props["exterior"] = exterior
     count = len(quads)
     mesh = mi.Mesh(name, 4 * count, 2 * count, props=props)
-    base = 4 * np.arange(count, dtype=np.uint32)[:, None]
-    faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]], axis=1).reshape(-1, 3)
     params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(quads.reshape(-1).astype(np.float32))
-    params["faces"] = mi.UInt32(faces.reshape(-1).astype(np.uint32))
+    params["vertex_positions"], params["faces"] = _mesh_buffers(quads)
     params.update()
     return mesh

@@ -121,6 +121,20 @@ def sensor_dict(view: View, width: int, height: int, spp: int = 1, seed: int = 0
     }
 
 
+def update_sensors(params, views: list[View]) -> None:
+    """Point the sensors ``sensor000``, ``sensor001``, ... of a loaded scene's parameters
+    (``mi.traverse(scene)``, not yet updated) at ``views``, as ``sensor_dict`` would build them: a
+    camera's placement and field of view are data to the kernel, so a scene kept for the next frame
+    renders a new view without compiling anew."""
+    mi = require_variant()
+    for index, view in enumerate(views):
+        name = f"sensor{index:03d}"
+        params[f"{name}.to_world"] = mi.Transform4f(
+            mi.ScalarTransform4f().look_at(origin=view.origin, target=view.target, up=view.up)
+        )
+        params[f"{name}.x_fov"] = mi.Float(view.fov_deg)
+
+
 def film_dict(width: int, height: int) -> dict:
     return {
         "type": "hdrfilm",

@@ -22,34 +22,37 @@ def validate_density_scale(density_scale, name: str = "density_scale") -> float:
 
 
 def heterogeneous_medium(
-    density: np.ndarray, density_scale: float, albedo: np.ndarray, unit_to_world: np.ndarray | None = None
+    density: np.ndarray, density_scale: float, albedo, unit_to_world: np.ndarray | None = None
 ) -> dict:
     """Mitsuba ``heterogeneous`` medium, trilinear grids, isotropic phase.
 
     Its grids fill the medium box of ``density``, or the box onto which the 4x4 ``unit_to_world``
-    maps the unit cube (for a part of a larger grid, ``scenes.bricks``).
+    maps the unit cube. ``albedo``: ``(Z, Y, X, 3)`` in [0, 1], or an albedo ``gridvolume`` already
+    loaded (``mi.load_dict(grid_volume(...))``) that several media share (``scenes.bricks``).
     """
     mi = require_variant()
-
     if unit_to_world is None:
         unit_to_world = MediumBox(density.shape).unit_to_world_matrix()
-    to_world = mi.ScalarTransform4f(np.asarray(unit_to_world, dtype=np.float64).tolist())
+    if not isinstance(albedo, mi.Volume):
+        albedo = grid_volume(validate_albedo(albedo, density.shape), unit_to_world)
     return {
         "type": "heterogeneous",
-        "sigma_t": {
-            "type": "gridvolume",
-            "grid": mi.VolumeGrid(np.ascontiguousarray(density, dtype=np.float32)),
-            "to_world": to_world,
-            "filter_type": "trilinear",
-        },
+        "sigma_t": grid_volume(np.ascontiguousarray(density, dtype=np.float32), unit_to_world),
         "scale": validate_density_scale(density_scale),
-        "albedo": {
-            "type": "gridvolume",
-            "grid": mi.VolumeGrid(validate_albedo(albedo, density.shape)),
-            "to_world": to_world,
-            "filter_type": "trilinear",
-        },
+        "albedo": albedo,
         "phase": {"type": "isotropic"},
+    }
+
+
+def grid_volume(values: np.ndarray, unit_to_world: np.ndarray) -> dict:
+    """A trilinear Mitsuba ``gridvolume`` of ``values`` (``(Z, Y, X)`` or ``(Z, Y, X, C)`` float32)
+    on the box onto which the 4x4 ``unit_to_world`` maps the unit cube."""
+    mi = require_variant()
+    return {
+        "type": "gridvolume",
+        "grid": mi.VolumeGrid(np.ascontiguousarray(values, dtype=np.float32)),
+        "to_world": mi.ScalarTransform4f(np.asarray(unit_to_world, dtype=np.float64).tolist()),
+        "filter_type": "trilinear",
     }
 
 
@@ -71,3 +74,16 @@ ALBEDO_PARAMETER_SUFFIX = "interior_medium.albedo.data"
 def albedo_parameter(params) -> str:
     """The key of the medium's albedo grid among a loaded scene's parameters (``mi.traverse``)."""
     return next(key for key in params.keys() if key.endswith(ALBEDO_PARAMETER_SUFFIX))
+
+
+def update_medium(params, density: np.ndarray, albedo: np.ndarray) -> None:
+    """Set a new frame's grids in the parameters (``mi.traverse(scene)``, not yet updated) of a scene
+    holding one ``heterogeneous_medium`` of a grid of the same shape (``medium_cube`` or a coat mesh):
+    the grids and their majorant are data to the kernel, so the scene renders the new frame without
+    compiling anew. ``density``: ``(Z, Y, X)``; ``albedo``: ``(Z, Y, X, 3)`` in [0, 1]."""
+    mi = require_variant()
+    albedo_key = albedo_parameter(params)
+    params[albedo_key.replace(".albedo.data", ".sigma_t.data")] = mi.TensorXf(
+        np.ascontiguousarray(density, dtype=np.float32)[..., None]
+    )
+    params[albedo_key] = mi.TensorXf(validate_albedo(albedo, density.shape))

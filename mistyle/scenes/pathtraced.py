@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .bricks import bricked_media
-from .cameras import View, batch_sensor_dict, sensor_dict
+from .bricks import DEFAULT_LEVELS, bricked_media, update_bricked_media
+from .cameras import View, batch_sensor_dict, sensor_dict, update_sensors
 from .lights import LightSpec
-from .medium import heterogeneous_medium, medium_cube
+from .medium import heterogeneous_medium, medium_cube, update_medium
 
 PATH_TRACERS = ("volpath", "prbvolpath")
 MAX_DEPTH_LIMIT = 1024
@@ -58,6 +58,7 @@ def pathtraced_scene(
     batch: bool = False,
     integrator: str = "volpath",
     bricks: int = 0,
+    brick_split: tuple | None = None,
 ) -> dict:
     """A Mitsuba scene dictionary for ``mi.load_dict``.
 
@@ -75,6 +76,7 @@ def pathtraced_scene(
         bricks: ``0`` one medium in the box; ``n`` the box cut into bricks of ``n`` voxels with
             majorants of their own (``scenes.bricks``: the same image in expectation, less time on
             sparse volumes). Only without a coat and with ``volpath``.
+        brick_split: ``bricks.brick_levels(density, bricks, DEFAULT_LEVELS)`` when the caller has it.
     """
     height, width = (res, res) if np.isscalar(res) else (int(res[0]), int(res[1]))
     if spp < 1:
@@ -90,7 +92,7 @@ def pathtraced_scene(
             "prbvolpath differentiates one albedo grid; use bricks=0."
         )
     if bricks:
-        boundary = bricked_media(density, density_scale, albedo, bricks)
+        boundary = bricked_media(density, density_scale, albedo, bricks, split=brick_split)
     elif coat_mesh is not None and coat_ior is not None:
         boundary = {
             "medium_box": {
@@ -116,3 +118,26 @@ def pathtraced_scene(
         for index, view in enumerate(views):
             scene[f"sensor{index:03d}"] = sensor_dict(view, width, height, spp=spp, seed=seed + index)
     return scene
+
+
+def update_pathtraced_scene(
+    params, density: np.ndarray, albedo: np.ndarray, views: list[View] | None, *, bricks: int = 0, brick_split=None
+) -> None:
+    """Set a new frame in the parameters (``mi.traverse(scene)``; the caller then calls
+    ``params.update()``) of a loaded ``pathtraced_scene`` (``batch=False``) of the same structure: the
+    grid's shape, the number of views, every other setting, and with ``bricks`` the same
+    ``bricks.present_levels``. The scene then renders as one built anew from these arguments, with
+    the kernels it has already compiled: what changes is data (grids, majorants, face meshes,
+    cameras), never a literal in the kernel.
+
+    Args:
+        density: ``(Z, Y, X)``; albedo: ``(Z, Y, X, 3)`` in [0, 1]; views: one per sensor, or ``None``
+            to leave the cameras as they are.
+        bricks, brick_split: as ``pathtraced_scene``.
+    """
+    if bricks:
+        update_bricked_media(params, density, albedo, bricks, DEFAULT_LEVELS, split=brick_split)
+    else:
+        update_medium(params, density, albedo)
+    if views is not None:
+        update_sensors(params, views)

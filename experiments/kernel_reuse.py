@@ -19,10 +19,10 @@ image a frame): passes ``first`` and ``again`` only.
 
 Each code runs in its own process with an empty Dr.Jit disk cache (``$HOME/.drjit`` in a temporary
 home), so a kernel is compiled the first time the process needs it and never found from an earlier run.
-``--baseline DIR`` (other code, e.g. ``git archive HEAD mistyle | tar -x -C /tmp/before``) runs that code
+``--baseline DIR`` (other code, e.g. ``git archive HEAD mistyle | tar -x -C DIR`` for a temporary DIR) runs that code
 first, on the same machine in the same run; its package is imported from ``DIR`` (``PYTHONPATH``).
 
-    .venv/bin/python experiments/kernel_reuse.py --baseline /tmp/before   # results/kernel_reuse/
+    .venv/bin/python experiments/kernel_reuse.py --baseline DIR   # results/kernel_reuse/
 
 Writes ``runs.json`` (every frame of every pass) and ``table.md`` under ``--out``.
 """
@@ -119,7 +119,7 @@ def worker(count: int) -> dict:
                     }
                 )
     records += fast_layer(views, frames(count, first=len(CONFIGS) * count), seen)
-    return {"records": records, "mistyle": str(Path(mistyle.__file__).parent)}
+    return {"records": records, "mistyle": Path(mistyle.__file__).parent.name}  # no machine paths in results
 
 
 def fast_layer(views, data, seen: set) -> list[dict]:
@@ -175,7 +175,7 @@ def run_code(label: str, package_root: Path, count: int) -> dict:
     if result.returncode:
         raise RuntimeError(f"{label} failed:\n{result.stderr[-3000:]}")
     out = json.loads(result.stdout.strip().splitlines()[-1])
-    return {"code": label, "root": str(package_root), "load_before": load, **out}
+    return {"code": label, "root": Path(package_root).name, "load_before": load, **out}
 
 
 def describe(root: Path) -> str:

@@ -103,7 +103,7 @@ def farm_refusal(folder: Path, frames: Path, look: Path, case: str, out: Path, *
         "seconds_to_error": time.perf_counter() - started,
         "exit_code": done.returncode,
         "stderr_lines": len(lines),
-        "error": lines[-1] if lines else "",
+        "error": (lines[-1] if lines else "").replace(str(folder), "SCRATCH"),  # no machine paths in results
         "workers_started": "worker" in done.stderr.lower() and "Traceback" in done.stderr,
     }
 

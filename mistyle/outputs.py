@@ -20,14 +20,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .conventions import STYLE_SUFFIXES
-from .ownership import check_replaceable, is_owned, read_manifest
+from .ownership import check_replaceable, is_beside_output, is_owned, read_manifest
 
 REPORT_FILE = "report.json"
 RENDER_KINDS = ("render", "sequence")
 """Manifest kinds of a render's folder: one run's (``staged_directory``), or chunks merged frame by frame."""
 BATCH_KIND = "batch"
-_OURS_BESIDE = re.compile(r"\.[^/]+\.(lock|(partial|replaced|chunk)-[^/]+)(/.*)?")
-"""What mistyle keeps beside an output while writing it: its lock and staging folders."""
 
 
 def is_mistyle_output(folder: Path) -> bool:
@@ -209,7 +207,7 @@ def batch_entries(out: Path, names: list[str] = ()):
     allowed = set(names) | renders
 
     def ours(name: str) -> bool:
-        return name.split("/")[0] in allowed or _OURS_BESIDE.fullmatch(name) is not None
+        return name.split("/")[0] in allowed or is_beside_output(name)
 
     return ours
 

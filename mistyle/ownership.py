@@ -271,6 +271,13 @@ def _output_path(directory) -> Path:
     return directory
 
 
+def is_beside_output(relative: str) -> bool:
+    """Whether a path (relative to an output's parent folder) is what mistyle keeps beside an output
+    while writing it: its lock, a staging folder, or a file in one."""
+    kinds = "|".join(STAGING_KINDS)
+    return re.fullmatch(rf"\.[^/]+\.(lock|({kinds})-[^/]+)(/.*)?", relative) is not None
+
+
 def _staging_pattern(name: str) -> re.Pattern:
     return re.compile(re.escape(f".{name}.") + rf"({'|'.join(STAGING_KINDS)})-(\d+-\d+-[A-Za-z0-9_]+)-[^-]+")
 

@@ -63,6 +63,7 @@ texture and the colour tables by amounts of order one; a value beyond this is da
 the network's float32 statistics (DAIN) into NaN albedos."""
 LR_SCHEDULES = ("constant", "cosine")
 VIEW_SAMPLINGS = ("independent", "stratified")
+TEXTURE_STARTS = ("zeros", "solid")
 
 
 @dataclass
@@ -86,6 +87,10 @@ class LookSettings:
     texture_side: int = 32  # > 0: a texture of this many texels along the box's longest side, added before the tanh
     texture_lr: float = 0.05
     texture_init: float = 0.0  # spread of the texture's random start (0: zeros); colour variation to spread
+    # "solid": the texture starts as a solid texture of the style (mistyle.solid_texture), centred and
+    # scaled by texture_start_strength in the head's logits; "zeros": from texture_init's noise.
+    texture_start: str = "zeros"
+    texture_start_strength: float = 2.0
     lr_schedule: str = "constant"  # or "cosine": every learning rate decays to zero over the steps
     # "stratified": a step's views evenly spaced from a random offset (CameraPath.sample_stratified), or
     # "independent" (the default until 2026-12-03): stratified scored better on the held-out pairs in
@@ -115,6 +120,10 @@ class LookSettings:
             raise ValueError(f"view_sampling must be one of {', '.join(VIEW_SAMPLINGS)}, got {self.view_sampling!r}.")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ValueError(f"lr_schedule must be one of {', '.join(LR_SCHEDULES)}, got {self.lr_schedule!r}.")
+        if self.texture_start not in TEXTURE_STARTS:
+            raise ValueError(f"texture_start must be one of {', '.join(TEXTURE_STARTS)}, got {self.texture_start!r}.")
+        if not 0.0 <= self.texture_start_strength <= 20.0:
+            raise ValueError(f"texture_start_strength must lie in [0, 20], got {self.texture_start_strength}.")
         if self.colour_match not in COLOUR_MATCH_MODES:
             raise ValueError(f"colour_match must be one of {', '.join(COLOUR_MATCH_MODES)}, got {self.colour_match!r}.")
         if not set(self.tune_sites) <= {0, 1, 2, 3}:
@@ -745,6 +754,19 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
     return albedo[0]
 
 
+def solid_texture_start(style: np.ndarray, texels: tuple, strength: float, seed: int = 0):
+    """A look's texture start ``(3, *texels)``: a solid texture of ``style`` (``mistyle.solid_texture``)
+    over the box, each channel centred on its mean and scaled by ``strength`` (logits of the head)."""
+    import torch
+
+    from .solid_texture import SolidTextureSettings, synthesise_solid_texture, texture_in_box
+
+    solid = synthesise_solid_texture(style, SolidTextureSettings(seed=seed))
+    values = texture_in_box(solid, texels)
+    values = strength * (values - values.reshape(-1, 3).mean(axis=0))
+    return torch.from_numpy(np.ascontiguousarray(values.transpose(3, 0, 1, 2)))
+
+
 def thumbnail_of(style: np.ndarray, side: int = THUMBNAIL_SIDE) -> np.ndarray:
     """``style (H, W, 3)`` in [0, 1] as uint8, its longest side at most ``side`` pixels."""
     from PIL import Image
@@ -852,6 +874,8 @@ def fit_look(
         texels = tuple(max(1, round(n * settings.texture_side / longest)) for n in densities[keys[0]].shape)
         generator = torch.Generator().manual_seed(settings.seed)
         start = settings.texture_init * torch.randn((3,) + texels, generator=generator)
+        if settings.texture_start == "solid":
+            start = start + solid_texture_start(target, texels, settings.texture_start_strength, settings.seed)
         texture = start.to(device).requires_grad_(True)
         groups.append({"params": [texture], "lr": settings.texture_lr})
     optimizer = Adam(groups)

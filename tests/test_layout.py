@@ -15,7 +15,7 @@ LAYERS = [
     {"integrators"},
     {"bridge_torch", "reference_torch", "pathtrace", "denoise", "adam"},
     {"model", "objective"},
-    {"fit", "response", "data"},
+    {"fit", "response", "data", "solid_texture"},
     {"colour_match"},
     {"stylizer"},
     {"look"},

@@ -16,6 +16,9 @@ network.
   ``TUNED_NOISE_SIGMA``, the scale that came closest to the validation paintings
   (``experiments/noise_field_probe.py``, ``results/noise_fields/``). The strongest training-free field
   mistyle knows of: what a network adds beyond noise of the right scale shows against it.
+* ``solid_texture``: a solid texture synthesised from the style (``mistyle.solid_texture``: its slices
+  have the style's multi-scale patches) laid over the density's box. Where the noises have one scale
+  and no orientation, it carries the style's own strokes: a look that claims structure must beat it.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -124,6 +128,26 @@ def tuned_noise(shape: tuple, seed: int = 0, sigma: float = TUNED_NOISE_SIGMA) -
     return np.ascontiguousarray((field - low) / np.maximum(high - low, 1e-12), dtype=np.float32)
 
 
+QUICK_SOLID_TEXTURE = dict(side=32, levels=2, steps=8)
+"""The solid texture's settings in quick mode: a small cube, a few steps."""
+
+
+@lru_cache(maxsize=8)
+def _solid_texture_of(style_bytes: bytes, shape: tuple, seed: int, quick: bool) -> np.ndarray:
+    from ..solid_texture import SolidTextureSettings, synthesise_solid_texture
+
+    style = np.frombuffer(style_bytes, np.float32).reshape(shape)
+    settings = SolidTextureSettings(seed=seed, **(QUICK_SOLID_TEXTURE if quick else {}))
+    return synthesise_solid_texture(style, settings)
+
+
+def solid_texture_for(style: np.ndarray, seed: int = 0, quick: bool = False) -> np.ndarray:
+    """The solid texture of ``style`` (``synthesise_solid_texture``'s defaults), made once per style and seed
+    in a process: it depends on nothing else, so a run's densities share it."""
+    style = np.ascontiguousarray(style, dtype=np.float32)
+    return _solid_texture_of(style.tobytes(), style.shape, seed, quick)
+
+
 def colour_matched(context: Context, field: np.ndarray, density: np.ndarray, style: np.ndarray) -> np.ndarray:
     """``field`` given the style's colours by the product's colour match."""
     return context.stylizer.match_colours([field], [density], style)[0]
@@ -139,6 +163,13 @@ def _smooth_noise(context, density, style):
 
 def _tuned_noise(context, density, style):
     return colour_matched(context, tuned_noise(density.shape, context.seed), density, style)
+
+
+def _solid_texture(context, density, style):
+    from ..solid_texture import lay_over
+
+    texture = solid_texture_for(style, context.seed, context.quick)
+    return colour_matched(context, lay_over(texture, density), density, style)
 
 
 def _network(context, density, style):
@@ -242,6 +273,12 @@ METHODS = {
             "baseline",
             "training-free: wrapped RGB noise at the scale best on validation, then the colour match",
             _tuned_noise,
+        ),
+        Method(
+            "solid_texture",
+            "baseline",
+            "training-free: a solid texture synthesised from the style laid over the box, then the colour match",
+            _solid_texture,
         ),
         Method(
             "uniform", "baseline", "one colour matched to the style's mean (the must-beat baseline)", uniform_albedo

@@ -24,7 +24,9 @@ def _quantiles(sorted_values: torch.Tensor, count: int) -> torch.Tensor:
     low = position.floor().long().clamp(max=size - 1)
     high = (low + 1).clamp(max=size - 1)
     weight = (position - low).to(sorted_values.dtype)
-    return sorted_values[..., low] * (1 - weight) + sorted_values[..., high] * weight
+    axis = sorted_values.dim() - 1  # index_select: several times faster than advanced indexing on the CPU
+    low_values, high_values = sorted_values.index_select(axis, low), sorted_values.index_select(axis, high)
+    return low_values * (1 - weight) + high_values * weight
 
 
 def _sorted_rows(values: torch.Tensor) -> torch.Tensor:
@@ -33,6 +35,15 @@ def _sorted_rows(values: torch.Tensor) -> torch.Tensor:
     if values.device.type != "cpu" or values.dtype not in (torch.float32, torch.float64):
         return torch.sort(values, dim=1).values
     return torch.from_numpy(np.sort(values.numpy(), axis=1))
+
+
+def _argsort_rows(values: torch.Tensor) -> torch.Tensor:
+    """The order that sorts each row of ``values (P, N)``, without gradient: by NumPy on the CPU, where
+    it is several times faster than ``torch.argsort`` (``torch.sort`` of a look's 8192 x 64 projections
+    took most of a fit step's objective)."""
+    if values.device.type != "cpu" or values.dtype not in (torch.float32, torch.float64):
+        return torch.argsort(values, dim=1)
+    return torch.from_numpy(np.argsort(values.detach().numpy(), axis=1))
 
 
 def histogram_loss(features: torch.Tensor, style: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
@@ -141,10 +152,13 @@ def sliced_wasserstein_loss(
         directions = directions / directions.norm(dim=0, keepdim=True)
         with torch.no_grad():
             theirs = _sorted_rows((target.to(points) @ directions).T.contiguous())
-    ours = torch.sort(points @ directions, dim=0).values
+    ours = (points @ directions).T  # (P, N)
     with torch.no_grad():
-        theirs = _quantiles(theirs, ours.shape[0]).T
-    return ((ours - theirs) ** 2).mean() * points.shape[1]
+        # Each projected point is compared with the target's quantile at its own rank: the sum over the
+        # sorted pairs, without sorting (and back-propagating through a sort of) the points.
+        matched = torch.empty_like(ours)
+        matched.scatter_(1, _argsort_rows(ours.contiguous()), _quantiles(theirs, ours.shape[1]).to(ours))
+    return ((ours - matched) ** 2).mean() * points.shape[1]
 
 
 def masked_patches(images: torch.Tensor, mask: torch.Tensor | None, size: int) -> torch.Tensor:

@@ -1,0 +1,94 @@
+"""A look's fit at 64^3: the sliced loss by rank (today's) against sorting the projections (before),
+and the fit with a solid-texture start, in one run (#48's time bound: <= 1.5x the look's fit).
+
+The loss before is kept here as a reference (``sorted_sliced_loss``): it sorts the projected points
+with ``torch.sort`` and back-propagates through the sort; today's compares each point with the
+target's quantile at its rank (``objective.losses.sliced_wasserstein_loss``), the same value and
+gradient (``tests/test_solid_texture.py``). Arms alternate, ``REPEATS`` each, after one warm-up fit.
+
+    .venv/bin/python experiments/look_fit_timing.py     # about 4 min on 2 cores; results/look_fit_timing/
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+OUT = ROOT / "results" / "look_fit_timing"
+REPEATS = 3
+DENSITY, STYLE = "val_smoke64", "klimt_the_kiss"
+
+
+def sorted_sliced_loss(points, target, projections=64, generator=None):
+    """The sliced loss as it was computed before: sort the points' projections (with gradient)."""
+    import torch
+
+    from mistyle.objective.losses import ProjectedTarget, _quantiles, _sorted_rows
+
+    if isinstance(target, ProjectedTarget):
+        chosen = torch.randperm(target.directions.shape[1], generator=generator)[:projections]
+        directions, theirs = target.directions[:, chosen].to(points), target.sorted[chosen].to(points)
+    else:
+        directions = torch.randn(points.shape[1], projections, generator=generator).to(points)
+        directions = directions / directions.norm(dim=0, keepdim=True)
+        with torch.no_grad():
+            theirs = _sorted_rows((target.to(points) @ directions).T.contiguous())
+    ours = torch.sort(points @ directions, dim=0).values
+    with torch.no_grad():
+        theirs = _quantiles(theirs, ours.shape[0]).T
+    return ((ours - theirs) ** 2).mean() * points.shape[1]
+
+
+def main() -> None:
+    import mistyle.objective.style as style_module
+    from mistyle.benchmark.splits import split_density, split_pairs
+    from mistyle.data.heldout import VALIDATION_STYLE_DIR
+    from mistyle.io import load_style
+    from mistyle.look import LookSettings, fit_look
+    from mistyle.stylizer import Stylizer
+
+    ranked = style_module.sliced_wasserstein_loss
+    spec = split_pairs("validation", [DENSITY], [STYLE])[0][0]
+    density = split_density(spec)
+    style = load_style(VALIDATION_STYLE_DIR / f"{STYLE}.jpg")
+    stylizer = Stylizer()
+    arms = {
+        "look, loss by rank (today)": (ranked, LookSettings()),
+        "look, loss by sorting (before)": (sorted_sliced_loss, LookSettings()),
+        "look with a solid-texture start": (
+            ranked,
+            LookSettings(texture_side=64, texture_start="solid", texture_start_strength=4.0),
+        ),
+    }
+    fit_look(stylizer, [density], style)  # warm-up: imports, kernels
+    seconds = {name: [] for name in arms}
+    for _ in range(REPEATS):
+        for name, (loss, settings) in arms.items():
+            style_module.sliced_wasserstein_loss = loss
+            started = time.perf_counter()
+            fit_look(stylizer, [density], style, settings=settings)
+            seconds[name].append(time.perf_counter() - started)
+    style_module.sliced_wasserstein_loss = ranked
+    base = min(seconds["look, loss by sorting (before)"])
+    record = {
+        "command": "python experiments/look_fit_timing.py",
+        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs",
+        "load_before": os.getloadavg()[0],
+        "pair": [DENSITY, STYLE],
+        "seconds": seconds,
+        "best_over_before": {name: min(values) / base for name, values in seconds.items()},
+    }
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "timings.json").write_text(json.dumps(record, indent=2) + "\n")
+    print(json.dumps(record["best_over_before"], indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -4,7 +4,7 @@ Arms, each a look fitted on the pair's density and applied (``benchmark.methods`
 only in how the look's texture starts (``LookSettings.texture_start``), next to the training-free
 baselines with the product's colour match:
 
-* ``look_zeros``: today's look (a 32-texel texture started at zero);
+* ``look_zeros``: the look before this study (a 32-texel texture started at zero);
 * ``look_solid2``/``look_solid4``: a 64-texel texture started from a solid texture of the style
   (``mistyle.solid_texture``), scaled by 2 or 4 in the head's logits;
 * ``solid_texture``, ``tuned_noise``: the baselines.
@@ -15,6 +15,8 @@ Rule written before the rows: the arm with the lowest median structure distance 
 at most 1.05x ``look_zeros``'s becomes the default; ties (within 0.01 structure) go to the cheaper arm.
 
     .venv/bin/python experiments/solid_texture_study.py            # about 40 min on 2 cores
+    .venv/bin/python experiments/solid_texture_study.py --again look_solid4,solid_texture
+    .venv/bin/python experiments/solid_texture_study.py --heldout     # the held-out report, about 35 min
     .venv/bin/python experiments/solid_texture_study.py --report-only
 """
 
@@ -28,11 +30,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 OUT = ROOT / "results" / "solid_texture_study"
+HELDOUT_OUT = OUT / "heldout"
 DENSITIES = ("val_smoke64", "val_pyroclastic64")
 REAL_DENSITIES = ("usd_puff", "mitsuba_smoke")
 STYLES = ("klimt_the_kiss", "photo_nasa_io_global", "ciurlionis_fairy_tale_of_the_castle")
 ARMS = {
-    "look_zeros": {},
+    "look_zeros": dict(texture_side=32, texture_start="zeros"),  # the look until the solid-texture start
     "look_solid2": dict(texture_side=64, texture_start="solid", texture_start_strength=2.0),
     "look_solid4": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0),
 }
@@ -64,19 +67,69 @@ def pairs() -> list:
     return chosen
 
 
+def compare(out: Path, product: str = "default", before: str = "look_zeros") -> dict:
+    """#48's held-out criteria from ``out/rows.jsonl``: pairs where ``product``'s structure is closer than
+    tuned noise's and than ``before``'s, its median RGB and patch SWD over ``before``'s, its median hue
+    coverage; written to ``out/comparison.json``."""
+    import json
+
+    import numpy as np
+
+    rows = [json.loads(line) for line in (out / "rows.jsonl").read_text().splitlines() if line.strip()]
+    by = {(row["method"], row["density"], row["style"]): row for row in rows}
+    pairs = sorted({(d, s) for m, d, s in by if m == product and (before, d, s) in by and ("tuned_noise", d, s) in by})
+
+    def values(method, key):
+        return np.array([by[(method, d, s)][key] or np.nan for d, s in pairs], dtype=float)
+
+    ours = {key: values(product, key) for key in ("rgb_swd", "patch_swd", "hue_coverage", "structure")}
+    theirs = {key: values(before, key) for key in ("rgb_swd", "patch_swd", "structure")}
+    tuned = values("tuned_noise", "structure")
+    record = {
+        "pairs": len(pairs),
+        "structure_closer_than_tuned_noise": int(np.sum(ours["structure"] < tuned)),
+        f"structure_closer_than_{before}": int(np.sum(ours["structure"] < theirs["structure"])),
+        f"median_rgb_swd_over_{before}": float(np.median(ours["rgb_swd"]) / np.median(theirs["rgb_swd"])),
+        f"median_patch_swd_over_{before}": float(np.median(ours["patch_swd"]) / np.median(theirs["patch_swd"])),
+        f"median_structure_over_{before}": float(np.nanmedian(ours["structure"]) / np.nanmedian(theirs["structure"])),
+        "median_hue_coverage": float(np.median(ours["hue_coverage"])),
+        f"{before}_structure_closer_than_tuned_noise": int(np.sum(theirs["structure"] < tuned)),
+    }
+    (out / "comparison.json").write_text(json.dumps(record, indent=2) + "\n")
+    return record
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--report-only", action="store_true")
-    parser.add_argument("--out", default=str(OUT))
+    parser.add_argument("--again", default="", help="comma-separated methods to score again (their rows replaced)")
+    parser.add_argument("--out", default=None)
+    parser.add_argument(
+        "--heldout", action="store_true", help="report: the held-out split, the default against today's look"
+    )
     args = parser.parse_args(argv)
     from mistyle.benchmark.runner import report, run
 
     arms = register_arms()
+    out = Path(args.out) if args.out else (HELDOUT_OUT if args.heldout else OUT)
     if args.report_only:
-        report(Path(args.out))
+        report(out)
+        if args.heldout:
+            print(compare(out))
         return
-    methods = arms + ["solid_texture", "tuned_noise", "uniform"]
-    run(args.out, pairs(), methods, res=256, spp=64, denoise="oidn", split="validation", resume=True)
+    if args.heldout:
+        from mistyle.benchmark.splits import split_pairs
+
+        methods = ["default", "look_zeros", "tuned_noise", "solid_texture"]
+        run(out, split_pairs("heldout"), methods, res=256, spp=64, denoise="oidn", split="heldout", resume=True)
+        print(compare(out))
+        return
+    scoring = dict(res=256, spp=64, denoise="oidn", split="validation")
+    again = [name for name in args.again.split(",") if name]
+    if again:
+        run(out, pairs(), again, resume=False, **scoring)
+        return
+    run(out, pairs(), arms + ["solid_texture", "tuned_noise", "uniform"], resume=True, **scoring)
 
 
 if __name__ == "__main__":

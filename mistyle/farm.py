@@ -293,6 +293,7 @@ class _cluster:
     def __exit__(self, kind, error, trace):
         import contextlib
         import gc
+        import logging
         import os
         import shutil
         import signal
@@ -300,6 +301,10 @@ class _cluster:
 
         from .ownership import remove_dead_staging
 
+        if kind is not None:
+            # Stopped (Ctrl-C, a failure): the comms this process still has with the workers killed next
+            # close half way, which Dask logs as tracebacks; the one line the command prints says it all.
+            logging.getLogger("distributed").setLevel(logging.CRITICAL)
         if kind is not None and self.cluster is not None:
             for nanny in self.cluster.workers.values():
                 nanny.close_gracefully()  # no restart of the worker killed next

@@ -20,9 +20,11 @@ What a look holds (``LOOK_VERSION`` 1), chosen by measurement (``experiments/loo
   the decoder's body are the checkpoint's, computed once per key frame, which is what makes the fit
   cheap; with them fixed, the site (a channel mix and DAIN) folds into the last convolution, so a step
   runs one convolution (``SKPN.folded_head_logits``). The look names the checkpoint by its SHA-256.
-* **A coarse texture over the medium's box** (``texture_side`` texels along the longest side), added
-  before the head's tanh: strokes and grain where the density alone has no structure. It is fixed
-  in box coordinates. Optionally (off by default) smooth-noise fields the head weighs.
+* **A texture over the medium's box** (``texture_side`` texels along the longest side), added before
+  the head's tanh: strokes and grain where the density alone has no structure. It starts as a solid
+  texture of the style (``mistyle.solid_texture``: every slice has the style's patches), scaled in the
+  head's logits, and is fixed in box coordinates. Optionally (off by default) smooth-noise fields the
+  head weighs.
 * **The colour match's map** (``colour_match.ColourMatch``), fitted after the fit on the albedo of the
   first key frame the layer sees: a function of colour, shared by every frame like a sequence's.
 * The style's thumbnail (``THUMBNAIL_SIDE`` pixels), the density scale, the orbit and the fit's
@@ -84,13 +86,15 @@ class LookSettings:
         "after"  # "after": fitted on the tuned network's albedo; "through": first, fitted through; "none"
     )
     noise_channels: int = 0  # smooth noise fields (look_noise) the head adds, weighted, before its tanh
-    texture_side: int = 32  # > 0: a texture of this many texels along the box's longest side, added before the tanh
+    texture_side: int = 64  # > 0: a texture of this many texels along the box's longest side, added before the tanh
     texture_lr: float = 0.05
     texture_init: float = 0.0  # spread of the texture's random start (0: zeros); colour variation to spread
     # "solid": the texture starts as a solid texture of the style (mistyle.solid_texture), centred and
-    # scaled by texture_start_strength in the head's logits; "zeros": from texture_init's noise.
-    texture_start: str = "zeros"
-    texture_start_strength: float = 2.0
+    # scaled by texture_start_strength in the head's logits; "zeros": from texture_init's noise. Chosen on
+    # the validation pairs (docs/decisions/2026-12-05-solid-texture.md): a 32-texel texture from zeros
+    # until then.
+    texture_start: str = "solid"
+    texture_start_strength: float = 4.0
     lr_schedule: str = "constant"  # or "cosine": every learning rate decays to zero over the steps
     # "stratified": a step's views evenly spaced from a random offset (CameraPath.sample_stratified), or
     # "independent" (the default until 2026-12-03): stratified scored better on the held-out pairs in
@@ -759,9 +763,9 @@ def solid_texture_start(style: np.ndarray, texels: tuple, strength: float, seed:
     over the box, each channel centred on its mean and scaled by ``strength`` (logits of the head)."""
     import torch
 
-    from .solid_texture import SolidTextureSettings, synthesise_solid_texture, texture_in_box
+    from .solid_texture import SolidTextureSettings, solid_texture_of, texture_in_box
 
-    solid = synthesise_solid_texture(style, SolidTextureSettings(seed=seed))
+    solid = solid_texture_of(style, SolidTextureSettings(seed=seed))
     values = texture_in_box(solid, texels)
     values = strength * (values - values.reshape(-1, 3).mean(axis=0))
     return torch.from_numpy(np.ascontiguousarray(values.transpose(3, 0, 1, 2)))

@@ -64,7 +64,7 @@ def test_a_fit_changes_the_network_and_a_saved_look_stylizes_as_the_fitted_one(
     assert albedo.shape == blob_density.shape + (3,) and np.isfinite(albedo).all()
     assert 0 <= albedo.min() and albedo.max() <= 1
     path = look.save(tmp_path / "any name.mylook")
-    assert path.stat().st_size < 1 << 20
+    assert path.stat().st_size < 2 << 20  # small beside a frame: the texture is at most 64^3 x 3 halves (1.5 MiB)
     loaded = Look.load(path, stylizer=stylizer)
     np.testing.assert_array_equal(loaded.stylize(blob_density), albedo)
     np.testing.assert_array_equal(loaded.thumbnail, look.thumbnail)

@@ -26,7 +26,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 
@@ -132,22 +131,6 @@ QUICK_SOLID_TEXTURE = dict(side=32, levels=2, steps=8)
 """The solid texture's settings in quick mode: a small cube, a few steps."""
 
 
-@lru_cache(maxsize=8)
-def _solid_texture_of(style_bytes: bytes, shape: tuple, seed: int, quick: bool) -> np.ndarray:
-    from ..solid_texture import SolidTextureSettings, synthesise_solid_texture
-
-    style = np.frombuffer(style_bytes, np.float32).reshape(shape)
-    settings = SolidTextureSettings(seed=seed, **(QUICK_SOLID_TEXTURE if quick else {}))
-    return synthesise_solid_texture(style, settings)
-
-
-def solid_texture_for(style: np.ndarray, seed: int = 0, quick: bool = False) -> np.ndarray:
-    """The solid texture of ``style`` (``synthesise_solid_texture``'s defaults), made once per style and seed
-    in a process: it depends on nothing else, so a run's densities share it."""
-    style = np.ascontiguousarray(style, dtype=np.float32)
-    return _solid_texture_of(style.tobytes(), style.shape, seed, quick)
-
-
 def colour_matched(context: Context, field: np.ndarray, density: np.ndarray, style: np.ndarray) -> np.ndarray:
     """``field`` given the style's colours by the product's colour match."""
     return context.stylizer.match_colours([field], [density], style)[0]
@@ -166,9 +149,10 @@ def _tuned_noise(context, density, style):
 
 
 def _solid_texture(context, density, style):
-    from ..solid_texture import lay_over
+    from ..solid_texture import SolidTextureSettings, lay_over, solid_texture_of
 
-    texture = solid_texture_for(style, context.seed, context.quick)
+    quick = QUICK_SOLID_TEXTURE if context.quick else {}
+    texture = solid_texture_of(style, SolidTextureSettings(seed=context.seed, **quick))
     return colour_matched(context, lay_over(texture, density), density, style)
 
 

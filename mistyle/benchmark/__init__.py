@@ -13,7 +13,8 @@ Protocol (``docs/benchmark.md`` is its reference page):
   defaults; ``network``: feed-forward, ``--refine 0``), the network without the colour match, the
   must-beat baselines (``uniform``: one colour matched to the style's mean; ``density_ramp``,
   ``smooth_noise``, ``tuned_noise`` and ``solid_texture``: training-free fields given the style's colours
-  by the same colour match the product uses), and the upper reference (``optimised``: direct optimisation of the albedo grid).
+  by the same colour match the product uses), and the upper reference (``optimised``: direct
+  optimisation of the albedo grid).
 * **Scoring**: each albedo path traced (``volpath``, multiple scattering, the training light) from
   ``METRIC_VIEWS`` views evenly around the orbit and scored with
   ``objective.metrics.style_fidelity`` (RGB SWD, patch SWD, hue coverage) against the style.

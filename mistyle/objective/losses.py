@@ -39,8 +39,8 @@ def _sorted_rows(values: torch.Tensor) -> torch.Tensor:
 
 def _argsort_rows(values: torch.Tensor) -> torch.Tensor:
     """The order that sorts each row of ``values (P, N)``, without gradient: by NumPy on the CPU, where
-    it is several times faster than ``torch.argsort`` (``torch.sort`` of a look's 8192 x 64 projections
-    took most of a fit step's objective)."""
+    it is several times faster than ``torch.argsort`` (a solid texture's synthesis spent most of each step
+    in ``torch.sort`` of its 8192 x 64 projections)."""
     if values.device.type != "cpu" or values.dtype not in (torch.float32, torch.float64):
         return torch.argsort(values, dim=1)
     return torch.from_numpy(np.argsort(values.detach().numpy(), axis=1))

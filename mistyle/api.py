@@ -4,7 +4,7 @@
     density = mistyle.load_density("smoke.vol")                   # (Z, Y, X)
     albedo = mistyle.stylize(density, "marble.png")               # (Z, Y, X, 3) in [0, 1], feed-forward
     albedo = mistyle.stylize(density, "marble.png", refine=True)  # what mistyle-render path traces by default
-    image = mistyle.render(density, albedo, view=0.25, res=256)   # (256, 256, 3) linear RGB
+    image = mistyle.render(density, albedo, view=0.25, res=256)   # (256, 256, 3) linear RGB, denoised
     png_values = mistyle.display(image)                           # the PNGs' tone curve
 
 ``stylize`` runs the trained SKPN (the bundled checkpoint unless one is named) and the colour match
@@ -272,8 +272,10 @@ def render(
     camera_distance: float = ORBIT_DISTANCE,
     device: str = "cpu",
     seed: int = 0,
+    denoise: str = "oidn",
 ) -> np.ndarray:
-    """Path-trace the medium with Mitsuba's ``volpath``; returns ``(res, res, 3)`` linear RGB.
+    """Path-trace the medium with Mitsuba's ``volpath``; returns ``(res, res, 3)`` linear RGB, denoised as
+    ``mistyle-render`` denoises its images (``denoise="none"``: the path tracer's own estimate).
 
     Args:
         view: the camera's position on the orbit in [0, 1), as ``--view`` (default: the held-out
@@ -284,12 +286,13 @@ def render(
         coat_ior: a smooth dielectric boundary of this index of refraction (e.g. 1.5); ``None``: none.
         camera_distance: the orbit's radius (the medium box's longest side is 1).
         seed: the sampler's seed, in [0, ``MAX_SEED``].
+        denoise: ``"oidn"`` (Intel Open Image Denoise, ``mistyle-render``'s default) or ``"none"``.
     """
     from .scenes import CameraPath, LightSpec, View, validate_density_scale
     from .scenes.cameras import validate_camera_distance, validate_orbit_position
     from .volume import validate_albedo, validate_density
 
-    RenderSettings(res=res, spp=spp, max_depth=max_depth, coat_ior=coat_ior)  # mistyle-render's ranges
+    RenderSettings(res=res, spp=spp, max_depth=max_depth, coat_ior=coat_ior, denoise=denoise)  # the command's ranges
     validate_density_scale(validate_real(density_scale, "density_scale"))
     validate_int(seed, "seed", 0, MAX_SEED)
     if not isinstance(light, (str, LightSpec)):
@@ -326,4 +329,10 @@ def render(
         device=device,
         seed=seed,
     )
+    if denoise == "oidn":
+        from .denoise import denoise as denoise_image
+        from .stylizer import check_finite
+
+        check_finite("The path-traced image", images)  # before the denoiser, which hides NaN
+        return denoise_image(images[0])
     return images[0]

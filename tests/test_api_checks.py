@@ -171,3 +171,16 @@ def test_cuda_without_a_gpu_is_one_line_naming_the_way_around(no_work, blob_dens
     if gpu_available():
         pytest.skip("this machine has a GPU")
     refused(BackendError, r'Run with device="cpu"', lambda: call(blob_density, albedo))
+
+
+def test_the_apis_render_is_denoised_as_the_commands(blob_density, albedo):
+    """``mistyle.render`` gives what ``mistyle-render`` shows: the path tracer's image through OIDN by
+    default, the raw estimate with ``denoise="none"`` (it once skipped the denoiser)."""
+    from mistyle.denoise import denoise
+
+    settings = dict(res=32, spp=4, seed=3)
+    raw = mistyle.render(blob_density, albedo, denoise="none", **settings)
+    shown = mistyle.render(blob_density, albedo, **settings)
+    np.testing.assert_array_equal(shown, denoise(raw))
+    assert not np.array_equal(shown, raw)
+    refused(ValueError, r"^denoise must be one of", lambda: mistyle.render(blob_density, albedo, denoise="nlm"))

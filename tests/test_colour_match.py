@@ -158,7 +158,9 @@ def test_stylize_matches_colours_by_default_and_it_brings_the_render_closer_to_t
     scores = {}
     for name, albedo in (("network", network), ("matched", matched), ("no feedback", unfed.apply(network, density))):
         images = [
-            mistyle.render(density, albedo, view=view, res=48, spp=8, density_scale=stylizer.density_scale)
+            mistyle.render(
+                density, albedo, view=view, res=48, spp=8, density_scale=stylizer.density_scale, denoise="none"
+            )
             for view in (0.1, 0.45)
         ]
         scores[name] = style_fidelity(np.stack(images), style)["rgb_swd"]

@@ -40,7 +40,7 @@ class SolidTextureSettings:
     levels: int = 3  # pyramid levels, each half the size of the next
     patch: int = 5  # patch side in pixels at every level
     # Steps, patches and projections: about 2.7 s on 2 cores, its slices' structure distance to the style
-    # within 0.03 of 4x the steps and patches at 9x the time (results/solid_texture_study/slices.json).
+    # within 0.04 of 4x the steps and patches at 9x the time (results/solid_texture_study/slices.json).
     steps: int = 60  # optimisation steps per level
     patches: int = 8192  # patches a step compares, at random places in slices across each axis
     projections: int = 64  # random projections per step

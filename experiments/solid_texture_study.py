@@ -120,7 +120,7 @@ def main(argv=None) -> None:
     if args.heldout:
         from mistyle.benchmark.splits import split_pairs
 
-        methods = ["default", "look_zeros", "tuned_noise", "solid_texture"]
+        methods = ["default", "look_zeros", "tuned_noise", "solid_texture", "uniform", "smooth_noise", "density_ramp"]
         run(out, split_pairs("heldout"), methods, res=256, spp=64, denoise="oidn", split="heldout", resume=True)
         print(compare(out))
         return

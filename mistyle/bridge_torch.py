@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from .backend import use_variant
-from .conventions import DEFAULT_ENV_RADIANCE, ORBIT_DISTANCE
+from .conventions import DEFAULT_ENV_RADIANCE, LAYER_MARCH_STEPS, ORBIT_DISTANCE
 from .conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
 from .integrators import PreparedDensity, layer_scene
 from .scenes import LightSpec, albedo_parameter, pathtraced_scene
@@ -37,7 +37,7 @@ def render_views(
     views: Sequence[View],
     image_size: int | tuple[int, int],
     *,
-    steps: int = 64,
+    steps: int = LAYER_MARCH_STEPS,
     scheme: str = DEFAULT_SCHEME,
     radiance: float = DEFAULT_ENV_RADIANCE,
     white: bool = False,

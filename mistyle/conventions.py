@@ -10,7 +10,12 @@ Numbers (each chosen by measurement where a comment says so):
   tone curve shows as mid grey, so bright styles were out of reach. Le = 8 gave the lowest held-out
   SWD of 2, 4, 8 and 16 with ``experiments/optimize_albedo.py --quick`` and puts white albedo near the
   top of the display range.
-* ``ORBIT_DISTANCE``: radius of the camera orbit (``mistyle.scenes.CameraPath``) by default.
+* ``ORBIT_DISTANCE``: radius of the camera orbit (``mistyle.scenes.CameraPath``) by default: the orbit
+  every shipped config trains on and the bundled networks record, so an image framed by default is framed
+  as ``mistyle-render`` frames it.
+* ``LAYER_MARCH_STEPS``: segments of the fast layer's march along a camera ray, the shipped configs'.
+* ``MAX_FIT_STEPS``: the most gradient steps a fit (look, refinement, solid texture) may be asked for.
+* ``IMAGE_SIDES``: the smallest and largest side of a rendered image, in pixels.
 * ``HELD_OUT_VIEW``: the orbit position of the first view that evaluations, reports and final
   renders use. Training samples positions uniformly, so no position is strictly unseen; this one
   sits between the four quarter turns that previews and tests favour.
@@ -25,7 +30,10 @@ from __future__ import annotations
 
 DEFAULT_DENSITY_SCALE = 20.0
 DEFAULT_ENV_RADIANCE = 8.0
-ORBIT_DISTANCE = 2.5
+ORBIT_DISTANCE = 1.7
+LAYER_MARCH_STEPS = 48
+MAX_FIT_STEPS = 10000
+IMAGE_SIDES = (8, 8192)
 MIN_CAMERA_DISTANCE = 0.9  # cameras stay outside the medium box (half-diagonal of the unit cube: 0.87)
 MAX_DENSITY = 1e6  # above this, float32 statistics of the network (DAIN variances) overflow
 MAX_DENSITY_SCALE = 1e6  # extinction per unit density; beyond it a voxel is opaque many times over

@@ -30,7 +30,13 @@ import numpy as np
 import torch
 
 from .adam import Adam
-from .conventions import DEFAULT_ENV_RADIANCE, ORBIT_DISTANCE, REFINE_LAYER_STEPS, REFINE_PATH_STEPS
+from .conventions import (
+    DEFAULT_ENV_RADIANCE,
+    LAYER_MARCH_STEPS,
+    ORBIT_DISTANCE,
+    REFINE_LAYER_STEPS,
+    REFINE_PATH_STEPS,
+)
 from .objective.losses import tv_loss
 from .objective.masks import body_mask
 from .scenes import CameraPath, View
@@ -142,7 +148,12 @@ class LayerViews:
     """
 
     def __init__(
-        self, prepared, res: int, steps: int = 48, radiance: float = DEFAULT_ENV_RADIANCE, device: str = "cpu"
+        self,
+        prepared,
+        res: int,
+        steps: int = LAYER_MARCH_STEPS,
+        radiance: float = DEFAULT_ENV_RADIANCE,
+        device: str = "cpu",
     ):
         self.prepared, self.res, self.steps, self.radiance = prepared, int(res), int(steps), float(radiance)
         self.device = device
@@ -196,7 +207,7 @@ class RefineSettings:
     rgb_weight: float = 1.0
     patch_weight: float = 0.05
     camera_distance: float = ORBIT_DISTANCE
-    layer_steps_per_ray: int = 48
+    layer_steps_per_ray: int = LAYER_MARCH_STEPS
     # Sequences: the least flicker of 10 / 100 / 1000 (docs/decisions/2026-11-25-style-fidelity-study.md).
     temporal_weight: float = 100.0
     seed: int = 0

@@ -48,6 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .conventions import LAYER_MARCH_STEPS, MAX_FIT_STEPS
+
 LOOK_FORMAT = "mistyle-look"
 LOOK_VERSION = 1
 THUMBNAIL_SIDE = 256
@@ -76,7 +78,7 @@ class LookSettings:
     lr: float = 0.02
     views_per_step: int = 3
     layer_res: int = 64
-    layer_steps_per_ray: int = 48
+    layer_steps_per_ray: int = LAYER_MARCH_STEPS
     tune_sites: tuple = (3,)  # the kernel sites tuned (SKPN.sites; (3,), the head only, reuses the decoder's body)
     tune_decoder: tuple = (2,)  # indices of SKPN.decoder's convolutions tuned with the kernels
     rgb_weight: float = 1.0
@@ -110,12 +112,12 @@ class LookSettings:
     seed: int = 0
 
     def __post_init__(self):
-        if not 0 <= self.steps <= 10000:
-            raise ValueError(f"A look's fit steps must lie in [0, 10000], got {self.steps}.")
+        if not 0 <= self.steps <= MAX_FIT_STEPS:
+            raise ValueError(f"A look's fit steps must lie in [0, {MAX_FIT_STEPS}], got {self.steps}.")
         if not 0 <= self.direction_pool <= 65536:
             raise ValueError(f"direction_pool must lie in [0, 65536], got {self.direction_pool}.")
-        if not 0 <= self.coarse_steps <= 10000:
-            raise ValueError(f"A look's coarse steps must lie in [0, 10000], got {self.coarse_steps}.")
+        if not 0 <= self.coarse_steps <= MAX_FIT_STEPS:
+            raise ValueError(f"A look's coarse steps must lie in [0, {MAX_FIT_STEPS}], got {self.coarse_steps}.")
         if self.coarse_factor not in (2, 4):
             raise ValueError(f"coarse_factor must be 2 or 4, got {self.coarse_factor}.")
         if not set(self.tune_decoder) <= {0, 1, 2}:

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .backend import active_variant
-from .conventions import DEFAULT_DENSITY_SCALE
+from .conventions import DEFAULT_DENSITY_SCALE, IMAGE_SIDES
 from .scenes.cameras import split_views
 from .stops import raise_if_requested
 
@@ -124,8 +124,9 @@ def path_trace(
     mi = use_variant(device)
     grid = validate_density(density)
     colours = validate_albedo(albedo, grid.shape)
-    if not 1 <= res <= 8192 or spp < 1:
-        raise ValueError(f"Need 1 <= res <= 8192 and spp >= 1, got res={res}, spp={spp}.")
+    low, high = IMAGE_SIDES
+    if not low <= res <= high or spp < 1:
+        raise ValueError(f"Need {low} <= res <= {high} and spp >= 1, got res={res}, spp={spp}.")
     light = light if isinstance(light, LightSpec) else LightSpec.parse(light)
     check_max_depth(max_depth)
     check_light(light)

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS
+from .conventions import DEVICES, HELD_OUT_VIEW, IMAGE_SIDES, LIGHT_KINDS, MAX_FIT_STEPS
 from .denoise import DENOISERS
 from .io import load_style
 from .stylizer import (  # noqa: F401 - also the pipeline's names: callers import them from here
@@ -139,7 +139,7 @@ class RenderSettings:
         from .scenes.cameras import validate_orbit_position
         from .scenes.pathtraced import validate_coat_ior, validate_max_depth
 
-        validate_int(self.res, "res", 8, 8192)
+        validate_int(self.res, "res", *IMAGE_SIDES)
         validate_int(self.spp, "spp", 1, 1 << 16)
         validate_max_depth(validate_int(self.max_depth, "max_depth"), "max_depth")
         forms = "constant[:Le], envmap:<file.exr>[:scale], point:x,y,z[:intensity] or area[:radiance]"
@@ -208,7 +208,7 @@ class PipelineSettings:
         validate_flag(self.colour_match, "colour_match")
         for name in ("refine_steps", "refine_path_steps", "look_steps"):
             if getattr(self, name) is not None:
-                validate_int(getattr(self, name), name, 0, 10000)
+                validate_int(getattr(self, name), name, 0, MAX_FIT_STEPS)
         if self.density_scale is not None:
             validate_density_scale(validate_real(self.density_scale, "density_scale"))
         if self.camera_distance is not None:
@@ -407,6 +407,8 @@ class Pipeline:
             notes=notes,
             strength=s.strength,
             match_colours=s.colour_match,
+            density_scale=self.density_scale,
+            camera_distance=self.camera_distance,
         )
         network = list(network) if frames.sequence else [network]
         report["stylize_seconds"] = time.perf_counter() - started

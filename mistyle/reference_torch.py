@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import torch
 import torch.nn.functional as F
 
-from .conventions import DEFAULT_ENV_RADIANCE
+from .conventions import DEFAULT_ENV_RADIANCE, LAYER_MARCH_STEPS
 from .conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
 from .conventions import LAYER_SCHEMES as SCHEMES
 from .scenes.box import MediumBox
@@ -73,7 +73,7 @@ def render_views_torch(
     ls: torch.Tensor,
     views: Sequence[View],
     image_size: tuple[int, int],
-    steps: int = 64,
+    steps: int = LAYER_MARCH_STEPS,
     scheme: str = DEFAULT_SCHEME,
     radiance: float = DEFAULT_ENV_RADIANCE,
 ) -> torch.Tensor:

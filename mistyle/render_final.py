@@ -61,7 +61,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .conventions import DEVICES, HELD_OUT_VIEW, LIGHT_KINDS, REFINE_LAYER_STEPS, REFINE_PATH_STEPS, UP_AXES
+from .conventions import (
+    DEVICES,
+    HELD_OUT_VIEW,
+    IMAGE_SIDES,
+    LIGHT_KINDS,
+    MAX_FIT_STEPS,
+    REFINE_LAYER_STEPS,
+    REFINE_PATH_STEPS,
+    UP_AXES,
+)
 from .denoise import DENOISERS, oidn_missing
 
 
@@ -504,13 +513,16 @@ def check_options(args) -> None:
     missing_denoiser = oidn_missing() if args.denoise == "oidn" else None
     checks = [
         (1 <= args.spp <= 1 << 16, f"--spp must lie in [1, 65536], got {args.spp}"),
-        (8 <= args.res <= 8192, f"--res must lie in [8, 8192], got {args.res}"),
+        (IMAGE_SIDES[0] <= args.res <= IMAGE_SIDES[1], f"--res must lie in {list(IMAGE_SIDES)}, got {args.res}"),
         (0 <= args.turntable <= 3600, f"--turntable must lie in [0, 3600] frames, got {args.turntable}"),
         (1 <= args.fps <= 240, f"--fps must lie in [1, 240], got {args.fps}"),
-        (args.refine is None or 0 <= args.refine <= 10000, f"--refine must lie in [0, 10000] steps, got {args.refine}"),
         (
-            args.refine_path is None or 0 <= args.refine_path <= 10000,
-            f"--refine-path must lie in [0, 10000] steps, got {args.refine_path}",
+            args.refine is None or 0 <= args.refine <= MAX_FIT_STEPS,
+            f"--refine must lie in [0, {MAX_FIT_STEPS}] steps, got {args.refine}",
+        ),
+        (
+            args.refine_path is None or 0 <= args.refine_path <= MAX_FIT_STEPS,
+            f"--refine-path must lie in [0, {MAX_FIT_STEPS}] steps, got {args.refine_path}",
         ),
         (8 <= args.mesh_res <= 512, f"--mesh-res must lie in [8, 512], got {args.mesh_res}"),
         (args.bricks is None or 0 <= args.bricks <= 4096, f"--bricks must lie in [0, 4096] voxels, got {args.bricks}"),
@@ -554,8 +566,8 @@ def check_look_options(args) -> None:
                 "--key-frames chooses the frames a look is fitted on: with --save-look, or for the default output's "
                 "look, which --look, --refine, --refine-path, --strength below 1 and --no-colour-match leave out."
             )
-    if args.look_steps is not None and not 0 <= args.look_steps <= 10000:
-        raise ValueError(f"--look-steps must lie in [0, 10000], got {args.look_steps}.")
+    if args.look_steps is not None and not 0 <= args.look_steps <= MAX_FIT_STEPS:
+        raise ValueError(f"--look-steps must lie in [0, {MAX_FIT_STEPS}], got {args.look_steps}.")
     if args.save_look is not None:
         path = Path(args.save_look)
         if path.is_dir() or not path.parent.is_dir():

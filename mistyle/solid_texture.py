@@ -27,6 +27,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from .conventions import MAX_FIT_STEPS
+
 MIN_EXEMPLAR_SIDE = 8
 """The coarsest level's exemplar needs at least this many pixels along its shorter side for patches."""
 
@@ -62,8 +64,8 @@ class SolidTextureSettings:
             raise ValueError(f"The patch side must be odd and positive, got {self.patch}.")
         if self.exemplar_side < self.patch:
             raise ValueError(f"exemplar_side must be at least the patch side, got {self.exemplar_side}.")
-        if not 0 <= self.steps <= 10000:
-            raise ValueError(f"steps must lie in [0, 10000], got {self.steps}.")
+        if not 0 <= self.steps <= MAX_FIT_STEPS:
+            raise ValueError(f"steps must lie in [0, {MAX_FIT_STEPS}], got {self.steps}.")
         if self.patches < 3 or self.projections < 1 or self.pool < self.projections:
             raise ValueError("patches (at least 3) and projections must be positive, and pool at least projections.")
 

@@ -179,13 +179,16 @@ class Stylizer:
         notes: list | None = None,
         strength: float = 1.0,
         match_colours: bool = True,
+        density_scale: float | None = None,
+        camera_distance: float | None = None,
     ) -> np.ndarray:
         """Albedo ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) of ``density`` for ``style`` (see ``kernels``)
         at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame).
 
         ``match_colours``: give the network's arrangement the style's colours (``colour_match``; for a
-        mix, the colours of ``style_target``), moved ``strength`` of the way; a sequence shares the map
-        fitted on its first frame. A medium too thin to be seen keeps the network's colours (said in
+        mix, the colours of ``style_target``), moved ``strength`` of the way, as the medium renders at
+        ``density_scale`` seen from ``camera_distance`` (None: the checkpoint's); a sequence shares the
+        map fitted on its first frame. A medium too thin to be seen keeps the network's colours (said in
         ``notes``). False: the network's albedo as predicted."""
         from .volume import validate_density
 
@@ -210,28 +213,41 @@ class Stylizer:
             albedos.append(self.network_albedo(grid, inputs, scale_structures))
         if match_colours and strength > 0:
             target = style_target([image for image, _ in parts], [weight for _, weight in parts])
-            albedos = self.match_colours(albedos, grids, target, strength, notes)
+            albedos = self.match_colours(
+                albedos, grids, target, strength, notes, density_scale=density_scale, camera_distance=camera_distance
+            )
         return np.stack(albedos) if sequence else albedos[0]
 
     def match_colours(
-        self, albedos: list, grids: list, target: np.ndarray, strength: float = 1.0, notes: list | None = None
+        self,
+        albedos: list,
+        grids: list,
+        target: np.ndarray,
+        strength: float = 1.0,
+        notes: list | None = None,
+        *,
+        density_scale: float | None = None,
+        camera_distance: float | None = None,
     ) -> list:
         """The frames' albedos ``[(Z, Y, X, 3)]`` on ``grids`` with the colours of the picture ``target (H, W, 3)``
         (``colour_match``), through the map fitted on the first frame the layer sees (a simulation's first
-        frame can be a wisp), moved ``strength`` of the way. A medium too thin to be seen in every frame
-        keeps its albedos (said in ``notes``)."""
+        frame can be a wisp), moved ``strength`` of the way. The map is fitted on renders at ``density_scale``
+        from ``camera_distance``, the final render's (None: the checkpoint's). A medium too thin to be seen
+        in every frame keeps its albedos (said in ``notes``)."""
         from .colour_match import InvisibleMedium, fit_colour_match
 
         render = self.config.render
+        density_scale = self.density_scale if density_scale is None else density_scale
+        camera_distance = render.camera_distance if camera_distance is None else camera_distance
         for albedo, grid in zip(albedos, grids):
             try:
                 match = fit_colour_match(
                     albedo,
                     grid,
                     target,
-                    density_scale=self.density_scale,
+                    density_scale=density_scale,
                     radiance=render.radiance,
-                    camera_distance=render.camera_distance,
+                    camera_distance=camera_distance,
                 )
             except InvisibleMedium:
                 continue

@@ -164,6 +164,7 @@ CONVENTION_DEFAULTS = {
     "directions": "LS_DIRECTIONS",
     "radiance": "DEFAULT_ENV_RADIANCE",
     "camera_distance": "ORBIT_DISTANCE",
+    "layer_steps_per_ray": "LAYER_MARCH_STEPS",
 }
 
 
@@ -208,3 +209,23 @@ def literal_convention_defaults():
 
 def test_convention_defaults_name_their_constant():
     assert literal_convention_defaults() == [], f"use the constants of mistyle.conventions ({CONVENTION_DEFAULTS})"
+
+
+def test_default_orbit_and_march_are_the_shipped_networks():
+    """An image framed by default (``mistyle.render(view=...)``, a ``CameraPath``, a fit's settings) is
+    framed as ``mistyle-render`` frames it: at the orbit the bundled network was trained on and records."""
+    import inspect
+
+    import mistyle
+    from mistyle.fit import FitSettings, RefineSettings
+    from mistyle.look import LookSettings
+    from mistyle.model.config import RenderConfig
+    from mistyle.pipeline import Pipeline
+
+    shipped = Pipeline().config.render
+    assert inspect.signature(mistyle.render).parameters["camera_distance"].default == shipped.camera_distance
+    for distance in (CameraPath().distance, FitSettings().camera_distance, RefineSettings().camera_distance):
+        assert distance == shipped.camera_distance
+    assert RenderConfig().camera_distance == shipped.camera_distance
+    for steps in (RenderConfig().steps, LookSettings().layer_steps_per_ray, RefineSettings().layer_steps_per_ray):
+        assert steps == shipped.steps

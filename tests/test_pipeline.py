@@ -93,6 +93,16 @@ def test_a_sequence_by_default_is_stylized_by_one_look_fitted_on_its_key_frames(
     assert not (feed_forward / "albedo_refined_frame0000.vol").exists()
 
 
+def test_the_feed_forward_colour_match_renders_at_the_settings_scale_and_orbit(mi, blob_density):
+    """``mistyle-render --density-scale 40 --refine 0`` colour-matches the medium as it renders at 40."""
+    settings = PipelineSettings(refine_steps=0, density_scale=40.0, camera_distance=2.2)
+    pipeline = Pipeline(settings)
+    albedo = pipeline.stylize(blob_density, STYLE).albedos[0]
+    stylizer = pipeline.stylizer
+    assert np.array_equal(albedo, stylizer(blob_density, STYLE, density_scale=40.0, camera_distance=2.2))
+    assert not np.array_equal(albedo, stylizer(blob_density, STYLE))  # the checkpoint's 20 and 1.7 differ
+
+
 def test_refinement_rule():
     pipeline = Pipeline()
     default = Pipeline(PipelineSettings(colour_match=False), stylizer=pipeline.stylizer).refinement(1)

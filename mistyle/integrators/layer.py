@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..backend import require_variant
-from ..conventions import DEFAULT_ENV_RADIANCE, DEFAULT_LAYER_SCHEME
+from ..conventions import DEFAULT_ENV_RADIANCE, DEFAULT_LAYER_SCHEME, LAYER_MARCH_STEPS
 from ..scenes.cameras import View, batch_sensor_dict
 from ..scenes.lights import constant_environment
 from ..volume import validate_albedo
@@ -22,7 +22,7 @@ def layer_scene(
     views: list[View],
     *,
     res: int | tuple[int, int],
-    steps: int = 64,
+    steps: int = LAYER_MARCH_STEPS,
     scheme: str = DEFAULT_LAYER_SCHEME,
     radiance: float = DEFAULT_ENV_RADIANCE,
     white: bool = False,

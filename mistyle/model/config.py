@@ -30,6 +30,7 @@ from ..conventions import (
     DEFAULT_LAYER_SCHEME,
     DEVICES,
     EXTRACTOR_KINDS,
+    LAYER_MARCH_STEPS,
     LAYER_SCHEMES,
     LOSS_MASKS,
     OBJECTIVES,
@@ -79,7 +80,7 @@ class DataConfig:
 class RenderConfig:
     image_size: int = 160
     views: int = 4
-    steps: int = 64  # N, ray-marching segments
+    steps: int = LAYER_MARCH_STEPS  # N, ray-marching segments
     scheme: str = DEFAULT_LAYER_SCHEME
     radiance: float = DEFAULT_ENV_RADIANCE  # the training light's constant environment radiance Le
     camera_distance: float = ORBIT_DISTANCE  # radius of the training orbit (the box's longest side is 1)

@@ -312,7 +312,9 @@ def validation_scores(
                 if (d, s) not in baselines:
                     if against == "smooth_noise":  # the benchmark's smooth_noise method
                         field = smooth_noise(density.shape)
-                        baseline = pipeline.stylizer.match_colours([field], [density], style)[0]
+                        baseline = pipeline.stylizer.match_colours(
+                            [field], [density], style, density_scale=pipeline.density_scale
+                        )[0]
                     else:
                         baseline = uniform_baseline(
                             density, style, views, density_scale=pipeline.density_scale, radiance=pipeline.radiance

@@ -75,7 +75,7 @@ def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     record["machine"] = f"{platform.machine()}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f} at the end"
     (OUT / "slices.json").write_text(json.dumps(record, indent=2) + "\n")
-    Image.fromarray(np.concatenate(strips)).save(OUT / "slices.png")
+    Image.fromarray(np.concatenate(strips)).save(OUT / "slices.jpg", quality=90)
 
 
 if __name__ == "__main__":

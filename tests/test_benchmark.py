@@ -1,6 +1,7 @@
 """The benchmark package: its splits, its training-free baselines, its runner and rows, its command."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -8,7 +9,7 @@ import pytest
 from mistyle.benchmark import METHODS, split_pairs
 from mistyle.benchmark.__main__ import main
 from mistyle.benchmark.methods import density_ramp, smooth_noise, tuned_noise
-from mistyle.benchmark.runner import read_rows, run, summary
+from mistyle.benchmark.runner import read_rows, report, run, summary
 from mistyle.benchmark.runner import table as table_of
 from mistyle.data.heldout import HELD_OUT_SEED_BASE, HeldOutDensity, held_out_styles, validation_styles
 
@@ -123,6 +124,12 @@ def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
     assert (tmp_path / "validation" / "sheet.jpg").stat().st_size > 0
     # Without tuned_noise rows the ratios to it are n/a, not an error.
     assert "n/a" in table_of([row for row in stored if row.method != "tuned_noise"])
+    # A clone holds the committed sheet without its tiles: the report keeps the sheet, not a grey one.
+    sheet = (out / "sheet.jpg").read_bytes()
+    shutil.rmtree(out / "tiles")
+    (out / "table.md").unlink()
+    report(out)
+    assert (out / "sheet.jpg").read_bytes() == sheet and (out / "table.md").exists()
 
 
 def test_command_refuses_bad_input_in_one_line(tmp_path, capsys):

@@ -330,7 +330,7 @@ def test_a_recipe_runs_its_stages_chains_their_weights_and_stores_itself(tmp_pat
     assert json.loads((out / "recipe.json").read_text())["stages"][0]["reason"] == "kept from an earlier run"
 
 
-def test_recipes_name_package_configs_and_refuse_unknown_names():
+def test_recipes_name_package_configs_and_refuse_unknown_names(tmp_path):
     import mistyle
     from mistyle.train.recipes import CONFIG_DIR, RECIPES, Stage, recipe
 
@@ -339,9 +339,18 @@ def test_recipes_name_package_configs_and_refuse_unknown_names():
         assert all((CONFIG_DIR / stage.config).is_file() for stage in chosen.stages), chosen.name
     import hashlib
 
+    from mistyle.train.recipes import product_path, restore_from_history
+
     for name in ("skpn_cpu", "skpn_noise"):  # each names exactly one file
         made = RECIPES[name]
-        assert hashlib.sha256((REPO / made.product).read_bytes()).hexdigest() == made.product_sha256
+        assert hashlib.sha256(product_path(name).read_bytes()).hexdigest() == made.product_sha256
+    # skpn_cpu.pt is not in the working tree (only recipes start from it): it comes from the history.
+    made = RECIPES["skpn_cpu"]
+    restored = tmp_path / "restored.pt"
+    restore_from_history(REPO, made.product_commit, made.product, restored)
+    assert hashlib.sha256(restored.read_bytes()).hexdigest() == made.product_sha256
+    with pytest.raises(ValueError, match="could not be read from commit"):
+        restore_from_history(REPO, made.product_commit, "mistyle/checkpoints/none.pt", tmp_path / "none.pt")
     from mistyle.stylizer import DEFAULT_CHECKPOINT
 
     assert DEFAULT_CHECKPOINT.resolve() == (REPO / RECIPES["skpn_noise"].product).resolve()
@@ -352,8 +361,6 @@ def test_recipes_name_package_configs_and_refuse_unknown_names():
         Stage("x", "tiny.toml", select="best")
     with pytest.raises(ValueError, match="init must be"):
         Stage("x", "tiny.toml", init="somewhere.pt")
-    from mistyle.train.recipes import product_path
-
     assert product_path("skpn_cpu") == (REPO / shipped.product).resolve()  # what "recipe:skpn_cpu" starts from
     with pytest.raises(ValueError, match="ships no checkpoint"):
         product_path("tiny")

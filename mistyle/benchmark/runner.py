@@ -409,8 +409,12 @@ def report(out) -> str:
     else:
         text = _tables(rows)
     atomic_write_bytes(out / TABLE_FILE, text.encode())
-    write_sheet(rows, out / "tiles", out / SHEET_FILE)
     lines = [f"{len(rows)} rows; the table is {TABLE_FILE}"]
+    tiles = out / "tiles"
+    if tiles.is_dir() or not (out / SHEET_FILE).exists():
+        write_sheet(rows, tiles, out / SHEET_FILE)
+    else:  # a checkout keeps the sheet, not its tiles (they are not committed): an empty sheet would replace it
+        lines.append(f"{SHEET_FILE} kept as it was: its tiles are not in this checkout")
     if len(groups) > 1:
         lines.append(f"the rows hold {len(groups)} different settings; the table gives each its own")
     write_index(out, "mistyle: style-fidelity benchmark", lines)
@@ -471,4 +475,4 @@ def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
     for index, (density, _) in enumerate(pairs):
         draw.text((4, 16 + index * TILE + 4), density, fill="white")
     with atomic_output(path) as temporary:
-        image.save(temporary, format="JPEG", quality=88)
+        image.save(temporary, format="JPEG", quality=80)  # the sheets of results/ are committed: 0.8x the bytes of 88

@@ -65,6 +65,9 @@ class Recipe:
     stages: tuple
     product: str = ""  # the shipped checkpoint it made, if any
     product_sha256: str = ""  # that file's SHA-256, so the recipe names exactly one file
+    # A commit of this repository that holds ``product`` when the working tree does not carry it (a
+    # checkpoint only recipes start from): ``product_path`` takes it from the history.
+    product_commit: str = ""
 
     def as_dict(self) -> dict:
         """The recipe as JSON values (lists, not tuples): what checkpoints and ``recipe.json`` store."""
@@ -103,6 +106,7 @@ RECIPES = {
             ),
             product="mistyle/checkpoints/skpn_cpu.pt",
             product_sha256="007e2df1cf7f1b17b6381db84c2b10e4f1fbae14991591d4993dd71fb0080078",
+            product_commit="472cc5636068f087103da653918c812c67222099",
         ),
         Recipe(
             "skpn_noise",
@@ -145,10 +149,34 @@ def product_path(name: str) -> Path:
     made = recipe(name)
     if not made.product:
         raise ValueError(f"Recipe {name!r} ships no checkpoint to start from.")
-    path = Path(__file__).resolve().parents[2] / made.product
+    root = Path(__file__).resolve().parents[2]
+    path = root / made.product
+    if not path.is_file() and made.product_commit:
+        restore_from_history(root, made.product_commit, made.product, path)
     if not path.is_file() or hashlib.sha256(path.read_bytes()).hexdigest() != made.product_sha256:
         raise ValueError(f"{path} is not the checkpoint recipe {name!r} made (SHA-256 {made.product_sha256[:12]}).")
     return path
+
+
+def restore_from_history(root: Path, commit: str, relative: str, path: Path) -> None:
+    """Write ``relative`` as committed in ``commit`` of the checkout at ``root`` to ``path``: a checkpoint the
+    working tree leaves out (to keep the checkout small) is recovered from the history, not downloaded."""
+    import subprocess
+
+    from ..io import atomic_write_bytes
+
+    try:
+        blob = subprocess.run(
+            ["git", "-C", str(root), "show", f"{commit}:{relative}"], capture_output=True, check=True, timeout=120
+        ).stdout
+    except (OSError, subprocess.SubprocessError) as error:
+        raise ValueError(
+            f"{relative} is not in this checkout and could not be read from commit {commit[:12]} of its git history "
+            f"({type(error).__name__}); in a full clone of the repository run "
+            f"'git show {commit[:12]}:{relative} > {relative}', or rebuild it with its recipe."
+        ) from None
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, blob)
 
 
 def recipe(name: str) -> Recipe:

@@ -9,6 +9,23 @@ baselines with the product's colour match:
   (``mistyle.solid_texture``), scaled by 2 or 4 in the head's logits;
 * ``solid_texture``, ``tuned_noise``: the baselines.
 
+Second round (2026-12-05), keeping the texture's structure through the fit, each against ``look_solid4``
+(the default since the first round):
+
+* ``look_solid4_tv1``/``look_solid4_tv0``: the TV weight on the albedo 1 or 0 instead of 10;
+* ``look_solid4_kept``: the texture kept as started (its rate 0); the head and the colours fitted;
+* ``look_solid8``: the start scaled by 8 in the head's logits.
+
+Rule of the second round, written before its rows: among the arms whose median RGB and patch SWD are at
+most 1.05x ``look_solid4``'s, the one with the lowest median structure replaces the default if it is at
+least 0.02 below ``look_solid4``'s; ties (within 0.01) go to the cheaper arm.
+
+Third round (2026-12-05), after the demo's marble (``docs/decisions/2026-12-05-solid-texture.md``) scored
+better with the look's start than with the fitted look, with the second round's rule:
+
+* ``look_solid4_steps0``/``look_solid4_steps30``: the default start with 0 or 30 fit steps (not 90);
+* ``look_solid4_patch1``: the patch term weighted 1 (not 0.05), the strokes' share of the objective.
+
 Chosen on validation pairs only: two of the validation split's densities and two real volumes that the
 real split's reported rows do not use (``usd_puff``, ``mitsuba_smoke``), with validation styles.
 Rule written before the rows: the arm with the lowest median structure distance whose median RGB SWD is
@@ -38,6 +55,13 @@ ARMS = {
     "look_zeros": dict(texture_side=32, texture_start="zeros"),  # the look until the solid-texture start
     "look_solid2": dict(texture_side=64, texture_start="solid", texture_start_strength=2.0),
     "look_solid4": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0),
+    "look_solid4_tv1": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, tv_weight=1.0),
+    "look_solid4_tv0": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, tv_weight=0.0),
+    "look_solid4_kept": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, texture_lr=0.0),
+    "look_solid8": dict(texture_side=64, texture_start="solid", texture_start_strength=8.0),
+    "look_solid4_steps0": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, steps=0),
+    "look_solid4_steps30": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, steps=30),
+    "look_solid4_patch1": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, patch_weight=1.0),
 }
 
 

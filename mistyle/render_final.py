@@ -306,6 +306,7 @@ class Job:
     coat_mesh: tuple | None = None  # (vertices, faces) placed in the medium box, for --mesh with --coat
     coat_mesh_path: Path | None = None
     transforms: list | None = None  # per frame, the vdb.VdbTransform of a .vdb density
+    sources: list | None = None  # per frame, the .vdb file it was read from (its other grids travel into volume.vdb)
     up: str = "y"  # the world up axis volume.vdb is written in (conventions.UP_AXES)
     notes: list[str] = field(default_factory=list)
     out: Path | None = None  # the staging folder of the run (``ownership.staged_directory``), set in ``run``
@@ -620,12 +621,12 @@ def parse_frame_range(text: str) -> tuple[int, int]:
 def load(args, output, pipeline, styles: dict) -> Job:
     """Check and load one output's inputs (``styles``: path -> (decoded image, conversion notes));
     nothing heavy runs before this returns."""
-    from .io import load_density_frames
+    from .io import density_frame_files, load_density_frames
 
     notes = [note for path, _ in output.style.parts for note in styles[path][1]]
     parts = [(styles[path][0], weight) for path, weight in output.style.parts]
     pipeline.light()  # a bad --light fails here, before the density is read
-    coat_mesh, transforms, up = None, None, args.up or "y"
+    coat_mesh, transforms, sources, up = None, None, None, args.up or "y"
     if output.density.mesh:
         from .data.mesh import fit_to_box, load_mesh, voxelize
 
@@ -643,6 +644,8 @@ def load(args, output, pipeline, styles: dict) -> Job:
         loaded = load_density_frames(output.density.path, grid=args.grid, up=args.up, notes=notes)
         densities, velocities, names, transforms = loaded.densities, loaded.velocities, loaded.names, loaded.transforms
         up = loaded.up or up
+        if transforms is not None:
+            sources = density_frame_files(output.density.path)
     total, first = len(densities), 0
     if args.frame_range is not None:
         first, last = args.frame_range
@@ -652,6 +655,7 @@ def load(args, output, pipeline, styles: dict) -> Job:
         densities, names = densities[chosen], names[chosen]
         velocities = None if velocities is None else velocities[chosen]
         transforms = None if transforms is None else transforms[chosen]
+        sources = None if sources is None else sources[chosen]
     frames = pipeline.frames(densities, velocities, names)
     return Job(
         args=args,
@@ -663,6 +667,7 @@ def load(args, output, pipeline, styles: dict) -> Job:
         views=pipeline.views(),
         coat_mesh=coat_mesh,
         transforms=transforms,
+        sources=sources,
         up=up,
         notes=notes,
         first=first,
@@ -827,14 +832,15 @@ def write_assets(job: Job, stylized) -> list[str]:
     """What a Mitsuba, Houdini or Blender user opens: per frame the density and the path-traced albedo
     (``.vol``, medium box as bounding box; also the feed-forward ``albedo.vol`` when another albedo was
     path traced), the ``scene.xml`` that reproduces the render, and ``volume.vdb`` (density + albedo
-    as ``Cd``) in the input ``.vdb``'s transform, or in the medium box's with ``--vdb``. Returns the
-    file names written."""
+    as ``Cd``) in the input ``.vdb``'s transform, or in the medium box's with ``--vdb``; the input's own
+    ``vdb.PASSENGER_GRIDS`` (temperature, flame, heat, colour) travel into it. Returns the file names
+    written."""
     from .scenes.export import write_medium_grid, write_scene_files
 
     # scene.xml holds one medium: bricks only speed the render up (scenes.export).
     options = job.pipeline.trace_options()
     scene_options = {key: value for key, value in options.items() if key not in ("device", "bricks")}
-    written = []
+    written, carried = [], {}
     for frame, views in job.pipeline.render_plan(job.frames, job.views, job.first):
         suffix = _frame_suffix(job, frame)
         density, albedo = job.frames.densities[frame], stylized.albedos[frame]
@@ -852,7 +858,15 @@ def write_assets(job: Job, stylized) -> list[str]:
         )
         written += [path.name for path in paths.values()]
         if job.transforms is not None or job.args.vdb:
-            from .vdb import ALBEDO_GRID, DENSITY_GRID, VdbTransform, mistyle_metadata, write_vdb
+            from .vdb import (
+                ALBEDO_GRID,
+                DENSITY_GRID,
+                VdbTransform,
+                mistyle_metadata,
+                passenger_grids,
+                passengers_at,
+                write_vdb,
+            )
 
             transform = (
                 job.transforms[frame]
@@ -869,14 +883,25 @@ def write_assets(job: Job, stylized) -> list[str]:
                 style=job.output.style.describe(),
                 checkpoint=job.pipeline.stylizer.path.name,
             )
+            grids = {DENSITY_GRID: density, ALBEDO_GRID: shown}
+            if job.sources is not None:
+                found, skipped = passenger_grids(job.sources[frame], job.args.grid)
+                grids.update(passengers_at(found, transform, density.shape))
+                for name in found:
+                    carried[name] = carried.get(name, 0) + 1
+                for name, reason in skipped.items():
+                    job.notes.append(f"{job.sources[frame].name}: grid '{name}' not carried into volume.vdb ({reason})")
             path = write_vdb(
-                job.out / f"volume{suffix}.vdb",
-                transform,
-                {DENSITY_GRID: density, ALBEDO_GRID: shown},
-                metadata=metadata,
-                grid_metadata=metadata,
+                job.out / f"volume{suffix}.vdb", transform, grids, metadata=metadata, grid_metadata=metadata
             )
             written.append(path.name)
+    if carried:
+        volumes = sum(name.startswith("volume") for name in written)
+        shown = [f"'{name}'" + ("" if n == volumes else f" ({n} of {volumes} frames)") for name, n in carried.items()]
+        job.notes.append(
+            f"{'the volume VDBs carry' if volumes > 1 else 'volume.vdb carries'} the input's "
+            f"{', '.join(shown)} grid(s) as read (not stylized), for the artist's shaders"
+        )
     return written
 
 

@@ -536,6 +536,53 @@ def vdb_info(path) -> dict:
     return info
 
 
+# ----------------------------------------------------------------------------- passengers
+PASSENGER_GRIDS = ("temperature", "flame", "heat", "color", "Cd")
+"""Grids of a source file that a DCC's shaders read beside its density (a fire's temperature and flame,
+Mantaflow's heat, a smoke's colour: Blender's ``color``, Houdini's ``Cd``): carried into the ``volume.vdb``
+mistyle writes, so an artist's fire shader still finds them. Their values are not stylized."""
+SOURCE_PREFIX = "source_"
+"""A passenger named like a grid mistyle writes itself (the source's own ``Cd``) is written with this prefix."""
+
+
+def passenger_grids(path, density_grid: str | None = None) -> dict:
+    """The grids of ``PASSENGER_GRIDS`` that the ``.vdb`` file ``path`` holds, other than its density grid
+    (``choose_grid``'s for ``density_grid``), as read. Returns ``(grids, skipped)``: ``{name: VdbGrid}``,
+    and ``{name: reason}`` for a grid left out because it holds NaN or infinite values. An empty grid (no
+    active voxel) is left out silently (a shader reads zero where a grid is missing, as where it is
+    empty), and so is a grid of a type mistyle does not read (``vdb_info`` lists them)."""
+    path, scan = _existing_file(path)
+    grids = scan["grids"] if scan["grids"] is not None else vdb_info(path)["grids"]
+    density = choose_grid(path, scan, density_grid)["name"] if scan["grids"] is not None else density_grid
+    names = [g["name"] for g in grids if g["name"] in PASSENGER_GRIDS and g["readable"] and g["name"] != density]
+    if not names:
+        return {}, {}
+    _, read = read_vdb_grids(path, density, names)
+    found, skipped = {}, {}
+    for name, grid in zip(names, read):
+        if grid is None:
+            continue
+        if not np.all(np.isfinite(grid.array)):
+            skipped[name] = f"{int(np.count_nonzero(~np.isfinite(grid.array)))} NaN or infinite value(s)"
+            continue
+        found[name] = grid
+    return found, skipped
+
+
+def passengers_at(grids: dict, target: VdbTransform, shape_zyx) -> dict:
+    """``passenger_grids``' grids sampled at the voxel centres of a ``(Z, Y, X)`` array placed by ``target``
+    (the density as mistyle writes it: turned and padded, ``io.load_density_frames``), keyed by the name
+    they are written under (``SOURCE_PREFIX`` before a name mistyle writes itself): a scalar grid as
+    ``(Z, Y, X)``, a colour as ``(Z, Y, X, 3)``, zero outside the grid's own box."""
+    shape = _shape3(shape_zyx)
+    return {
+        (SOURCE_PREFIX + name if name in (DENSITY_GRID, ALBEDO_GRID) else name): _resampled(
+            grid.array, grid.transform, target, shape
+        )
+        for name, grid in grids.items()
+    }
+
+
 # ----------------------------------------------------------------------------- velocities
 VELOCITY_GRIDS = ("velocity", "vel", "v")
 """The names a velocity grid goes by, looked for in this order: Blender's, Houdini's, and the short one."""

@@ -43,7 +43,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from mistyle.benchmark.study import add_metric_arguments
+from study import add_metric_arguments
+
 from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 HERE = Path(__file__).resolve().parent
@@ -220,8 +221,9 @@ def run_arm(number: int, arm: str, overrides: list, seed: int, args, jsonl: Path
 def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
     """Fidelity metrics of a checkpoint on the held-out pairs, each with its uniform baseline's ratio,
     and the claim's extra metrics (view spread, thin/dense regions)."""
+    from study import metric_views, score
+
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import (
         HELD_OUT_DENSITIES,
         held_out_density,
@@ -299,8 +301,9 @@ def off_orbit_views(camera_distance: float) -> list:
 def contact_sheet(number: int, seed: int, args) -> None:
     """``<out>_claim<N>.jpg``: the styles, the uniform baseline, then a row per arm (its ``seed`` run) on
     ``SHEET_PAIRS``, path traced from the held-out view."""
+    from study import metric_views, uniform_baseline
+
     from mistyle.api import Stylizer, display, path_trace
-    from mistyle.benchmark.study import metric_views, uniform_baseline
     from mistyle.data.heldout import (
         HELD_OUT_DENSITIES,
         held_out_density,
@@ -501,7 +504,7 @@ def uniform_metrics(name: str, density, style, views, scale, radiance, args, opa
     (``view_opacity``); computed once per process and cached on disk. The baseline's colour is matched in
     ``colour_views`` (default:
     ``views``), so pass the scoring views to score the same baseline from elsewhere."""
-    from mistyle.benchmark.study import score, uniform_baseline
+    from study import score, uniform_baseline
 
     key = f"{name}/{args.res}/{args.spp}"
     cache = args.runs / "uniform.json"

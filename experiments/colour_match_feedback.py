@@ -4,7 +4,7 @@ On each validation pair (``train.dataset.validation_paintings`` x ``val_smoke64`
 benchmark's held-out pairs) the bundled network's albedo is colour matched with and without the
 feedback step (one path-traced render of the matched albedo from ``FEEDBACK_VIEWS`` views around the
 orbit, whose foreground colours a second transport carries onto the style's), and each arm is scored
-like the benchmark (``mistyle.benchmark.study.score``), pooled over the metric views and view by view.
+like the benchmark (``study.score``), pooled over the metric views and view by view.
 
 The references, direct optimisation and the uniform baseline, are not rerun: their scores are read
 from ``gap_decomposition.py``'s rows (``--reference``), which scored the same pairs with the same
@@ -26,8 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from mistyle.benchmark.study import add_metric_arguments
+from study import add_metric_arguments
 
 ARMS = {"no feedback": False, "feedback": True}
 SHEET_PAIRS = 4
@@ -44,8 +43,9 @@ def main() -> None:
     add_metric_arguments(parser)
     args = parser.parse_args()
 
+    from study import metric_views, score
+
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.colour_match import fit_colour_match
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style

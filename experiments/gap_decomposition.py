@@ -3,7 +3,7 @@
 On each validation pair (``train.dataset.validation_paintings`` x ``val_smoke64``, never the
 benchmark's held-out pairs) the bundled network's albedo and direct optimisation's (the benchmark's
 ``optimised`` method: ``render_final``'s refinement at twice its steps, from the uniform baseline) are
-taken apart and put together again, each arm scored like the benchmark (``mistyle.benchmark.study.score``):
+taken apart and put together again, each arm scored like the benchmark (``study.score``):
 
 * ``network``, ``optimised``, ``uniform``: as in the benchmark.
 * ``net place, opt colours``: the network's albedo carried by an iterated sliced optimal transport
@@ -55,8 +55,8 @@ from pathlib import Path
 
 import numpy as np
 from output_corrections import transported, uniform_response, weighted_lowpass
+from study import add_metric_arguments
 
-from mistyle.benchmark.study import add_metric_arguments
 from mistyle.colour_match import TRANSPORT_SAMPLES, apply_sliced_transport, fit_sliced_transport
 
 ARMS = (
@@ -91,8 +91,9 @@ def main() -> None:
         args.res, args.spp, args.out = 32, 4, str(Path(tempfile.mkdtemp()) / "gap_decomposition")
         args.optimise_factor = 0.05
 
+    from study import metric_views, score, uniform_baseline
+
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
@@ -179,8 +180,9 @@ def main() -> None:
 
 def report(rows: list[dict], out: Path, args) -> None:
     """``<out>.md`` and ``<out>.jpg`` from the rows and the albedos kept in ``<out>_albedos/``."""
+    from study import metric_views, score
+
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style
     from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index

@@ -2,7 +2,7 @@
 
 For each named held-out pair, fits a look (the default settings, no colour match) with each of
 ``--fit-seeds``, then fits the colour match on that look's albedo with each of ``--match-seeds`` and
-scores the matched albedo as the benchmark does (``benchmark.study.score``). The table gives, per pair
+scores the matched albedo as the benchmark does (``study.score``). The table gives, per pair
 and fit seed, the spread (max/min) of RGB and patch SWD over the match seeds, and per pair the spread
 over the fit seeds with the match seed held at 0.
 
@@ -24,7 +24,7 @@ from pathlib import Path
 
 
 def main() -> None:
-    from mistyle.benchmark.study import add_metric_arguments
+    from study import add_metric_arguments
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--pairs", required=True, help="comma-separated density:style held-out pairs")
@@ -104,8 +104,9 @@ def record(rows: list[dict], metrics: dict, **keys) -> None:
 def setting(args):
     """The bundled network, the named held-out pairs ``[(name, density, style)]`` and
     ``score(density, albedo, style) -> metrics`` as the benchmark scores."""
+    from study import metric_views, score
+
     from mistyle.benchmark.splits import split_pairs
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import held_out_density, held_out_styles
     from mistyle.io import load_style
     from mistyle.pipeline import Stylizer

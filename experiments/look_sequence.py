@@ -10,7 +10,7 @@ benchmark's smoke64) is stylized over ``--count`` frames from ``--first`` with e
   ``--save-look``'s.
 
 Per arm and style it records the albedo flicker (``objective.metrics.temporal_flicker``, warped by
-the velocities), and for the look the benchmark's metrics of every frame (``benchmark.study.score``,
+the velocities), and for the look the benchmark's metrics of every frame (``study.score``,
 its metric views), split into key frames and the others, with the fit's and the application's
 seconds. The contact sheet shows per style: the style, the look's frames over time, ``mistyle-render``'s
 default output of the middle frame (since #32 a look fitted on that frame alone,
@@ -36,7 +36,7 @@ STYLES = "hokusai_great_wave,texture_rusty_metal,van_gogh_starry_night"
 
 
 def main() -> None:
-    from mistyle.benchmark.study import add_metric_arguments
+    from study import add_metric_arguments
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--first", type=int, default=60)
@@ -54,8 +54,9 @@ def main() -> None:
 
 
 def run(args) -> None:
+    from study import metric_views, score
+
     from mistyle.benchmark.methods import Context, colour_matched, density_ramp, smooth_noise, uniform_albedo
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import held_out_sequence, held_out_styles
     from mistyle.io import load_style
     from mistyle.look import LookSettings

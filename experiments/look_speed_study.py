@@ -2,7 +2,7 @@
 
 Each arm fits a look on one held-out density with one held-out style (the single-frame default:
 the frame is its own key frame), applies it and scores it as the benchmark scores
-(``benchmark.study.score``: 3 metric views, 128^2, 16 spp). Each row keeps its ratios to the
+(``study.score``: 3 metric views, 128^2, 16 spp). Each row keeps its ratios to the
 benchmark's ``look`` row of the same pair and metric settings as it was when the row was made
 (``--against``; ``x look``) and to its ``smooth_noise`` row; the table gives medians of per-pair
 ratios, and the fit's seconds. Arms change ``independent90`` (90 steps, independent views: the default
@@ -186,7 +186,7 @@ def versus_table(rows: list[dict], versus: str) -> list[str]:
 
 
 def main() -> None:
-    from mistyle.benchmark.study import add_metric_arguments
+    from study import add_metric_arguments
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--arms", default="texture30")
@@ -198,9 +198,10 @@ def main() -> None:
     add_metric_arguments(parser)
     args = parser.parse_args()
 
+    from study import metric_views, score
+
     from mistyle.benchmark.runner import ROWS_FILE, code_commit
     from mistyle.benchmark.splits import split_pairs
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import held_out_density, held_out_styles
     from mistyle.io import load_style
     from mistyle.look import LookSettings, fit_look

@@ -2,7 +2,7 @@
 
 Each arm fits a look on one held-out density with one held-out style (the single-frame case:
 the frame is its own key frame), applies it, and scores the result as the benchmark does
-(``benchmark.study.score``: 3 metric views, 128^2, 16 spp), as ratios to the uniform baseline
+(``study.score``: 3 metric views, 128^2, 16 spp), as ratios to the uniform baseline
 next to the feed-forward network's (with its colour match). Fit and apply seconds are this
 machine's, with whatever else runs.
 
@@ -49,7 +49,7 @@ ARMS = {
 
 
 def main() -> None:
-    from mistyle.benchmark.study import add_metric_arguments
+    from study import add_metric_arguments
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--arms", default="default")
@@ -64,8 +64,9 @@ def main() -> None:
             print(f"{name}: {settings}")
         return
 
+    from study import metric_views, score, uniform_baseline
+
     from mistyle.benchmark.runner import code_commit
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
     from mistyle.io import load_style
     from mistyle.look import LookSettings, fit_look

@@ -2,7 +2,7 @@
 
 Direct optimisation of an albedo grid through the fast layer (no network), from the must-beat
 baseline's uniform albedo, one arm per choice with everything else fixed; each result is path traced
-and scored with the fidelity benchmark's metrics (``mistyle.benchmark.study.score``), next to the baseline.
+and scored with the fidelity benchmark's metrics (``study.score``), next to the baseline.
 
 Arms (``name: objective / parametrisation / mask``):
   hist-sigmoid-fringe   the training objective (filter-bank histogram + RGB histogram) / sigmoid / radiance > 1e-3
@@ -67,9 +67,9 @@ def main() -> None:
         args.arms = "hist-log-fringe,rgbpatch-log-body"
 
     import torch
+    from study import metric_views, score, uniform_baseline
 
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
     from mistyle.fit import FitSettings, LayerViews, fit_albedo
     from mistyle.integrators import prepare_density

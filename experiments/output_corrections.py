@@ -3,7 +3,7 @@
 The bundled network places a style's structures but mutes its colours next to direct optimisation
 (docs/decisions/2026-11-25-training-notebook.md). Each arm below takes the network's albedo, changes
 it without a gradient step, and is scored like the benchmark (path traced from the metric views,
-``mistyle.benchmark.study.score``) on the validation split only
+``study.score``) on the validation split only
 (``train.dataset.validation_paintings`` x ``val_smoke64``), never the benchmark's held-out pairs:
 
 * ``network``: the albedo as the network predicts it (strength 1).
@@ -33,8 +33,8 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from study import add_metric_arguments
 
-from mistyle.benchmark.study import add_metric_arguments
 from mistyle.colour_match import RESPONSE_LEVELS, TRANSPORT_SAMPLES
 from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
 
@@ -52,8 +52,9 @@ def main() -> None:
     if args.quick:
         args.res, args.spp, args.out = 32, 4, str(Path(tempfile.mkdtemp()) / "output_corrections")
 
+    from study import metric_views, score, uniform_baseline
+
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style
     from mistyle.tone import display

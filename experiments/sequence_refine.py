@@ -41,8 +41,9 @@ def main() -> None:
 
     from dataclasses import replace
 
+    from study import metric_views, score
+
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_styles
     from mistyle.data.smoke import PlumeConfig, simulate
     from mistyle.fit import refine_albedo

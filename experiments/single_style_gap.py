@@ -5,7 +5,7 @@ a copy of the bundled network is trained on for ``--steps`` steps on *one* valid
 run's config, ``configs/cpu_sliced_finetune.toml``, with that painting as the whole style set, no hue
 rotation and a constant learning rate), and then scored beside the bundled network, the uniform
 baseline and direct optimisation (``render_final``'s refinement at twice its steps, from the
-baseline) on held-out densities, path traced as the benchmark scores (``mistyle.benchmark.study.score``).
+baseline) on held-out densities, path traced as the benchmark scores (``study.score``).
 
 * What the one-style network closes is the part of the gap that comes from carrying *many* styles:
   predicting the right kernels for a style the network never saw.
@@ -37,8 +37,8 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from study import add_metric_arguments
 
-from mistyle.benchmark.study import add_metric_arguments
 from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 CONFIG = "configs/cpu_sliced_finetune.toml"
@@ -73,8 +73,9 @@ def main() -> None:
         args.styles, args.densities, args.steps = args.styles.split(",")[0], "val_smoke64", 4
         args.res, args.spp, args.runs, args.out = 32, 4, str(temporary / "runs"), str(temporary / "single_style_gap")
 
+    from study import metric_views, score, uniform_baseline
+
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import (
         HELD_OUT_DENSITIES,
         VALIDATION_DENSITIES,

@@ -4,7 +4,7 @@ The fidelity benchmark scores each (density, style) pair on its own, so a networ
 style one shared, middling palette can still beat the uniform baseline pair by pair. This asks the
 question across styles: the validation paintings (``train.dataset.validation_paintings``) stylize
 ``val_smoke64`` one by one with each method, every albedo is path traced from the benchmark's metric
-views (``mistyle.benchmark.study``), and for every pair of paintings (A, B):
+views (``experiments/study.py``), and for every pair of paintings (A, B):
 
 * **separation** = ``SWD(render_A, render_B) / SWD(style_A, style_B)``: the sliced W1 distance between
   the two renders' foreground colours over the one between the two paintings' colours. 0: the renders
@@ -30,8 +30,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-
-from mistyle.benchmark.study import add_metric_arguments
+from study import add_metric_arguments
 
 
 def paintings_apart(styles: dict) -> dict:
@@ -90,9 +89,9 @@ def main() -> None:
     args = parser.parse_args()
 
     import torch
+    from study import metric_views, score, uniform_baseline
 
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density

@@ -25,8 +25,8 @@ import json
 from pathlib import Path
 
 import numpy as np
+from study import add_metric_arguments
 
-from mistyle.benchmark.study import add_metric_arguments
 from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 
@@ -54,9 +54,9 @@ def main() -> None:
     args = parser.parse_args()
 
     import torch
+    from study import metric_views, score, uniform_baseline
 
     from mistyle.api import Stylizer
-    from mistyle.benchmark.study import metric_views, score, uniform_baseline
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.io import load_style
     from mistyle.model.checkpoint import load_checkpoint

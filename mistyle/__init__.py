@@ -9,7 +9,7 @@ stage's result); they load torch and Mitsuba on first use, so ``import mistyle``
 its arguments first and names the one that is wrong.
 """
 
-__version__ = "0.1.0"
+from .version import __version__  # noqa: F401 - the package's version, as mistyle.__version__
 
 # ``api.__all__``, named here so that ``import mistyle`` does not load torch and Mitsuba to learn it
 # (tests/test_api_checks.py keeps the two equal).

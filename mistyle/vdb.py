@@ -236,7 +236,7 @@ def mistyle_metadata(
     ``mistyle_density_scale`` is mistyle's, per unit of its medium box (longest side 1);
     ``mistyle_world_density_scale`` is the same extinction per unit of the file's world, what to type into
     Blender's Principled Volume Density or Houdini's density scale (``sigma_t = it * density``)."""
-    from . import __version__
+    from .version import __version__
 
     voxel = transform.voxel_size
     longest = float(np.max(np.array(_shape3(shape_zyx)[::-1]) * voxel))

@@ -8,7 +8,7 @@ import mistyle
 ROOT = Path(mistyle.__file__).parent
 # A unit may import units of a lower layer only (or itself). Same as the map in README.md.
 LAYERS = [
-    {"conventions", "vdb_convert"},
+    {"conventions", "vdb_convert", "version"},
     {"tone", "volume", "warp", "backend", "progress", "stops", "vdb"},
     {"io", "ownership"},
     {"scenes", "pages", "outputs"},
@@ -66,8 +66,7 @@ def unit_graph() -> dict[str, set[str]]:
             continue  # the lazy public attributes (mistyle.stylize, ...) point at api by design
         source = unit_of(module_name(path))
         for target in imports_of(path):
-            if target != "mistyle.__version__" and unit_of(target) != "__version__":
-                graph.setdefault(source, set()).add(unit_of(target))
+            graph.setdefault(source, set()).add(unit_of(target))
     return graph
 
 
@@ -96,3 +95,56 @@ def test_inference_never_reaches_the_training_package():
                 seen.add(unit)
                 todo += graph.get(unit, ())
         assert "train" not in seen or start == "train", f"{start} reaches mistyle.train"
+
+
+def module_imports(path: Path, modules: set[str]) -> set[str]:
+    """The mistyle modules ``path`` imports, at module level or inside functions: ``from .pkg import mod``
+    names the module ``mod``, ``from .mod import name`` the module ``mod``."""
+    name = module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names if alias.name in modules}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                target = ".".join(base[: len(base) - node.level + 1] + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for alias in node.names:
+                if f"{target}.{alias.name}" in modules:
+                    found.add(f"{target}.{alias.name}")
+                elif target in modules:
+                    found.add(target)
+    return found - {name}
+
+
+def test_no_module_imports_itself_back():
+    """Within a unit too, imports flow one way: no cycle of modules (a cycle ties their load order and
+    their tests together). The package root, whose public names load ``api`` lazily, is left out."""
+    paths = {module_name(p): p for p in ROOT.rglob("*.py") if p != ROOT / "__init__.py"}
+    modules = set(paths)
+    edges = {name: module_imports(path, modules) for name, path in paths.items()}
+    state, cycles = {}, []
+
+    def visit(module, trail):
+        state[module] = "open"
+        for target in sorted(edges[module]):
+            if state.get(target) == "open":
+                cycles.append(trail[trail.index(target) :] + [target])
+            elif target not in state:
+                visit(target, trail + [target])
+        state[module] = "done"
+
+    for module in sorted(edges):
+        if module not in state:
+            visit(module, [module])
+    assert not cycles, f"import cycles: {cycles}"
+
+
+def test_the_version_is_the_projects():
+    import tomllib
+
+    project = tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["project"]
+    assert mistyle.__version__ == project["version"]

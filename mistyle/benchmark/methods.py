@@ -80,11 +80,18 @@ class Method:
 def uniform_albedo(context: Context, density: np.ndarray, style: np.ndarray) -> np.ndarray:
     """One colour whose path-traced foreground has the style's mean display colour (matched on the
     first two metric views)."""
-    from .study import uniform_baseline
-
     return uniform_baseline(
         density, style, context.views, density_scale=context.density_scale, radiance=context.radiance
     )
+
+
+def uniform_baseline(density, style, views, *, density_scale: float, radiance: float) -> np.ndarray:
+    """The must-beat baseline's albedo ``(Z, Y, X, 3)``: one colour matched to the style's mean on the
+    first two of ``views`` (``uniform_albedo``'s, for a density scale and light given directly)."""
+    from ..response import matched_uniform_albedo
+
+    colour = matched_uniform_albedo(density, density_scale, radiance, style, views[:2], res=64, spp=16)
+    return np.ascontiguousarray(np.broadcast_to(colour, density.shape + (3,)), dtype=np.float32)
 
 
 def density_ramp(density: np.ndarray) -> np.ndarray:

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
 from ..conventions import DEFAULT_DENSITY_SCALE, LS_DIRECTIONS
 from ..io import atomic_write_bytes, write_npz
 from ..progress import bar, status
+from ..version import __version__
 
 GENERATOR_VERSION = f"mistyle-smoke-{__version__}-1"
 

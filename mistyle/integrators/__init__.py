@@ -3,30 +3,13 @@
 is ``mistyle.bridge_torch``.
 
 Plugins are defined against the active Mitsuba variant, so they are registered by ``register()``
-(which ``layer_scene`` calls) rather than at import of ``mistyle``.
+(``registry``; ``layer_scene`` calls it) rather than at import of ``mistyle``.
 """
 
 from __future__ import annotations
 
-import importlib
-
 from .layer import layer_scene
 from .prepared import PreparedDensity, prepare_density
+from .registry import register
 
 __all__ = ["PreparedDensity", "layer_scene", "prepare_density", "register"]
-
-_registered_variant: str | None = None
-
-
-def register() -> None:
-    """Register mistyle's integrators for the active Mitsuba variant; cheap when already done."""
-    global _registered_variant
-    import mitsuba as mi
-
-    if _registered_variant == mi.variant():
-        return
-    from . import single_scatter
-
-    if _registered_variant is not None:
-        importlib.reload(single_scatter)
-    _registered_variant = mi.variant()

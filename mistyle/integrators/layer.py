@@ -14,6 +14,7 @@ from ..scenes.cameras import View, batch_sensor_dict
 from ..scenes.lights import constant_environment
 from ..volume import validate_albedo
 from .prepared import PreparedDensity
+from .registry import register
 
 
 def layer_scene(
@@ -34,8 +35,6 @@ def layer_scene(
     the integrator plugin for the active variant (which must have been chosen with
     ``mistyle.backend.use_variant``).
     """
-    from . import register
-
     mi = require_variant()
     register()
     height, width = (res, res) if np.isscalar(res) else (int(res[0]), int(res[1]))

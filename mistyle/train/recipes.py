@@ -14,7 +14,7 @@ by choosing one of its kept checkpoints (``select``):
 * ``"validation"``: the kept checkpoint with the lowest median RGB SWD, as a ratio to the uniform
   baseline of the same pair, on the benchmark's ``validation`` split (the validation styles on
   ``VALIDATION_DENSITIES``, path traced and scored as the benchmark scores:
-  ``mistyle.benchmark.study``). Never the benchmark's held-out split.
+  ``mistyle.benchmark.runner``). Never the benchmark's held-out split.
 * ``"validation:noise"``: the same split, the lowest mean of the median RGB SWD and median patch SWD
   ratios to the smooth-noise baseline with the colour match (``benchmark.methods``): for a network
   whose job is to beat that baseline.
@@ -315,9 +315,9 @@ def validation_scores(
     training collection, on the smoke density alone.)"""
     import numpy as np
 
-    from ..benchmark.methods import smooth_noise
+    from ..benchmark.methods import smooth_noise, uniform_baseline
+    from ..benchmark.runner import metric_views, score
     from ..benchmark.splits import split_pairs, split_styles
-    from ..benchmark.study import metric_views, score, uniform_baseline
     from ..data.heldout import held_out_density
     from ..io import load_style
     from ..pipeline import Pipeline, PipelineSettings

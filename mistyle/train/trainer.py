@@ -35,7 +35,6 @@ import numpy as np
 import torch
 import torch.distributed as dist
 
-from .. import __version__
 from ..integrators import prepare_density
 from ..io import atomic_write_bytes, check_writable_dir, write_png
 from ..model.checkpoint import (
@@ -60,6 +59,7 @@ from ..objective.style import make_objective
 from ..progress import bar, status
 from ..scenes import CameraPath
 from ..tone import tone_map
+from ..version import __version__
 from .dataset import SmokePairs, StyleSet, augment_styles
 
 RUN_KIND = "train"

@@ -30,3 +30,26 @@ def test_performance_benchmark_quick():
     figures = {r["figure"] for r in records}
     assert {"layer_accuracy", "layer_speed", "skpn_inference", "pathtrace_equal_noise"} <= figures
     assert all("bench_machine" in r for r in records)
+
+
+@pytest.mark.benchmark
+@pytest.mark.slow
+def test_scale_benchmark_quick(tmp_path):
+    """``experiments/bench_scale.py --quick``: a row per case with its stages, kernels and peak memory."""
+    result = subprocess.run(
+        [sys.executable, str(REPO / "experiments" / "bench_scale.py"), "--quick", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=1800,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    rows = [json.loads(line) for line in (tmp_path / "rows.jsonl").read_text().splitlines()]
+    assert [row["case"] for row in rows] == ["frame32", "sequence32"]
+    for row in rows:
+        assert (
+            row["look_seconds"] > 0
+            and row["peak_rss_gb"] > 0
+            and len(row["path_trace_kernels_compiled"]) == row["frames"]
+        )
+    assert "| sequence32 (32^3 x 3) | cpu |" in (tmp_path / "table.md").read_text()

@@ -545,7 +545,7 @@ SOURCE_PREFIX = "source_"
 """A passenger named like a grid mistyle writes itself (the source's own ``Cd``) is written with this prefix."""
 
 
-def passenger_grids(path, density_grid: str | None = None) -> dict:
+def passenger_grids(path, density_grid: str | None = None) -> tuple[dict, dict]:
     """The grids of ``PASSENGER_GRIDS`` that the ``.vdb`` file ``path`` holds, other than its density grid
     (``choose_grid``'s for ``density_grid``), as read. Returns ``(grids, skipped)``: ``{name: VdbGrid}``,
     and ``{name: reason}`` for a grid left out because it holds NaN or infinite values. An empty grid (no

@@ -14,7 +14,7 @@ One output per (density, style) pair (``mistyle.outputs``): a single pair into `
 ``--out/{density}__{style}/`` with ``--out/index.html``; an existing output is replaced only with
 ``--overwrite``. Each output holds:
 
-- ``sheet.png``: style | fast layer | final render, with the metrics under them;
+- ``sheet.png``: style | the network (fast layer) | the output (path traced), with the metrics under them;
 - ``density.vol`` and the path-traced albedo (``albedo.vol``, or ``albedo_refined.vol`` when refined),
   both with the medium box as bounding box, and ``scene.xml``, the Mitsuba 3 scene
   that reproduces the final render (``mi.load_file``; ``mistyle.scenes.export``) -- with ``--mesh``
@@ -907,6 +907,9 @@ def write_assets(job: Job, stylized) -> list[str]:
 
 # ---------------------------------------------------------------------------- stage 5: report
 METRIC_KEYS = ("rgb_swd", "patch_swd", "hue_coverage", "structure", "swd_final", "hist_final", "swd_layer")
+SHEET_LABELS = ("style", "the network (fast layer)", "the output (path traced)")
+"""``sheet.png``'s panels, whole runs and merged chunks alike: the style, what the network alone gives, and
+what was path traced (the default output: a look fitted on the frames)."""
 
 
 def write_report(job: Job, stylized, images, layer_images, report: dict) -> None:
@@ -972,7 +975,7 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     ]
     write_sheet(
         job.out / SHEET_FILE,
-        [("style", style), ("fast layer (network)", display(layer_images[0])), ("final render", display(images[0]))],
+        list(zip(SHEET_LABELS, (style, display(layer_images[0]), display(images[0])))),
         lines,
     )
     keys = (
@@ -1085,11 +1088,16 @@ def _merge_chunk_files(job: Job, folder: Path) -> None:
     ]
     write_sheet(
         folder / SHEET_FILE,
-        [
-            ("style", style),
-            ("fast layer (feed-forward)", read_png(folder / f"{first}_network_layer.png") / 255.0),
-            ("final render", read_png(folder / f"{first}.png") / 255.0),
-        ],
+        list(
+            zip(
+                SHEET_LABELS,
+                (
+                    style,
+                    read_png(folder / f"{first}_network_layer.png") / 255.0,
+                    read_png(folder / f"{first}.png") / 255.0,
+                ),
+            )
+        ),
         lines,
     )
     atomic_write_bytes(folder / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())  # the index lists it

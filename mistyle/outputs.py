@@ -62,10 +62,13 @@ class StyleChoice:
     def is_mix(self) -> bool:
         return len(self.parts) > 1
 
-    def describe(self) -> str:
+    def describe(self, names_only: bool = False) -> str:
+        """The image's path, or the mix's weights and paths; ``names_only``: file names without their
+        folders (what a sheet shows beside the density's file name)."""
+        shown = [(Path(path).name if names_only else str(path), weight) for path, weight in self.parts]
         if not self.is_mix:
-            return str(self.parts[0][0])
-        return " + ".join(f"{weight:.2f} x {path}" for path, weight in self.parts)
+            return shown[0][0]
+        return " + ".join(f"{weight:.2f} x {path}" for path, weight in shown)
 
 
 @dataclass(frozen=True)

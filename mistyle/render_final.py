@@ -969,7 +969,7 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     else:
         stage = f"refine {refinement.layer_steps}+{refinement.path_steps} steps"
     lines = [
-        f"{job.output.density.path.name} x {job.output.style.describe()}"[:110],
+        f"{job.output.density.path.name} x {job.output.style.describe(names_only=True)}"[:110],
         f"RGB SWD {shown('rgb_swd', 4)}   patch SWD {shown('patch_swd', 4)}   hue coverage {shown('hue_coverage', 2)}",
         f"strength {job.args.strength:g}, {stage}, {job.args.res}^2 x {job.args.spp} spp, {seconds:.1f} s",
     ]
@@ -1079,7 +1079,9 @@ def _merge_chunk_files(job: Job, folder: Path) -> None:
     first = stems[0]
     style = job.look.style if job.look is not None else job.style_parts[0][0]
     # The look's own record of its style, not its file's name: a farm's workers hold it under another.
-    described = job.look.meta.get("style", "a look") if job.look is not None else job.output.style.describe()
+    described = (
+        job.look.meta.get("style", "a look") if job.look is not None else job.output.style.describe(names_only=True)
+    )
     lines = [
         f"{job.output.density.path.name} x {described}"[:110],
         f"{len(frames)} of {job.total_frames} frames; mean RGB SWD {_shown(report, 'rgb_swd', 4)}, "

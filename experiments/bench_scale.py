@@ -18,6 +18,7 @@ each frame (a new grid every frame). Style: the demo's (Hokusai's Great Wave).
 
     .venv/bin/python experiments/bench_scale.py                    # results/bench_scale/ (~15 min on 2 cores)
     .venv/bin/python experiments/bench_scale.py --device cuda      # the GPU rows, same folder
+    bash scripts/gpu_bench.sh                                      # the same on a lent GPU (../shared/gpu/)
     .venv/bin/python experiments/bench_scale.py --quick            # 32^3 and a 3-frame sequence, in seconds
 
 Writes ``rows.jsonl`` (one row per case and device, replaced when run again) and ``table.md``.
@@ -56,7 +57,7 @@ def density(side: int, frame: int = 0):
     return np.ascontiguousarray(np.roll(grid, frame, axis=2) * (1.0 + 0.02 * frame), dtype=np.float32)
 
 
-def run_case(name: str, side: int, frames: int, device: str) -> dict:
+def run_case(name: str, side: int, frames: int, device: str, denoise: str = "oidn") -> dict:
     """One case in this process: the row of its stage times, kernels and peak memory."""
     import resource
 
@@ -66,7 +67,7 @@ def run_case(name: str, side: int, frames: int, device: str) -> dict:
     from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
 
     res = 512 if side >= 256 else 256
-    pipeline = Pipeline(PipelineSettings(device=device, render=RenderSettings(res=res, spp=64)))
+    pipeline = Pipeline(PipelineSettings(device=device, render=RenderSettings(res=res, spp=64, denoise=denoise)))
     grids = [density(side, frame) for frame in range(frames)]
     stacked = np.stack(grids) if frames > 1 else grids[0]
     started = time.perf_counter()
@@ -98,7 +99,7 @@ def run_case(name: str, side: int, frames: int, device: str) -> dict:
         "network_seconds": report.get("stylize_seconds"),
         "look_seconds": report.get("look_seconds"),
         "stylize_total_seconds": stylize_total,
-        "render": f"{res}^2, 64 spp, OIDN",
+        "render": f"{res}^2, 64 spp, " + ("OIDN" if denoise == "oidn" else "not denoised"),
         "path_trace_first_seconds": traced[0]["seconds"],
         "path_trace_later_seconds": (float(np.median([t["seconds"] for t in traced[1:]])) if frames > 1 else None),
         "path_trace_kernels_compiled": [t["compiled"] for t in traced],
@@ -144,6 +145,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
     parser.add_argument("--cases", default="", help="comma-separated cases (default: all)")
+    parser.add_argument("--denoise", default="oidn", choices=("oidn", "none"), help="none where OIDN is missing")
     parser.add_argument("--quick", action="store_true", help="32^3 and a 3-frame sequence (a check, not figures)")
     parser.add_argument("--out", default=str(OUT))
     parser.add_argument("--case", help=argparse.SUPPRESS)  # run one case in this process, print its row
@@ -151,7 +153,7 @@ def main(argv=None) -> None:
     cases = QUICK_CASES if args.quick else CASES
     if args.case:
         side, frames = {**CASES, **QUICK_CASES}[args.case]
-        print(json.dumps(run_case(args.case, side, frames, args.device)))
+        print(json.dumps(run_case(args.case, side, frames, args.device, args.denoise)))
         return
     chosen = [name for name in (args.cases.split(",") if args.cases else cases) if name]
     out = Path(args.out)
@@ -162,7 +164,7 @@ def main(argv=None) -> None:
         before = machine()
         with tempfile.TemporaryDirectory(prefix="bench-scale-home-") as home:  # Dr.Jit's disk cache starts empty
             result = subprocess.run(
-                [sys.executable, __file__, "--case", name, "--device", args.device],
+                [sys.executable, __file__, "--case", name, "--device", args.device, "--denoise", args.denoise],
                 capture_output=True,
                 text=True,
                 cwd=ROOT,

@@ -13,8 +13,9 @@ empty: a temporary ``HOME``, as a fresh farm worker has). The history is off dur
 look, where keeping it costs more than the fit.
 
 Densities: the bundled smoke (``examples/smoke_64.vol``) resampled to each size (trilinear), so every size
-holds the same smoke (about 7% of its box); the sequence is that smoke moved by one voxel and scaled
-each frame (a new grid every frame). Style: the demo's (Hokusai's Great Wave).
+holds the same smoke (7% of its box above density 0.01, 41% above zero: the ``occupied`` column); the
+sequence is that smoke moved by one voxel and scaled each frame (a new grid every frame). Style: the
+demo's (Hokusai's Great Wave).
 
     .venv/bin/python experiments/bench_scale.py                    # results/bench_scale/ (~15 min on 2 cores)
     .venv/bin/python experiments/bench_scale.py --device cuda      # the GPU rows, same folder

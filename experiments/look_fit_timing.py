@@ -31,16 +31,9 @@ def sorted_sliced_loss(points, target, projections=64, generator=None):
     """The sliced loss as it was computed before: sort the points' projections (with gradient)."""
     import torch
 
-    from mistyle.objective.losses import ProjectedTarget, _quantiles, _sorted_rows
+    from mistyle.objective.losses import _quantiles, projected_target
 
-    if isinstance(target, ProjectedTarget):
-        chosen = torch.randperm(target.directions.shape[1], generator=generator)[:projections]
-        directions, theirs = target.directions[:, chosen].to(points), target.sorted[chosen].to(points)
-    else:
-        directions = torch.randn(points.shape[1], projections, generator=generator).to(points)
-        directions = directions / directions.norm(dim=0, keepdim=True)
-        with torch.no_grad():
-            theirs = _sorted_rows((target.to(points) @ directions).T.contiguous())
+    directions, theirs = projected_target(points, target, projections, generator)
     ours = torch.sort(points @ directions, dim=0).values
     with torch.no_grad():
         theirs = _quantiles(theirs, ours.shape[0]).T

@@ -125,6 +125,20 @@ def project_target(target: torch.Tensor, pool: int, generator: torch.Generator |
     return ProjectedTarget(directions, _sorted_rows((target @ directions).T.contiguous()))
 
 
+def projected_target(points, target, projections: int, generator=None):
+    """A sliced loss's ``projections`` unit directions ``(D, P)`` and the target's projections on them, each
+    row sorted ``(P, M)``: drawn from a ``ProjectedTarget``'s pool (no repeats within a call), or fresh
+    directions with ``target``'s points projected and sorted here."""
+    if isinstance(target, ProjectedTarget):
+        chosen = torch.randperm(target.directions.shape[1], generator=generator)[:projections]
+        return target.directions[:, chosen].to(points), target.sorted[chosen].to(points)
+    directions = torch.randn(points.shape[1], projections, generator=generator).to(points)
+    directions = directions / directions.norm(dim=0, keepdim=True)
+    with torch.no_grad():
+        theirs = _sorted_rows((target.to(points) @ directions).T.contiguous())
+    return directions, theirs
+
+
 def sliced_wasserstein_loss(
     points: torch.Tensor,
     target: torch.Tensor | ProjectedTarget,
@@ -144,14 +158,7 @@ def sliced_wasserstein_loss(
         raise ValueError(f"Point sets of dimension {points.shape[1]} and {target.shape[1]}.")
     if points.shape[0] == 0:
         return points.new_zeros(())
-    if isinstance(target, ProjectedTarget):
-        chosen = torch.randperm(target.directions.shape[1], generator=generator)[:projections]
-        directions, theirs = target.directions[:, chosen].to(points), target.sorted[chosen].to(points)
-    else:
-        directions = torch.randn(points.shape[1], projections, generator=generator).to(points)
-        directions = directions / directions.norm(dim=0, keepdim=True)
-        with torch.no_grad():
-            theirs = _sorted_rows((target.to(points) @ directions).T.contiguous())
+    directions, theirs = projected_target(points, target, projections, generator)
     ours = (points @ directions).T  # (P, N)
     with torch.no_grad():
         # Each projected point is compared with the target's quantile at its own rank: the sum over the

@@ -6,7 +6,7 @@
 # says so). About 3 minutes on an H200 (cold compiles included); rows.jsonl and table.md come back in $OUT.
 set -euo pipefail
 source .gpu/setup.sh
-out=${OUT:-/tmp/bench_scale_gpu}
+out=${OUT:-out/bench_scale_gpu}  # $OUT on the GPU machine; else under the ignored out/
 mkdir -p "$out"
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader > "$out/gpu.txt" || true
 cp results/bench_scale/rows.jsonl "$out/rows.jsonl" 2>/dev/null || true  # the CPU rows stay beside the GPU ones

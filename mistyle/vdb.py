@@ -554,10 +554,23 @@ def passenger_grids(path, density_grid: str | None = None) -> tuple[dict, dict]:
     path, scan = _existing_file(path)
     grids = scan["grids"] if scan["grids"] is not None else vdb_info(path)["grids"]
     density = choose_grid(path, scan, density_grid)["name"] if scan["grids"] is not None else density_grid
-    names = [g["name"] for g in grids if g["name"] in PASSENGER_GRIDS and g["readable"] and g["name"] != density]
+    counts = {g["name"]: g.get("active_voxel_count", g.get("metadata", {}).get("file_voxel_count")) for g in grids}
+    names = [
+        g["name"]
+        for g in grids
+        if g["name"] in PASSENGER_GRIDS and g["readable"] and g["name"] != density and counts[g["name"]] != 0
+    ]
     if not names:
         return {}, {}
-    _, read = read_vdb_grids(path, density, names)
+    # The converter reads a main grid and others: a passenger known to hold voxels is the main one, so the
+    # density (read already, when the frame was loaded) is not read again.
+    main = next((name for name in names if counts[name]), None)
+    if main is None:
+        _, read = read_vdb_grids(path, density, names)
+    else:
+        first, rest = read_vdb_grids(path, main, [name for name in names if name != main])
+        read = [first, *rest]
+        names = [main, *(name for name in names if name != main)]
     found, skipped = {}, {}
     for name, grid in zip(names, read):
         if grid is None:

@@ -11,6 +11,7 @@ that names the fix.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import re
@@ -90,6 +91,27 @@ def require_variant():
             "(or 'cuda') before building scenes."
         )
     return mi
+
+
+@contextlib.contextmanager
+def ordered_sums():
+    """Within it, Dr.Jit's CPU backend runs kernels on one thread, so that a scatter-add (an adjoint pass
+    gathering a grid's gradient from every ray) sums in one fixed order. On several threads each run
+    adds in the order the threads happen to take the work, and a look fitted twice on the same frame
+    differed by up to 3e-4 in albedo; summed in order, a fit is the same bit for bit run after run and
+    in any thread (the live preview fits in its worker's). Adjoint passes of the fast layer are small:
+    the look's fit took the same time either way on this project's 2-core CPU. CUDA's atomics are
+    unordered whatever this does."""
+    import drjit as dr
+
+    previous = dr.thread_count()
+    dr.sync_thread()  # the pool must be idle while it is resized
+    dr.set_thread_count(1)
+    try:
+        yield
+    finally:
+        dr.sync_thread()
+        dr.set_thread_count(previous)
 
 
 def _loaded_llvm_path() -> str | None:

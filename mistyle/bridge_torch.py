@@ -21,7 +21,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from .backend import use_variant
+from .backend import ordered_sums, use_variant
 from .conventions import DEFAULT_ENV_RADIANCE, LAYER_MARCH_STEPS, ORBIT_DISTANCE
 from .conventions import DEFAULT_LAYER_SCHEME as DEFAULT_SCHEME
 from .integrators import PreparedDensity, layer_scene
@@ -138,8 +138,11 @@ class _LayerRenderer:
                 dr.enable_grad(params["integrator.albedo"])
                 params.update()
                 integrator = renderer.scene.integrator()
-                integrator.render_backward(renderer.scene, params, self.grad_out(), seed=0, spp=1)
-                self.set_grad_in("albedo_grid", dr.grad(params["integrator.albedo"]))
+                with ordered_sums():  # the same gradient, bit for bit, every run
+                    integrator.render_backward(renderer.scene, params, self.grad_out(), seed=0, spp=1)
+                    gradient = dr.grad(params["integrator.albedo"])
+                    dr.eval(gradient)
+                self.set_grad_in("albedo_grid", gradient)
                 dr.disable_grad(params["integrator.albedo"])
 
             def name(self):

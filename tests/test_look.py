@@ -53,6 +53,13 @@ def test_key_frames_default_to_first_middle_last_and_parse_checked():
             parse_key_frames(text, 5)
 
 
+def test_a_look_fitted_again_is_the_same_bit_for_bit(look, stylizer, blob_density, style):
+    """The fast layer's gradient is summed in one order (``backend.ordered_sums``): fitting again, as the
+    preview does for the final render, gives the same look."""
+    again = fit_look(stylizer, moving_frames(blob_density), style, settings=LookSettings(steps=STEPS))
+    np.testing.assert_array_equal(again.apply(blob_density), look.apply(blob_density))
+
+
 def test_a_fit_changes_the_network_and_a_saved_look_stylizes_as_the_fitted_one(
     look, stylizer, blob_density, style, tmp_path
 ):

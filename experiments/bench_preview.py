@@ -12,7 +12,10 @@ and measures, in the page's own clock (``performance.now``):
   colour match, fast layer), median over styles not shown before, and over the same styles again
   (their albedo cached: the fast layer only);
 * **slider move**: from a strength slider step (keyboard, a new strength each time) to the first
-  frame drawn (kernels blended, network, colour match refitted, fast layer), median of several.
+  frame drawn (kernels blended, network, colour match refitted, fast layer), median of several;
+* **the look's first frame**: back at full strength, from a style click to the first frame of the
+  look that *Render final output* fits (fitted in the background after the network's frame), in the
+  server's clock (its ``fit`` message), with the fit's own time, for ``--looks`` styles.
 
 Browser and server share this machine's cores, as a user's would. Rows: ``results/preview/bench.json``
 and ``results/preview/bench.md`` (machine, load average before the run); ``screenshot.png``, README's.
@@ -68,18 +71,31 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--res", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--looks", type=int, default=2, help="styles whose look is fitted and timed")
+    parser.add_argument(
+        "--render-options",
+        default="",
+        help='mistyle-preview\'s --render-options ("--refine 0": a page that fits no look)',
+    )
+    parser.add_argument("--stem", default="bench", help="the results' file names: STEM.json, STEM.md")
     parser.add_argument("--out", type=Path, default=ROOT / "results" / "preview")
     parser.add_argument("--chromium", default="/usr/bin/chromium")
     args = parser.parse_args()
+    import shlex
+
     from playwright.sync_api import sync_playwright
 
+    from mistyle.preview import job_settings
+
+    fits_look = job_settings(ROOT / "examples" / "smoke_64.vol", shlex.split(args.render_options)).fits_look
     load_before = os.getloadavg()
     folder = Path(tempfile.mkdtemp(prefix="mistyle-bench-preview-"))
     for name in STYLES:
         shutil.copy(ROOT / "mistyle" / "data" / "heldout_styles" / name, folder / name)
     server = subprocess.Popen(
         [sys.executable, "-m", "mistyle.preview", "--density", str(ROOT / "examples" / "smoke_64.vol"),
-         "--styles", str(folder), "--port", "0", "--res", str(args.res), "--out", str(folder / "out")],
+         "--styles", str(folder), "--port", "0", "--res", str(args.res), "--out", str(folder / "out"),
+         "--render-options", args.render_options],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )  # fmt: skip
     url = re.search(r"http://[\d.]+:\d+/", server.stdout.readline()).group(0)
@@ -142,11 +158,23 @@ def main() -> None:
                     return started
 
                 slider_ms.append(latency(page, press))
+            # Back at full strength, each style's look: from the click to the look's first frame (the
+            # server's clock), and the fit's own time, with no other change meanwhile.
+            page.keyboard.press("End")
+            look_first_ms, look_fit_s = [], []
+            for index in range(args.looks if fits_look else 0):
+                shown = page.evaluate("window.mistyle.stats.looksShown")
+                page.locator("#styles img").nth(index).click()
+                page.wait_for_function(f"window.mistyle.stats.looksShown > {shown}", timeout=300_000)
+                fit = page.evaluate("window.mistyle.fit")
+                look_first_ms.append(fit["first_look_ms"])
+                look_fit_s.append(fit["seconds"])
             layer_ms = float(re.search(r"layer ([\d.]+) ms", page.locator("#info").inner_text()).group(1))
             page.wait_for_function("window.mistyle.stats.pathTraced > 0", timeout=60_000)
             page.wait_for_timeout(4000)  # a few path-traced passes: README's screenshot
             args.out.mkdir(parents=True, exist_ok=True)
-            page.screenshot(path=args.out / "screenshot.png")
+            if args.stem == "bench":
+                page.screenshot(path=args.out / "screenshot.png")
             browser.close()
     finally:
         server.terminate()
@@ -162,14 +190,24 @@ def main() -> None:
         "style_revisit_ms_all": revisit_ms,
         "slider_move_ms": statistics.median(slider_ms),
         "slider_move_ms_all": slider_ms,
+        "render_options": args.render_options,
+        "look_first_frame_ms": statistics.median(look_first_ms) if look_first_ms else None,
+        "look_first_frame_ms_all": look_first_ms,
+        "look_fit_seconds_all": look_fit_s,
         "last_layer_ms": layer_ms,
         "machine": f"{cpu_model()}, {os.cpu_count()} cores",
         "load_average_before": [round(v, 2) for v in load_before],
         "command": "python experiments/bench_preview.py " + " ".join(sys.argv[1:]),
     }
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "bench.json").write_text(json.dumps(result, indent=1) + "\n")
-    (args.out / "bench.md").write_text(
+    (args.out / f"{args.stem}.json").write_text(json.dumps(result, indent=1) + "\n")
+    looks = (
+        f"| style change to the look's first frame, full strength (median of {len(look_first_ms)}; the fits "
+        f"took {', '.join(f'{v:.1f}' for v in look_fit_s)} s) | {result['look_first_frame_ms']:.0f} ms |\n"
+        if look_first_ms
+        else ""
+    )
+    (args.out / f"{args.stem}.md").write_text(
         "| measure | value |\n|---|---|\n"
         f"| frames drawn per second while orbiting ({args.res}^2, {args.seconds:g} s) | {orbit_fps:.1f} |\n"
         f"| style change to first frame, a style not shown before (median of {len(style_ms)}) | "
@@ -177,7 +215,8 @@ def main() -> None:
         f"| style change to first frame, a style shown before (median of {len(revisit_ms)}) | "
         f"{result['style_revisit_ms']:.0f} ms |\n"
         f"| strength slider step to first frame (median of {args.repeats}) | {result['slider_move_ms']:.0f} ms |\n"
-        f"| fast layer, last frame | {layer_ms:.0f} ms |\n\n"
+        + looks
+        + f"| fast layer, last frame | {layer_ms:.0f} ms |\n\n"
         f"Machine: {result['machine']}; load average before the run {result['load_average_before']}. "
         f"Browser (headless Chromium) and server on the same cores. `{result['command'].strip()}`.\n"
     )

@@ -889,14 +889,16 @@ def fit_look(
     # Per key frame, what does not change during the fit: the encoder's features (and the decoder as far
     # as nothing in it is tuned, LookSettings.fixed_stage), the crop, the noise and the layer's Ls grid.
     fixed_kernels = StylizingKernels(free) if settings.fixed_stage is not None else None
-    frames = [
-        prepare_frame(network, densities[key], scale_structures, noise, fixed_kernels, settings.fixed_stage)
-        for key in keys
-    ]
-    if prepared is None:
-        prepared_densities = [prepare_density(densities[key], density_scale) for key in keys]
-    else:
-        prepared_densities = [prepared(key) for key in keys]
+    frames = []
+    for key in keys:
+        raise_if_requested()
+        frames.append(
+            prepare_frame(network, densities[key], scale_structures, noise, fixed_kernels, settings.fixed_stage)
+        )
+    prepared_densities = []
+    for key in keys:
+        raise_if_requested()
+        prepared_densities.append(prepare_density(densities[key], density_scale) if prepared is None else prepared(key))
 
     def albedo_of(frame) -> torch.Tensor:
         return frame_albedo(network, frame, StylizingKernels(free), noise_weight, texture)
@@ -1011,6 +1013,7 @@ def fit_look(
         for key, frame in zip(keys, frames):
             look._prepared_frames[frame_key(densities[key])] = {**frame, "folded": None}
     if settings.colour_match == "after":
+        raise_if_requested()
         look.colour_match = fit_match(lambda index: look.network_albedo(densities[keys[index]]))
     look.meta["fit_seconds"] = time.perf_counter() - started
     return look

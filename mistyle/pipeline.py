@@ -422,15 +422,13 @@ class Pipeline:
 
         albedos, look = network, None
         if self.fits_look():
-            from .look import LookSettings, parse_key_frames
+            from .look import LookSettings
             from .progress import bar, fit_progress
 
             started = time.perf_counter()
-            keys = None if s.key_frames is None else parse_key_frames(s.key_frames, len(frames.densities))
             with bar(LookSettings().steps if s.look_steps is None else s.look_steps, "fitting a look") as progress_bar:
                 style_given = parts if len(parts) > 1 else parts[0][0]
-                progress = fit_progress(progress_bar)
-                look = self.fit_look(frames, style_given, key_frames=keys, notes=notes, progress=progress)
+                look = self.default_look(frames, style_given, notes=notes, progress=fit_progress(progress_bar))
             albedos = [look.apply(grid) for grid in frames.densities]
             report["look_seconds"] = time.perf_counter() - started
             report["look_key_frames"] = look.meta["key_frames"]
@@ -443,6 +441,17 @@ class Pipeline:
             report.update(flicker_report(albedos, frames, "_refined"))
         check_finite("The corrected albedo of frame", albedos)
         return Stylization(frames, network, albedos, target, refinement, report, notes, look)
+
+    def default_look(self, density, style, notes: list | None = None, progress=None):
+        """The look the default output fits (``fits_look``) on ``density``'s frames: on the frame, or on a
+        sequence's key frames (the settings' ``key_frames``, else ``look.default_key_frames``). The live
+        preview fits this same look, so that what it shows is what ``mistyle-render`` writes."""
+        from .look import parse_key_frames
+
+        frames = self.frames(density)
+        keys = self.settings.key_frames
+        keys = None if keys is None else parse_key_frames(keys, len(frames.densities))
+        return self.fit_look(frames, style, key_frames=keys, notes=notes, progress=progress)
 
     def fit_look(
         self,

@@ -116,6 +116,7 @@ def synthesise_solid_texture(style: np.ndarray, settings: SolidTextureSettings |
 
     from .adam import Adam
     from .objective.losses import masked_patches, project_target, sliced_wasserstein_loss
+    from .stops import raise_if_requested
 
     settings = SolidTextureSettings() if settings is None else settings
     style = np.asarray(style, dtype=np.float32)
@@ -137,6 +138,7 @@ def synthesise_solid_texture(style: np.ndarray, settings: SolidTextureSettings |
             target = project_target(masked_patches(exemplar, None, settings.patch), settings.pool, generator)
             optimizer = Adam([{"params": [volume], "lr": settings.lr}])
             for step in range(settings.steps):
+                raise_if_requested()
                 # Decayed to zero within each level: Adam at a constant rate leaves every texel jittering
                 # by about the rate, which the next level cannot tell from grain.
                 optimizer.groups[0]["lr"] = settings.lr * 0.5 * (1.0 + math.cos(math.pi * step / settings.steps))

@@ -11,7 +11,9 @@ at each step.
 
 from __future__ import annotations
 
+import contextlib
 import sys
+import threading
 from collections.abc import Callable
 
 INTERRUPTED_CODE = 130  # 128 + SIGINT, what a shell reports for a command ended by Ctrl-C
@@ -40,11 +42,31 @@ def on_sigint(signum, frame):
     raise KeyboardInterrupt
 
 
+_thread_checks = threading.local()
+
+
 def raise_if_requested() -> None:
     """Raise the stop a signal asked for, if one did: a loop's safe point, should the handler's own
-    exception have been lost. Does nothing outside ``run_stoppable`` (library calls)."""
+    exception have been lost. Does nothing outside ``run_stoppable`` (library calls) unless the calling
+    thread is ``checking``: then its check runs too."""
     if _requested_stop is not None:
         raise _requested_stop
+    check = getattr(_thread_checks, "check", None)
+    if check is not None:
+        check()
+
+
+@contextlib.contextmanager
+def checking(check: Callable[[], None]):
+    """Within it, ``raise_if_requested`` in this thread also calls ``check()`` at the work's safe points,
+    which raises when the caller wants the work to end: the live preview ends a look's fit there when
+    the page picks another style (and shows a camera move meanwhile)."""
+    previous = getattr(_thread_checks, "check", None)
+    _thread_checks.check = check
+    try:
+        yield
+    finally:
+        _thread_checks.check = previous
 
 
 def requested_stop(error: BaseException) -> type[BaseException] | None:

@@ -11,6 +11,7 @@ import re
 import struct
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import replace
 
@@ -18,6 +19,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from mistyle.pipeline import Pipeline, PipelineSettings
 from mistyle.preview.server import Jobs, build_app, controls_from
 from mistyle.preview.session import (
     PASS_SPP,
@@ -28,7 +30,6 @@ from mistyle.preview.session import (
     decode_upload,
     thumbnail_jpeg,
 )
-from mistyle.stylizer import Stylizer
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +40,8 @@ def session(tmp_path_factory, tiny_checkpoint_factory, blob_density):
     for name, colour in (("red.png", (0.6, 0.1, 0.1)), ("blue.png", (0.1, 0.2, 0.6))):
         image = np.clip(rng.random((32, 32, 3)) * 0.3 + np.asarray(colour), 0, 1).astype(np.float32)
         styles.append(Style(name, image, thumbnail_jpeg(image)))
-    return PreviewSession(Stylizer(checkpoint), [blob_density, blob_density[::-1].copy()], styles, res=64)
+    pipeline = Pipeline(PipelineSettings(checkpoint=checkpoint, look_steps=3))
+    return PreviewSession(pipeline, [blob_density, blob_density[::-1].copy()], styles, res=64)
 
 
 def test_images_follow_the_controls(mi, session):
@@ -56,6 +58,78 @@ def test_images_follow_the_controls(mi, session):
     assert not np.array_equal(session.albedo(other_frame), session.albedo(blue))
     image, samples = next(session.path_traced_passes(blue))
     assert samples == PASS_SPP and image.shape == (64, 64, 3) and image.max() > 0.01
+
+
+def test_the_look_the_page_fits_is_the_final_renders_bit_for_bit(mi, tmp_path, tiny_checkpoint_factory, blob_density):
+    """At full strength the page fits, in its worker's thread, the look that *Render final output* fits
+    with the page's render options; the albedo it then shows is what ``mistyle-render`` writes."""
+    from mistyle import render_final
+    from mistyle.io import load_style, read_vol
+    from mistyle.preview import job_settings
+
+    checkpoint = tiny_checkpoint_factory(tmp_path / "tiny.pt")
+    density, style_path = tmp_path / "blob.npy", tmp_path / "warm.png"
+    np.save(density, blob_density)
+    rng = np.random.default_rng(1)
+    Image.fromarray((rng.random((24, 24, 3)) * [255, 160, 60]).astype(np.uint8)).save(style_path)
+    image = load_style(style_path)
+    options = ["--look-steps", "3", "--checkpoint", str(checkpoint), "--res", "16", "--spp", "2", "--denoise", "none"]
+    styles = [Style("warm.png", image, thumbnail_jpeg(image))]
+    session = PreviewSession(Pipeline(job_settings(density, options)), [blob_density], styles, res=32)
+    controls = session.checked(session.initial_controls())
+    assert session.fits_look(controls) and session.shown_look(controls) is None
+    network = session.albedo(controls)
+    steps = []
+    fitting = threading.Thread(target=session.fit_look, args=(controls, lambda step, total, loss: steps.append(step)))
+    fitting.start()
+    fitting.join()
+    assert steps == [1, 2, 3] and session.shown_look(controls) is not None
+    shown = session.albedo(controls)
+    assert np.abs(shown - network).mean() > 1e-3
+    weaker = replace(controls, strength=0.5)
+    assert not session.fits_look(weaker) and session.shown_look(weaker) is None, "a weakened style fits no look"
+    out = tmp_path / "out"
+    arguments = ["--density", str(density), "--style", str(style_path), "--out", str(out), "--quiet", *options]
+    assert render_final.main(arguments) == 0
+    np.testing.assert_array_equal(read_vol(out / "albedo_refined.vol"), shown)
+
+
+def test_the_page_switches_to_the_look_and_a_new_style_cancels_a_fit(mi, session, tmp_path):
+    """The page gets the network's frame at once, then the fit's progress, then the look's frame; a
+    camera move during a fit is shown meanwhile, and a style change ends the fit, keeping nothing."""
+    slow = Pipeline(replace(session.pipeline.settings, look_steps=40), stylizer=session.stylizer)
+    fresh = PreviewSession(slow, session.frames, session.styles[:2], res=32)
+
+    def is_status(kind, data):
+        return kind == "TEXT" and data["type"] == "status"
+
+    def is_progress(kind, data):
+        return kind == "TEXT" and data["type"] == "fit" and not data.get("done") and data["step"] >= 1
+
+    def is_done(kind, data):
+        return kind == "TEXT" and data["type"] == "fit" and data.get("done")
+
+    async def scenario():
+        async with served(fresh, tmp_path) as (client, token, _):
+            socket = await client.ws_connect("/ws", origin=own_origin(client), params={"token": token})
+            assert (await next_message(socket, is_status, 120))["shows"] == "network"
+            await next_message(socket, is_progress, 120)
+            await socket.send_str(json.dumps({"style": 1}))
+            assert (await next_message(socket, is_status, 60))["shows"] == "network"
+            assert (await next_message(socket, is_progress, 120))["steps"] == 40
+            await socket.send_str(json.dumps({"camera": [1.0, 0.2, 2.0]}))
+            seen = []
+            done = await next_message(socket, lambda kind, data: seen.append((kind, data)) or is_done(kind, data), 120)
+            frames = [index for index, (kind, _) in enumerate(seen) if kind == "BINARY"]
+            progress = [index for index, message in enumerate(seen) if is_progress(*message)]
+            assert frames and progress and frames[0] < progress[-1], "the camera move is shown during the fit"
+            statuses = [data for kind, data in seen if is_status(kind, data)]
+            assert statuses[-1]["shows"] == "look" and done["first_look_ms"] >= 1000 * done["seconds"] > 0
+            await socket.close()
+
+    asyncio.run(scenario())
+    assert fresh.shown_look(Controls(style=1)) is not None
+    assert fresh.fits_look(Controls(style=0)) and fresh.shown_look(Controls(style=0)) is None, "the cancelled fit"
 
 
 def test_controls_are_clamped_to_what_the_session_has(session):

@@ -4,7 +4,7 @@
 A server is started on a free port with the bundled smoke and two held-out styles; the page must show
 the medium, and a style click, a strength change, a mix, a zoom and an orbit drag must each change the
 picture; an invalid upload shows an error and the page goes on working; a valid upload becomes a
-style.
+style. With the default output's settings, the page switches to the look the final render fits.
 """
 
 from __future__ import annotations
@@ -40,12 +40,11 @@ if not Path(CHROMIUM).exists():
 playwright = pytest.importorskip("playwright.sync_api", reason="make test-browser installs Playwright")
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    """A mistyle-preview process on a free port: its URL."""
+def start_server(folder: Path, render_options: str):
+    """A mistyle-preview process on a free port over two frames of the bundled smoke and ``STYLES``:
+    the process and its URL."""
     from mistyle.io import load_density
 
-    folder = tmp_path_factory.mktemp("preview")
     styles, frames = folder / "styles", folder / "frames"
     styles.mkdir()
     frames.mkdir()
@@ -56,14 +55,22 @@ def server(tmp_path_factory):
     np.save(frames / "frame_0001.npy", np.ascontiguousarray(density[:, :, ::-1]))  # a second, mirrored frame
     process = subprocess.Popen(
         [sys.executable, "-m", "mistyle.preview", "--density", str(frames), "--styles", str(styles),
-         "--port", "0", "--out", str(folder / "out"),
-         "--render-options", "--refine 0 --res 32 --spp 2 --look-steps 2"],
+         "--port", "0", "--out", str(folder / "out"), "--render-options", render_options],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )  # fmt: skip
     line = process.stdout.readline()
     match = re.search(r"http://[\d.]+:\d+/", line)
     assert match, line + (process.stdout.read() if process.poll() is not None else "")
-    yield match.group(0), folder / "out"
+    return process, match.group(0)
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    """A preview whose final render fits no look (``--refine 0``), so each control change shows one
+    albedo: its URL and output folder."""
+    folder = tmp_path_factory.mktemp("preview")
+    process, url = start_server(folder, "--refine 0 --res 32 --spp 2 --look-steps 2")
+    yield url, folder / "out"
     process.terminate()
     process.wait(timeout=30)
 
@@ -171,3 +178,36 @@ def test_final_output_and_a_look_from_the_page(page, server):
     _, before = last_fast(page)
     looked = after(page, lambda: page.locator("#look").check())
     assert changed(before, looked) > 0.5
+
+
+def test_the_page_switches_to_the_look_the_final_render_writes(page, tmp_path):
+    """With the default output's settings the page shows the network at once, fits the final render's
+    look in the background, shows it and says so; a new style starts again from its network."""
+    process, url = start_server(tmp_path, "--res 32 --spp 2 --look-steps 3")
+    try:
+        page = page.context.browser.new_page(viewport={"width": 1100, "height": 900})  # the other tests' browser
+        try:
+            page.goto(url)
+            page.wait_for_function("window.mistyle.stats.looksShown === 1", timeout=FRAME_TIMEOUT_MS * 3)
+            page.wait_for_timeout(300)  # the look's frame, sent before the fit's last message, is drawn
+            assert page.evaluate("window.mistyle.shows") == "look"
+            assert page.locator("#image-kind").inner_text().startswith("the look")
+            assert "look fitted in" in page.locator("#fit").inner_text()
+            fit = page.evaluate("window.mistyle.fit")
+            assert fit["first_look_ms"] >= 1000 * fit["seconds"] > 0
+            _, looked = last_fast(page)
+            drawn = page.evaluate("window.mistyle.stats.fast")
+            page.locator("#styles img").nth(1).click()
+            page.wait_for_function(
+                f"window.mistyle.shows === 'network' && window.mistyle.stats.fast > {drawn}", timeout=FRAME_TIMEOUT_MS
+            )
+            _, network = last_fast(page)
+            page.wait_for_function("window.mistyle.stats.looksShown === 2", timeout=FRAME_TIMEOUT_MS * 3)
+            page.wait_for_timeout(300)
+            _, second = last_fast(page)
+            assert changed(network, second) > 0.5 and changed(looked, second) > 1.0
+        finally:
+            page.close()
+    finally:
+        process.terminate()
+        process.wait(timeout=30)

@@ -145,3 +145,35 @@ def test_sigterm_during_a_long_path_trace_ends_the_render_within_two_seconds(tmp
         if process.poll() is None:  # a failed check leaves no render running
             process.kill()
             process.wait()
+
+
+def test_a_threads_own_check_ends_a_solid_texture_at_its_next_step_and_only_in_that_thread():
+    """``stops.checking``: the live preview's next style ends a look's fit inside its longest stage
+    before the first step (the style's solid texture), in the worker's thread alone."""
+    import threading
+
+    import numpy as np
+
+    from mistyle.solid_texture import SolidTextureSettings, synthesise_solid_texture
+
+    class Changed(Exception):
+        pass
+
+    steps = []
+
+    def check():
+        steps.append(1)
+        if len(steps) == 3:
+            raise Changed
+
+    style = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
+    settings = SolidTextureSettings(side=16, levels=1, steps=50)
+    with stops.checking(check):
+        other = threading.Thread(target=stops.raise_if_requested)  # another thread's safe point: no check
+        other.start()
+        other.join()
+        with pytest.raises(Changed):
+            synthesise_solid_texture(style, settings)
+    assert len(steps) == 3
+    stops.raise_if_requested()  # outside it, nothing is checked
+    assert len(steps) == 3

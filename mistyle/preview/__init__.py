@@ -7,9 +7,12 @@ It serves one page on 127.0.0.1 (``--host`` to listen elsewhere) and prints its 
 the styles' thumbnails and takes uploads (the decoder and limits of ``--style``), strength and mix
 sliders, a frame slider for sequences, orbit by dragging and zoom by scrolling: the fast layer's
 image while you interact, refining into a progressive path-traced image when the view is still.
-*Render final output* and *Save look* run ``mistyle-render`` for the current settings and write
-under ``--out``. Only the page it serves can drive it: other sites' pages are refused (``server``
-says how). ``session`` holds what is shown; ``server`` the web side and why it is built so.
+At full strength the page then fits, in the background, the look that *Render final output* fits
+(with ``--render-options``' settings) and switches to it, so that it shows what that render writes;
+a change of style cancels the fit. *Render final output* and *Save look* run ``mistyle-render`` for
+the current settings and write under ``--out``. Only the page it serves can drive it: other sites'
+pages are refused (``server`` says how). ``session`` holds what is shown; ``server`` the web side and
+why it is built so.
 """
 
 from __future__ import annotations
@@ -55,32 +58,38 @@ def default_styles_folder() -> Path:
 
 
 def load(args) -> tuple:
-    """The session and what the server needs, from the command line; ``ValueError`` for bad input."""
+    """The session, the style files and the options of the page's ``mistyle-render`` runs, from the
+    command line; ``ValueError`` for bad input."""
     from ..io import load_density_frames, load_style
     from ..look import Look
     from ..outputs import style_files
-    from ..stylizer import Stylizer, checked_frames
+    from ..pipeline import Pipeline
+    from ..stylizer import checked_frames
     from .session import PreviewSession, Style, thumbnail_jpeg
 
     if not 64 <= args.res <= 1024:
         raise ValueError(f"--res takes 64 to 1024 pixels, got {args.res}.")
     if not 0 <= args.port <= 65535:
         raise ValueError(f"--port takes 0 to 65535, got {args.port}.")
+    options = job_options(args)
+    pipeline = Pipeline(job_settings(args.density, options))
     loaded = load_density_frames(args.density, grid=args.grid, up=args.up)
     frames, _ = checked_frames(loaded.densities, loaded.names)
-    stylizer = Stylizer(args.checkpoint)
     paths = style_files(args.styles if args.styles is not None else default_styles_folder())
     styles = []
     for path in paths:
         image = load_style(path)
         styles.append(Style(path.name, image, thumbnail_jpeg(image)))
-    look = Look.load(args.look, stylizer) if args.look is not None else None
-    session = PreviewSession(stylizer, frames, styles, look=look, res=args.res)
-    return session, list(paths)
+    look = Look.load(args.look, pipeline.stylizer) if args.look is not None else None
+    session = PreviewSession(pipeline, frames, styles, look=look, res=args.res)
+    return session, list(paths), options
 
 
-def render_options(args) -> list[str]:
-    """``--render-options`` split as a shell would, checked against ``mistyle-render``'s parser."""
+def job_options(args) -> list[str]:
+    """The options the page's ``mistyle-render`` runs take besides the density and the style:
+    ``--render-options`` split as a shell would and checked against ``mistyle-render``'s parser, and
+    the preview's own ``--checkpoint``, ``--grid`` and ``--up``, so that a run reads the density and
+    the network the page shows."""
     import shlex
 
     from ..render_final import parser as render_parser
@@ -93,7 +102,33 @@ def render_options(args) -> list[str]:
     unknown = [option for option in options if option.startswith("-") and option.split("=")[0] not in known]
     if unknown:
         raise ValueError(f"--render-options: mistyle-render has no option {unknown[0]}.")
+    for flag, value in (("--checkpoint", args.checkpoint), ("--grid", args.grid), ("--up", args.up)):
+        if value is None:
+            continue
+        if any(option.split("=")[0] == flag for option in options):
+            raise ValueError(f"{flag} is given to mistyle-preview and in --render-options; give it once.")
+        options += [flag, str(value)]
     return options
+
+
+def job_settings(density, options: list[str]):
+    """The ``pipeline.PipelineSettings`` of a page's ``mistyle-render`` run with ``options`` (a look the page
+    fits is the look that run fits); ``ValueError`` with ``mistyle-render``'s complaint for a bad value."""
+    import contextlib
+    import io
+
+    from ..render_final import parser as render_parser
+    from ..render_final import settings_from
+
+    complaint = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(complaint):
+            args = render_parser().parse_args(["--density", str(density), "--style", "preview", *options])
+    except SystemExit:
+        lines = [line for line in complaint.getvalue().splitlines() if line.strip()]
+        reason = lines[-1].split("error: ", 1)[-1] if lines else "not options mistyle-render takes"
+        raise ValueError(f"--render-options: {reason}.") from None
+    return settings_from(args)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -103,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
 
         from .server import build_app
 
-        session, style_paths = load(args)
+        session, style_paths, options = load(args)
         listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -118,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
             density=args.density,
             out=args.out,
             look=args.look,
-            render_options=render_options(args),
+            render_options=options,
             host=args.host,
         )
         port = listener.getsockname()[1]

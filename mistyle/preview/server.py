@@ -16,7 +16,10 @@ current controls, written under ``--out``; a saved look becomes the session's), 
 frames and status out).
 
 Frames: header ``kind (1 byte: 0 fast layer, 1 path traced) | 3 bytes 0 | samples (uint32, little
-endian)`` then the JPEG.
+endian)`` then the JPEG. Each fast frame is followed by a ``status`` saying what it shows (``shows``:
+``"network"`` or ``"look"``). Where *Render final output* fits a look (``PreviewSession.fits_look``),
+the worker fits it after the network's frame and reports ``fit`` messages (``step``/``steps``, then
+``done`` with the fit's ``seconds`` and ``first_look_ms``, from the change to the look's first frame).
 
 Who may drive it: only the page this server run served. Listening on loopback is not enough, since any
 web page the user opens can send requests to loopback, and DNS rebinding can give another site's
@@ -194,9 +197,15 @@ class Uploads:
             shutil.rmtree(self.folder, ignore_errors=True)
 
 
+class FitCancelled(Exception):
+    """Raised into a look's fit by the page's next style change: the fit ends and nothing is kept."""
+
+
 class Worker(threading.Thread):
-    """Renders the newest controls: the fast layer's image whenever they change, then path-traced
-    passes while they stay still. The only thread that touches Mitsuba and torch."""
+    """Renders the newest controls: the fast layer's image whenever they change; where the final render
+    fits a look, fits that look (camera and frame changes keep being shown with the network meanwhile,
+    a style change cancels it) and shows it; then path-traced passes while the controls stay still.
+    The only thread that touches Mitsuba and torch."""
 
     def __init__(self, session: PreviewSession, send):
         super().__init__(daemon=True, name="mistyle-preview-render")
@@ -229,18 +238,45 @@ class Worker(threading.Thread):
                 controls, shown = self.controls, self.version
             try:
                 self.render(controls, shown)
+            except FitCancelled:
+                pass
             except Exception as error:  # a bad state must not end the preview; the page shows why
                 self.send({"type": "error", "message": f"{type(error).__name__}: {error}"})
 
-    def render(self, controls: Controls, version: int) -> None:
+    def show_fast(self, controls: Controls) -> None:
+        """The fast layer's image of ``controls`` and a status line saying what it shows."""
         session = self.session
         stylized = session.stylized
         image = session.layer_image(controls)
         self.send(frame_message(FAST, 0, image))
-        status = {"type": "status", "layer_ms": round(1000 * session.timings["layer_seconds"], 1)}
+        status = {
+            "type": "status",
+            "layer_ms": round(1000 * session.timings["layer_seconds"], 1),
+            "shows": "look" if session.shown_look(controls) is not None else "network",
+        }
         if session.stylized != stylized:
             status["stylize_ms"] = round(1000 * session.timings["stylize_seconds"], 1)
         self.send(status)
+
+    def render(self, controls: Controls, version: int) -> None:
+        session = self.session
+        changed_at = time.perf_counter()
+        self.show_fast(controls)
+        if session.fits_look(controls) and session.shown_look(controls) is None:
+            self.fit(controls, version)
+            newest = self.controls
+            if newest.style_key == controls.style_key:  # the look's first frame, at the newest camera and frame
+                self.show_fast(newest)
+                self.send(
+                    {
+                        "type": "fit",
+                        "done": True,
+                        "seconds": round(session.timings["look_fit_seconds"], 2),
+                        "first_look_ms": round(1000 * (time.perf_counter() - changed_at)),
+                    }
+                )
+            if self.version != version:
+                return
         quiet_since = time.monotonic()
         while time.monotonic() - quiet_since < IDLE_BEFORE_PATH_TRACING_S:
             if self.version != version:
@@ -250,6 +286,36 @@ class Worker(threading.Thread):
             if self.version != version or not self.running:
                 return
             self.send(frame_message(PATH_TRACED, samples, image))
+
+    def fit(self, controls: Controls, version: int) -> None:
+        """Fit the look of ``controls``' style, sending its progress. At the fit's safe points (each step,
+        and within the stages before the first: ``stops.checking``) a change of style, strength or mix
+        cancels it (``FitCancelled``), and a camera or frame change is shown (with the network), the fit
+        waiting while such changes keep coming, so an orbit runs at the fast layer's pace."""
+        from ..stops import checking
+
+        shown = version
+
+        def serve() -> None:
+            nonlocal shown
+            while True:
+                newest, newest_version = self.controls, self.version
+                if not self.running or newest.style_key != controls.style_key:
+                    raise FitCancelled
+                if newest_version == shown:
+                    return
+                shown = newest_version
+                self.show_fast(newest)
+                still_since = time.monotonic()
+                while time.monotonic() - still_since < IDLE_BEFORE_PATH_TRACING_S and self.version == shown:
+                    time.sleep(0.02)
+
+        def progress(step: int, steps: int, loss: float) -> None:
+            serve()
+            self.send({"type": "fit", "step": step, "steps": steps})
+
+        with checking(serve):
+            self.session.fit_look(controls, progress)
 
 
 class Jobs:

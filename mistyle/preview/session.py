@@ -4,9 +4,12 @@ controls' state, and the images of that state.
 ``PreviewSession`` owns the chain an artist tweaks interactively: the network's kernels for the chosen
 style (or a mix of two), weakened to the chosen strength, the colour match fitted on the first frame,
 the fast layer's image from the orbiting camera while the user interacts, and path-traced passes
-that refine into a progressive image when the view is still. Everything it computes is cached by the
+that refine into a progressive image when the view is still. Where *Render final output* fits a look
+(full strength, ``PipelineSettings.fits_look`` of the page's render options), the session fits that
+same look (``Pipeline.default_look``, with the settings the render is given) and shows it once it is
+fitted: what the page shows is then what the render writes. Everything it computes is cached by the
 part of the state it depends on, so a camera move only renders, a frame change only runs the
-network on that frame, and a style change runs the network and the colour match once.
+network (or the look) on that frame, and a style change runs the network and the colour match once.
 
 It is not thread-safe: the server (``mistyle.preview.server``) calls it from one worker thread, the
 one that owns Mitsuba and torch.
@@ -37,6 +40,8 @@ what a control change may wait for."""
 MAX_PATH_SPP = 256
 MAX_CAMERA_DISTANCE = 8.0
 JPEG_QUALITY = 85
+MAX_FITTED_LOOKS = 4
+"""Fitted looks a session keeps (one per style or mix it was shown at full strength)."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +89,11 @@ class Controls:
             return ("look",)
         mix = self.mix if self.mix_with is not None else 0.0
         return (self.style, self.mix_with if mix > 0 else None, round(mix, 4), round(self.strength, 4))
+
+
+def mix_weights(mix: float) -> tuple[float, float]:
+    """The weights of a mix's two styles: the first style's share and the second's ``mix``."""
+    return 1.0 - mix, mix
 
 
 @dataclass
@@ -137,16 +147,21 @@ def decode_upload(name: str, data: bytes) -> Style:
 class PreviewSession:
     """A density's frames, the styles, and the images of ``Controls`` (module docstring)."""
 
-    def __init__(self, stylizer, frames: list[np.ndarray], styles: list[Style], *, look=None, res: int = 256):
+    def __init__(self, pipeline, frames: list[np.ndarray], styles: list[Style], *, look=None, res: int = 256):
+        """``pipeline``: a ``pipeline.Pipeline`` with the settings of the page's final renders (its network,
+        density scale, orbit and look settings are the preview's); ``look``: a loaded ``look.Look`` the
+        page can apply."""
         if not styles and look is None:
             raise ValueError("The preview needs at least one style picture (--styles) or a look (--look).")
-        self.stylizer = stylizer
+        self.pipeline = pipeline
+        self.stylizer = pipeline.stylizer
         self.frames = frames
         self.styles = list(styles)
         self.look = look
         self.res = int(res)
-        self.density_scale = look.density_scale if look is not None else stylizer.density_scale
-        self.radiance = stylizer.config.render.radiance
+        self.density_scale = look.density_scale if look is not None else pipeline.density_scale
+        self.camera_distance = pipeline.camera_distance
+        self.radiance = pipeline.radiance
         self.timings: dict[str, float] = {}
         self.stylized = 0  # how many albedos were computed (not found in the cache)
         self._prepared: OrderedDict = OrderedDict()
@@ -154,12 +169,10 @@ class PreviewSession:
         self._kernels: dict = {}
         self._full: dict = {}
         self._matches: dict = {}
+        self._looks: OrderedDict = OrderedDict()  # the fitted look of each style (None: its fit failed)
 
     def initial_controls(self) -> Controls:
-        return Controls(
-            look=self.look is not None,
-            camera=Camera(distance=self.stylizer.config.render.camera_distance).clamped(),
-        )
+        return Controls(look=self.look is not None, camera=Camera(distance=self.camera_distance).clamped())
 
     def checked(self, controls: Controls) -> Controls:
         """``controls`` with indices and values in range (a stale client cannot point past the lists)."""
@@ -185,7 +198,8 @@ class PreviewSession:
         key = controls.style_key
         if key[1] is None:
             return [(first, 1.0)]
-        return [(first, 1.0 - key[2]), (self.styles[key[1]].image, key[2])]
+        first_weight, second_weight = mix_weights(key[2])
+        return [(first, first_weight), (self.styles[key[1]].image, second_weight)]
 
     def _kernels_for(self, controls: Controls):
         """The kernels at the controls' strength; the full-strength kernels and their neutral (what the
@@ -217,23 +231,24 @@ class PreviewSession:
                     target,
                     density_scale=self.density_scale,
                     radiance=self.radiance,
-                    camera_distance=self.stylizer.config.render.camera_distance,
+                    camera_distance=self.camera_distance,
                 )
             except InvisibleMedium:
                 self._matches[key] = None
         return self._matches[key]
 
     def albedo(self, controls: Controls) -> np.ndarray:
-        """The albedo ``(Z, Y, X, 3)`` of ``controls``' frame: the look's, or the network's with the colour
-        match at the strength (what ``mistyle-render --refine 0`` makes)."""
-        key = (controls.style_key, controls.frame)
+        """The albedo ``(Z, Y, X, 3)`` of ``controls``' frame: a look's (``shown_look``), or the network's with
+        the colour match at the strength (what ``mistyle-render --refine 0`` makes)."""
+        look = self.shown_look(controls)
+        key = (controls.style_key, look is not None, controls.frame)
         if key in self._albedos:
             self._albedos.move_to_end(key)
             return self._albedos[key]
         started = time.perf_counter()
         grid = self.frames[controls.frame]
-        if controls.look:
-            albedo = self.look.apply(grid)
+        if look is not None:
+            albedo = look.apply(grid)
         else:
             albedo = self.stylizer.network_albedo(grid, self._kernels_for(controls))
             match = self._match_for(controls) if controls.strength > 0 else None
@@ -245,6 +260,46 @@ class PreviewSession:
         while len(self._albedos) > 8:
             self._albedos.popitem(last=False)
         return albedo
+
+    # ------------------------------------------------------------------ looks
+    def fits_look(self, controls: Controls) -> bool:
+        """Whether *Render final output* of ``controls`` fits a look (the default output at full strength,
+        ``PipelineSettings.fits_look``), and this session has not failed to fit it."""
+        if controls.look or controls.strength < 1.0 or not self.pipeline.fits_look():
+            return False
+        key = controls.style_key[:3]
+        return key not in self._looks or self._looks[key] is not None
+
+    def shown_look(self, controls: Controls):
+        """The look ``albedo`` applies for ``controls``: the session's loaded look where they ask for it,
+        the look fitted for their style once ``fit_look`` has fitted it, else None (the network)."""
+        if controls.look:
+            return self.look
+        return self._looks.get(controls.style_key[:3]) if self.fits_look(controls) else None
+
+    def fit_look(self, controls: Controls, progress=None, notes: list | None = None):
+        """Fit the look *Render final output* fits for ``controls``' style (``Pipeline.default_look`` on every
+        frame, with the page's render settings) and keep it for that style; ``progress(step, steps,
+        loss)`` after each step (what it raises ends the fit, and nothing is kept). A fit that fails is
+        remembered, and the style then shows the network."""
+        key = controls.style_key[:3]
+        if key in self._looks:
+            return self._looks[key]
+        started = time.perf_counter()
+        parts = self._parts(controls)
+        density = np.stack(self.frames) if len(self.frames) > 1 else self.frames[0]
+        try:
+            look = self.pipeline.default_look(
+                density, parts if len(parts) > 1 else parts[0][0], notes=notes, progress=progress
+            )
+        except ValueError:
+            self._looks[key] = None
+            raise
+        self.timings["look_fit_seconds"] = time.perf_counter() - started
+        self._looks[key] = look
+        while len(self._looks) > MAX_FITTED_LOOKS:
+            self._looks.popitem(last=False)
+        return look
 
     # ------------------------------------------------------------------ images
     def _prepared_density(self, frame: int):
@@ -309,7 +364,9 @@ class PreviewSession:
         if key[1] is None:
             arguments = ["--style", str(style_paths[controls.style])]
         else:
-            arguments = ["--mix", f"{style_paths[controls.style]}:{1 - key[2]:g}", f"{style_paths[key[1]]}:{key[2]:g}"]
+            # repr: the weights parse back to the very floats the preview's look was fitted with
+            first, second = mix_weights(key[2])
+            arguments = ["--mix", f"{style_paths[controls.style]}:{first!r}", f"{style_paths[key[1]]}:{second!r}"]
         if controls.strength < 1.0:
             arguments += ["--strength", f"{controls.strength:g}"]
         return arguments

@@ -14,8 +14,10 @@ look, where keeping it costs more than the fit.
 
 Densities: the bundled smoke (``examples/smoke_64.vol``) resampled to each size (trilinear), so every size
 holds the same smoke (7% of its box above density 0.01, 41% above zero: the ``occupied`` column); the
-sequence is that smoke moved by one voxel and scaled each frame (a new grid every frame). Style: the
-demo's (Hokusai's Great Wave).
+sequence is that smoke moved by one voxel and scaled each frame (a new grid every frame); ``sparse256``
+is the smoke resampled into a fifth of a 256^3 box, in its low corner, the rest empty (what a frame
+costs when the smoke fills a fifth of the domain, against ``frame256``). Style: the demo's (Hokusai's
+Great Wave).
 
     .venv/bin/python experiments/bench_scale.py                    # results/bench_scale/ (~15 min on 2 cores)
     .venv/bin/python experiments/bench_scale.py --device cuda      # the GPU rows, same folder
@@ -40,12 +42,21 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "bench_scale"
 STYLE = ROOT / "mistyle" / "data" / "heldout_styles" / "hokusai_great_wave.jpg"
-CASES = {"frame64": (64, 1), "frame128": (128, 1), "frame256": (256, 1), "sequence64": (64, 24)}
+CASES = {
+    "frame64": (64, 1),
+    "frame128": (128, 1),
+    "frame256": (256, 1),
+    "sparse256": (256, 1),
+    "sequence64": (64, 24),
+}
 QUICK_CASES = {"frame32": (32, 1), "sequence32": (32, 3)}
+SPARSE_FILL = 0.2
+"""The share of the box the smoke's own box takes in the sparse case: a fifth, in one corner."""
 
 
-def density(side: int, frame: int = 0):
-    """The bundled smoke at ``side``^3, moved by ``frame`` voxels along x and scaled (frame ``frame``)."""
+def density(side: int, frame: int = 0, fill: float = 1.0):
+    """The bundled smoke at ``side``^3, moved by ``frame`` voxels along x and scaled (frame ``frame``); with
+    ``fill`` below 1, resampled to a box of that share of the grid's, in the grid's low corner."""
     import numpy as np
     import torch
     import torch.nn.functional as F
@@ -53,8 +64,11 @@ def density(side: int, frame: int = 0):
     from mistyle.io import read_vol
 
     grid = read_vol(ROOT / "examples" / "smoke_64.vol")
-    if side != grid.shape[0]:
-        grid = F.interpolate(torch.from_numpy(grid)[None, None], size=(side,) * 3, mode="trilinear")[0, 0].numpy()
+    inner = round(side * fill ** (1 / 3))
+    if inner != grid.shape[0]:
+        grid = F.interpolate(torch.from_numpy(grid)[None, None], size=(inner,) * 3, mode="trilinear")[0, 0].numpy()
+    if inner != side:
+        grid = np.pad(grid, [(0, side - inner)] * 3)
     return np.ascontiguousarray(np.roll(grid, frame, axis=2) * (1.0 + 0.02 * frame), dtype=np.float32)
 
 
@@ -69,7 +83,8 @@ def run_case(name: str, side: int, frames: int, device: str, denoise: str = "oid
 
     res = 512 if side >= 256 else 256
     pipeline = Pipeline(PipelineSettings(device=device, render=RenderSettings(res=res, spp=64, denoise=denoise)))
-    grids = [density(side, frame) for frame in range(frames)]
+    fill = SPARSE_FILL if name.startswith("sparse") else 1.0
+    grids = [density(side, frame, fill) for frame in range(frames)]
     stacked = np.stack(grids) if frames > 1 else grids[0]
     started = time.perf_counter()
     stylized = pipeline.stylize(stacked, str(STYLE))

@@ -1,10 +1,10 @@
-"""A look's benchmark rows under other fit settings against a reference, on every held-out pair.
+"""A look's benchmark rows under other fit settings (or code) against a reference, on every pair both have.
 
-Each input is the ``look`` rows of one ``mistyle-bench --methods look`` run: a ``rows.jsonl`` (or the
-``look`` lines of such a file), or the command's printed output (``look  density  style  RGB x patch y
-hue z structure w``: four digits for the SWDs, three for the structure distance). The table gives per
-metric the geometric mean and median of per-pair ratios to the reference (lower is better) and the
-pairs where the candidate is lower.
+Each input is the rows of one method (``--method``, default ``look``) of one ``mistyle-bench`` run: a
+``rows.jsonl`` (or that method's lines of such a file), or the command's printed output (``look  density
+style  RGB x patch y hue z structure w``: four digits for the SWDs, three for the structure distance).
+The table gives per metric the geometric mean and median of per-pair ratios to the reference (lower
+is better) and the pairs where the candidate is lower.
 
     python experiments/look_benchmark_compare.py --reference results/look_speed/benchmark/look_90_independent.jsonl \\
         --candidate 60_stratified=results/look_speed/benchmark/look_60_stratified.log \\
@@ -21,18 +21,18 @@ from pathlib import Path
 import numpy as np
 
 METRICS = ("rgb_swd", "patch_swd", "structure")
-PRINTED = re.compile(r"^look\s+(\S+)\s+(\S+)\s+RGB (\S+) patch (\S+) hue \S+ structure (\S+)")
+PRINTED = re.compile(r"^(\S+)\s+(\S+)\s+(\S+)\s+RGB (\S+) patch (\S+) hue \S+ structure (\S+)")
 
 
-def look_rows(path: Path) -> dict[tuple[str, str], dict]:
+def look_rows(path: Path, method: str = "look") -> dict[tuple[str, str], dict]:
     rows = {}
     for line in path.read_text().splitlines():
         if line.startswith("{"):
             row = json.loads(line)
-            if row["method"] == "look":
+            if row["method"] == method:
                 rows[(row["density"], row["style"])] = {metric: row[metric] for metric in METRICS}
-        elif match := PRINTED.match(line):
-            density, style, *values = match.groups()
+        elif (match := PRINTED.match(line)) and match.group(1) == method:
+            _, density, style, *values = match.groups()
             rows[(density, style)] = dict(zip(METRICS, map(float, values)))
     return rows
 
@@ -42,17 +42,18 @@ def main() -> None:
     parser.add_argument("--reference", type=Path, required=True)
     parser.add_argument("--candidate", action="append", required=True, help="NAME=PATH")
     parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--method", default="look", help="the benchmark method whose rows are compared")
     args = parser.parse_args()
-    reference = look_rows(args.reference)
+    reference = look_rows(args.reference, args.method)
     lines = [
-        f"Look rows of the held-out benchmark against `{args.reference}` ({len(reference)} pairs): per-pair "
+        f"`{args.method}` rows against `{args.reference}` ({len(reference)} pairs): per-pair "
         "ratios (lower is better), geometric mean / median, and the pairs where the candidate is lower.",
         "",
         "| candidate | pairs | " + " | ".join(f"{metric} (geo. mean / median / lower)" for metric in METRICS) + " |",
         "|---|---|" + "---|" * len(METRICS),
     ]
     for name, path in (item.split("=", 1) for item in args.candidate):
-        rows = look_rows(Path(path))
+        rows = look_rows(Path(path), args.method)
         pairs = sorted(set(rows) & set(reference))
         cells = []
         for metric in METRICS:
@@ -65,7 +66,7 @@ def main() -> None:
         "",
         "`python experiments/look_benchmark_compare.py "
         + " ".join(
-            [f"--reference {args.reference}"]
+            [f"--reference {args.reference}", f"--method {args.method}"]
             + [f"--candidate {item}" for item in args.candidate]
             + [f"--out {args.out}"]
         )

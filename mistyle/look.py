@@ -815,7 +815,7 @@ def fit_look(
     from .integrators import prepare_density
     from .io import load_style
     from .model.features import square_style
-    from .model.skpn import StylizingKernels
+    from .model.skpn import StylizingKernels, inference_precision
     from .objective.losses import tv_loss
     from .objective.masks import body_mask
     from .objective.style import SLICED_STYLE_SIZE, SlicedObjective
@@ -936,6 +936,11 @@ def fit_look(
         coarse_densities = [prepare_density(frame["grid"], density_scale) for frame in coarse]
     insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in frames]
     coarse_insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in coarse] if coarse_steps else []
+
+    if inference_precision(device) == "bf16":
+        # The fit's one convolution in bfloat16 where the hardware computes it natively, as the network
+        # runs at inference: 2-4x faster on this project's CPU. The look is applied in float32.
+        frames = [{**f, "folded": f["folded"].in_bfloat16()} if f["folded"] is not None else f for f in frames]
 
     objective = SlicedObjective(
         rgb_weight=settings.rgb_weight,

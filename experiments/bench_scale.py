@@ -24,7 +24,9 @@ Great Wave).
     bash scripts/gpu_bench.sh                                      # the same on a lent GPU (../shared/gpu/)
     .venv/bin/python experiments/bench_scale.py --quick            # 32^3 and a 3-frame sequence, in seconds
 
-Writes ``rows.jsonl`` (one row per case and device, replaced when run again) and ``table.md``.
+Writes ``rows.jsonl`` (one row per case and device, replaced when run again) and ``table.md``; with
+``--before ROWS`` (an earlier commit's rows, e.g. from a worktree of it run in the same session),
+``compare.md``: each stage's time and the peak memory as ratios to those rows.
 """
 
 from __future__ import annotations
@@ -157,6 +159,36 @@ def table(rows: list[dict]) -> str:
     return head + "\n".join(lines) + "\n"
 
 
+def comparison(rows: list[dict], before: list[dict], label: str) -> str:
+    """``rows`` against the same cases of ``before`` (an earlier commit's rows, run in the same session):
+    each stage's time as a ratio (lower is faster) and peak memory."""
+    stages = (
+        ("network_seconds", "network"),
+        ("look_seconds", "look"),
+        ("path_trace_first_seconds", "path trace, first frame"),
+        ("path_trace_later_seconds", "path trace, later frames"),
+        ("total_seconds", "total"),
+        ("peak_rss_gb", "peak RSS"),
+    )
+    earlier = {(row["case"], row["device"]): row for row in before}
+    lines = [
+        f"Against {label}: this folder's row / the earlier row (lower is faster or smaller).",
+        "",
+        "| case | device | " + " | ".join(name for _, name in stages) + " |",
+        "|---|---|" + "---|" * len(stages),
+    ]
+    for row in rows:
+        old = earlier.get((row["case"], row["device"]))
+        if old is None:
+            continue
+        cells = []
+        for key, _ in stages:
+            new_value, old_value = row.get(key), old.get(key)
+            cells.append("-" if not new_value or not old_value else f"{new_value / old_value:.2f}x")
+        lines.append(f"| {row['case']} | {row['device']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
@@ -164,6 +196,10 @@ def main(argv=None) -> None:
     parser.add_argument("--denoise", default="oidn", choices=("oidn", "none"), help="none where OIDN is missing")
     parser.add_argument("--quick", action="store_true", help="32^3 and a 3-frame sequence (a check, not figures)")
     parser.add_argument("--out", default=str(OUT))
+    parser.add_argument(
+        "--before", help="rows.jsonl of an earlier commit's run (same session): compare.md gives the ratios"
+    )
+    parser.add_argument("--before-label", default="the earlier rows", help="what --before is, for compare.md")
     parser.add_argument("--case", help=argparse.SUPPRESS)  # run one case in this process, print its row
     args = parser.parse_args(argv)
     cases = QUICK_CASES if args.quick else CASES
@@ -193,6 +229,9 @@ def main(argv=None) -> None:
         rows = [r for r in rows if (r["case"], r["device"]) != (name, args.device)] + [row]
         rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))
     (out / "table.md").write_text(table(rows))
+    if args.before:
+        before = [json.loads(line) for line in Path(args.before).read_text().splitlines() if line.strip()]
+        (out / "compare.md").write_text(comparison(rows, before, args.before_label))
 
 
 if __name__ == "__main__":

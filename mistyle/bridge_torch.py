@@ -41,6 +41,7 @@ def render_views(
     scheme: str = DEFAULT_SCHEME,
     radiance: float = DEFAULT_ENV_RADIANCE,
     white: bool = False,
+    window: tuple[slice, slice, slice] | None = None,
 ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
     """Render albedo volumes with the fast layer from several views.
 
@@ -56,6 +57,10 @@ def render_views(
         white: also return the same views of a white albedo (1 everywhere), computed in the same
             march (the integrator's ``white`` AOVs): what ``objective.masks.body_mask`` finds the
             medium's body in, without a second render.
+        window: the ``(D, H, W)`` slices of the density's grid that ``albedo`` covers (a crop, as
+            ``model.skpn.occupied_window`` gives); outside them the albedo repeats its faces, as
+            ``model.skpn.uncrop`` pads it, and the render is that of the padded albedo. None: the
+            albedo covers the whole grid.
 
     Returns:
         ``(B, V, 3, height, width)`` float32 linear radiance (``(V, 3, height, width)`` for a 4D
@@ -68,7 +73,7 @@ def render_views(
     """
     albedo_batch, squeeze = _validate_albedo(albedo)
     batch = albedo_batch.shape[0]
-    densities = _validate_densities(density, batch, tuple(albedo_batch.shape[2:]))
+    densities = _validate_densities(density, batch, tuple(albedo_batch.shape[2:]), window)
     height, width = _validate_image_size(image_size)
     views = list(views)
     if not views or not all(isinstance(v, View) for v in views):
@@ -79,7 +84,8 @@ def render_views(
     for item in range(batch):
         # (3, D, H, W) -> the (Z, Y, X, 3) layout of mi.Texture3f; autograd undoes the permute.
         grid = albedo_batch[item].permute(1, 2, 3, 0).to(torch.float32).contiguous()
-        film = renderer.render(grid, _RenderState(densities[item], views))  # (height, V * width, RGB + white RGB)
+        state = _RenderState(densities[item], views, window)
+        film = renderer.render(grid, state)  # (height, V * width, RGB + white RGB)
         films.append(film.reshape(height, len(views), width, 6).permute(1, 3, 0, 2))
     out = torch.stack(films)
     out = out[0] if squeeze else out
@@ -90,11 +96,21 @@ def render_views(
 class _RenderState:
     """What one render depends on besides the albedo; opaque to Dr.Jit's tree traversal."""
 
-    __slots__ = ("density", "views")
+    __slots__ = ("density", "views", "window")
 
-    def __init__(self, density: PreparedDensity, views: list[View]):
+    def __init__(self, density: PreparedDensity, views: list[View], window=None):
         self.density = density
         self.views = views
+        self.window = window
+
+    def albedo_box(self) -> tuple[tuple, tuple]:
+        """``(albedo_min, albedo_max)`` of the integrator: the window in the box's unit coordinates, x first."""
+        shape = self.density.shape
+        if self.window is None:
+            return (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
+        low = tuple(part.start / size for part, size in zip(self.window, shape))
+        high = tuple(part.stop / size for part, size in zip(self.window, shape))
+        return low[::-1], high[::-1]
 
 
 class _LayerRenderer:
@@ -125,6 +141,7 @@ class _LayerRenderer:
         self.params = mi.traverse(self.scene)
         self.current_density: PreparedDensity | None = None
         self.current_views: list[View] | None = None
+        self.current_albedo_box: tuple | None = None
         renderer = self
 
         class LayerOp(dr.CustomOp):
@@ -173,6 +190,11 @@ class _LayerRenderer:
                 )
                 params[f"{prefix}.x_fov"] = view.fov_deg
             self.current_views = state.views
+        albedo_box = state.albedo_box()
+        if albedo_box != self.current_albedo_box:
+            params["integrator.albedo_min"] = mi.Point3f(*albedo_box[0])
+            params["integrator.albedo_max"] = mi.Point3f(*albedo_box[1])
+            self.current_albedo_box = albedo_box
         params.update()
         return params
 
@@ -223,7 +245,7 @@ def _cuda_variant_available() -> bool:
     return bool(dr.has_backend(dr.JitBackend.CUDA))
 
 
-def _validate_densities(density, batch: int, grid_shape: tuple) -> list[PreparedDensity]:
+def _validate_densities(density, batch: int, grid_shape: tuple, window=None) -> list[PreparedDensity]:
     densities = [density] * batch if isinstance(density, PreparedDensity) else list(density)
     if len(densities) != batch or not all(isinstance(d, PreparedDensity) for d in densities):
         raise ValueError(
@@ -231,9 +253,21 @@ def _validate_densities(density, batch: int, grid_shape: tuple) -> list[Prepared
             "make them with mistyle.integrators.prepare_density."
         )
     for index, prepared in enumerate(densities):
-        if prepared.shape != grid_shape:
+        if window is None and prepared.shape != grid_shape:
             raise ValueError(
                 f"albedo grid (D, H, W) = {grid_shape} does not match density {index} of shape {prepared.shape}."
+            )
+        if window is not None and not (
+            len(window) == 3
+            and all(
+                isinstance(part, slice) and part.step in (None, 1) and 0 <= part.start < part.stop <= size
+                for part, size in zip(window, prepared.shape)
+            )
+            and tuple(part.stop - part.start for part in window) == grid_shape
+        ):
+            raise ValueError(
+                f"window {window} must be three slices of density {index}'s grid {prepared.shape} whose sizes are "
+                f"the albedo grid's {grid_shape}."
             )
     return densities
 

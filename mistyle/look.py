@@ -723,10 +723,12 @@ def stretch_texture(texture, frame: dict, padded: tuple):
     return torch.matmul(along_z, values.reshape(channels, texels[0], -1)).reshape(channels, *padded)
 
 
-def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None):
+def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None, whole: bool = True):
     """A look's albedo ``(3, Z, Y, X)`` of a ``prepare_frame`` frame (differentiable in ``kernels``, the
     tuned decoder layers, ``noise_weight (3, channels)`` and ``texture (3, tz, ty, tx)``, which is
-    stretched over the box whatever its resolution)."""
+    stretched over the box whatever its resolution). ``whole=False``: only over the frame's crop window
+    where it has one and its grid was not resampled (``cropped_fit``), as ``render_views(...,
+    window=frame["window"])`` takes it."""
     import torch
     import torch.nn.functional as F
 
@@ -753,11 +755,20 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None)
         stretched = stretch_texture(texture, frame, tuple(logits.shape[2:]))[None]
         offset = stretched if offset is None else offset + stretched
     albedo = head_albedo(logits if offset is None else logits + offset, encoded.size)
+    if not whole and cropped_fit(frame):
+        return albedo[0]
     albedo = uncrop(albedo, frame["window"], frame["size"])
     shape = tuple(frame["grid"].shape)
     if frame["size"] != shape:
         albedo = F.interpolate(albedo, size=shape, mode="trilinear", align_corners=False)
     return albedo[0]
+
+
+def cropped_fit(frame: dict) -> bool:
+    """Whether a fit step on ``frame`` (``prepare_frame``) works on its crop window alone: the albedo, the
+    layer's render (``render_views``' ``window``) and the smoothness term. Outside the window the albedo
+    only repeats the window's faces, where the density is at most ``OCCUPIED_DENSITY``."""
+    return frame["window"] is not None and tuple(frame["size"]) == tuple(frame["grid"].shape)
 
 
 def solid_texture_start(style: np.ndarray, texels: tuple, strength: float, seed: int = 0):
@@ -900,8 +911,8 @@ def fit_look(
         raise_if_requested()
         prepared_densities.append(prepare_density(densities[key], density_scale) if prepared is None else prepared(key))
 
-    def albedo_of(frame) -> torch.Tensor:
-        return frame_albedo(network, frame, StylizingKernels(free), noise_weight, texture)
+    def albedo_of(frame, whole: bool = True) -> torch.Tensor:
+        return frame_albedo(network, frame, StylizingKernels(free), noise_weight, texture, whole)
 
     def fit_match(key_albedo):
         """The colour match fitted on the first key frame the layer sees (``key_albedo(index)``: the albedo
@@ -934,7 +945,10 @@ def fit_look(
         notes.append("the look's coarse steps were skipped: they need the head folded (LookSettings' defaults)")
     if coarse_steps:
         coarse_densities = [prepare_density(frame["grid"], density_scale) for frame in coarse]
-    insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in frames]
+    insides = [
+        torch.from_numpy((frame["grid"][frame["window"]] if cropped_fit(frame) else frame["grid"]) > 0).to(device)
+        for frame in frames
+    ]
     coarse_insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in coarse] if coarse_steps else []
 
     if inference_precision(device) == "bf16":
@@ -970,11 +984,16 @@ def fit_look(
             views = orbit.sample_stratified(settings.views_per_step, rng)
         else:
             views = orbit.sample(settings.views_per_step, rng)
-        albedo = albedo_of(frame)
+        # On the crop window where the frame has one: the albedo outside it repeats its faces, which the
+        # render takes as the padded grid (render_views' window); the smoothness term is the crop's
+        # part of the grid's mean.
+        window = frame["window"] if cropped_fit(frame) else None
+        albedo = albedo_of(frame, whole=window is None)
         if match is not None:
             albedo = match.apply_torch(albedo, inside)
-        images, white = render_views(albedo, prepared, views, layer_res, white=True, **render)
-        loss = objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * tv_loss(albedo[None])
+        images, white = render_views(albedo, prepared, views, layer_res, white=True, window=window, **render)
+        smoothness = tv_loss(albedo[None]) * (albedo[0].numel() / frame["grid"].size)
+        loss = objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * smoothness
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()

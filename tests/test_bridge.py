@@ -72,6 +72,32 @@ def test_the_white_views_come_with_the_render_and_leave_its_image_and_gradient_a
     torch.testing.assert_close(leaf.grad, plain.grad, rtol=0, atol=0)
 
 
+def test_an_albedo_on_a_window_renders_as_the_whole_grid_padded_by_its_faces(prepared):
+    """``window``: a look's fit renders the albedo of its crop alone; image and gradient are those of the
+    albedo padded to the grid (``uncrop``), and the next whole-grid render is as before."""
+    from mistyle.model.skpn import uncrop
+
+    window = (slice(2, 13), slice(4, 16), slice(4, 18))
+    part = torch.rand((3, 11, 12, 14), generator=torch.Generator().manual_seed(1))
+    weights = torch.rand((3, 3, 16, 16), generator=torch.Generator().manual_seed(2))
+
+    def image_and_gradient(cropped: bool):
+        leaf = part.clone().requires_grad_()
+        albedo = leaf if cropped else uncrop(leaf[None], window, prepared.shape)[0]
+        image = render_views(albedo, prepared, VIEWS, 16, window=window if cropped else None)
+        (image * weights).sum().backward()
+        return image.detach(), leaf.grad
+
+    padded, padded_grad = image_and_gradient(False)
+    cropped, cropped_grad = image_and_gradient(True)
+    torch.testing.assert_close(cropped, padded, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(cropped_grad, padded_grad, rtol=1e-4, atol=1e-6)
+    whole = uncrop(part[None], window, prepared.shape)[0]
+    torch.testing.assert_close(render_views(whole, prepared, VIEWS, 16), padded, rtol=0, atol=0)
+    with pytest.raises(ValueError, match="window"):
+        render_views(part, prepared, VIEWS, 16, window=(slice(2, 13), slice(4, 16), slice(4, 19)))
+
+
 def test_a_cached_scene_takes_the_next_densitys_grids_and_march_box(mi, prepared, blob_density):
     from mistyle.integrators import layer_scene
     from mistyle.scenes import split_views

@@ -19,6 +19,11 @@ Single-scattering ray marcher (:monosp:`mistyle_single_scatter`)
    - |tensor|
    - Single-scattering albedo :math:`\alpha`, ``(Z, Y, X, 3)``, RGB in [0, 1].
      *(differentiable)*
+ * - albedo_min, albedo_max
+   - |point|
+   - The part of the grid the albedo covers, in the box's unit coordinates (a crop of voxels
+     ``[a, b)`` of ``N``: ``a / N`` to ``b / N`` per axis, x first); beyond it the albedo repeats its
+     faces, as if padded to the whole grid by replication. (Default: 0 to 1, the whole grid)
  * - bbox_min, bbox_max
    - |point|
    - The medium box the grids fill (``mistyle.scenes.box.MediumBox``).
@@ -105,6 +110,10 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         self.sigma_t = mi.Texture3f(_grid(props, "sigma_t", 1))
         self.ls = mi.Texture3f(_grid(props, "ls", 1))
         self.albedo = mi.Texture3f(_grid(props, "albedo", 3))
+        # The part of the box the albedo grid covers, in the box's unit coordinates (default: all of it).
+        # Beyond it the texture's clamped lookups repeat its faces, as if it were padded to the whole grid.
+        self.albedo_min = mi.Point3f(mi.ScalarPoint3f(props.get("albedo_min", mi.ScalarPoint3f(0.0))))
+        self.albedo_max = mi.Point3f(mi.ScalarPoint3f(props.get("albedo_max", mi.ScalarPoint3f(1.0))))
         self.white = bool(props.get("white", False))
 
     def traverse(self, callback):
@@ -113,6 +122,8 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
         callback.put("ls", self.ls.tensor(), mi.ParamFlags.NonDifferentiable)
         callback.put("march_min", self.march_min, mi.ParamFlags.NonDifferentiable)
         callback.put("march_max", self.march_max, mi.ParamFlags.NonDifferentiable)
+        callback.put("albedo_min", self.albedo_min, mi.ParamFlags.NonDifferentiable)
+        callback.put("albedo_max", self.albedo_max, mi.ParamFlags.NonDifferentiable)
 
     def parameters_changed(self, keys):
         for key in keys:
@@ -190,12 +201,13 @@ class SingleScatterIntegrator(mi.ad.integrators.common.RBIntegrator):
             β = Le * (w * self.ls.eval(p)[0])
 
             # --------------- Differentiable part: the albedo lookup ---------------
+            p_albedo = (p - self.albedo_min) / (self.albedo_max - self.albedo_min)
             if dr.hint(mode == dr.ADMode.Forward, mode="scalar"):
-                δα = δα_texture.eval(p)
+                δα = δα_texture.eval(p_albedo)
                 δL += β * mi.Spectrum(δα[0], δα[1], δα[2])
             else:
                 with dr.resume_grad(when=not primal):
-                    α = self.albedo.eval(p)
+                    α = self.albedo.eval(p_albedo)
                     contribution = β * mi.Spectrum(α[0], α[1], α[2])
                     if dr.hint(primal, mode="scalar"):
                         L += contribution

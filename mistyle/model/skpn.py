@@ -531,9 +531,9 @@ class SKPN(nn.Module):
         """``forward`` for inference, faster: in ``precision`` (``"bf16"``: bfloat16 autocast, as the
         network was trained; ``"fp32"``: plain; None: ``inference_precision`` of the device), and with
         ``crop_margin`` set, only over the bounding box of the density's voxels above ``OCCUPIED_DENSITY``
-        grown by that many voxels (its low corner on a multiple of 4, so the strided levels keep their alignment). Outside the
-        box the albedo repeats its faces' values: there is no medium there to show it. Returns float32
-        ``(B, 3, D, H, W)``.
+        grown by that many voxels (its low corner on a multiple of 4, so the strided levels keep their
+        alignment). Outside the box the albedo repeats its faces' values: there is no medium there to show
+        it. Returns float32 ``(B, 3, D, H, W)``.
 
         Both change the albedo slightly against ``forward`` in float32 over the whole box (bfloat16
         rounding; the convolutions near the crop see zero padding instead of empty-space features);

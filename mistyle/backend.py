@@ -98,7 +98,7 @@ def ordered_sums():
     """Within it, Dr.Jit's CPU backend runs kernels on one thread, so that a scatter-add (an adjoint pass
     gathering a grid's gradient from every ray) sums in one fixed order. On several threads each run
     adds in the order the threads happen to take the work, and a look fitted twice on the same frame
-    differed by up to 3e-4 in albedo; summed in order, a fit is the same bit for bit run after run and
+    differed by up to 2.5e-4 in albedo; summed in order, a fit is the same bit for bit run after run and
     in any thread (the live preview fits in its worker's). Adjoint passes of the fast layer are small:
     the look's fit took the same time either way on this project's 2-core CPU. CUDA's atomics are
     unordered whatever this does."""

@@ -622,7 +622,9 @@ def prepare_frame(
     stages = ("body", "site", "logits")
     reached = stages.index(fixed_stage) + 1 if fixed_kernels is not None and fixed_stage is not None else 0
     with torch.no_grad():
-        encoded = network.encode(part, network.noise_fields(size, window))
+        # A look's kernels never weigh the network's noise site (fit_look starts them without_noise and
+        # does not tune it), so its fields, made for the whole grid, would add zeros.
+        encoded = network.encode(part, noise_site=False)
         if reached >= 1:
             fixed["body"] = network.decode_body(encoded, fixed_kernels)
             if reached == 1 and network.folds_head(fixed_kernels):

@@ -277,3 +277,21 @@ def test_a_head_with_a_larger_kernel_is_not_folded():
     with torch.no_grad():
         kernels = model.predict_kernels(style_levels())
     assert not SKPN.folds_head(kernels)
+
+
+def test_kernels_without_noise_give_the_same_albedo_with_no_noise_fields_at_all(blob_density):
+    """``encode(..., noise_site=False)``: a look's kernels weigh the shipped network's noise site by zero,
+    so leaving its fields out (made for the whole grid: seconds at 256^3) changes no bit of the albedo."""
+    from mistyle.api import Stylizer
+    from mistyle.data.heldout import held_out_styles
+
+    stylizer = Stylizer()
+    model = stylizer.trained.model
+    assert model.config.noise_channels > 0
+    kernels = stylizer.kernels(held_out_styles()["hokusai_great_wave"]["path"]).without_noise()
+    density = torch.from_numpy(blob_density)[None, None]
+    with torch.no_grad():
+        with_fields = model.decode(model.encode(density), kernels)
+        without = model.decode(model.encode(density, noise_site=False), kernels)
+    assert model.encode(density, noise_site=False).noise is None
+    assert torch.equal(with_fields, without)

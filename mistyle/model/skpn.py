@@ -384,11 +384,15 @@ class SKPN(nn.Module):
             fields = fields[(slice(None), *window)]
         return fields[None].to(next(self.parameters()).device)
 
-    def encode(self, density: torch.Tensor, noise: torch.Tensor | None = None) -> EncodedDensity:
+    def encode(
+        self, density: torch.Tensor, noise: torch.Tensor | None = None, noise_site: bool = True
+    ) -> EncodedDensity:
         """The encoder's half of ``forward``: what ``decode`` needs of ``density (B, 1, D, H, W)``, which
         does not depend on the style (so a look's fit computes it once per key frame). ``noise``: the
         noise site's fields ``(1, C, D, H, W)`` for this grid (a crop passes its part of the whole grid's,
-        ``noise_fields``); default: the fields of a grid of the density's size."""
+        ``noise_fields``); default: the fields of a grid of the density's size. ``noise_site=False``:
+        none, for kernels whose noise weights are zero (``StylizingKernels.without_noise``, a look's),
+        which would add nothing to the logits."""
         if density.dim() != 5 or density.shape[1] != 1:
             raise ValueError(f"density must be (B, 1, D, H, W), got {tuple(density.shape)}.")
         size = tuple(density.shape[2:])
@@ -400,7 +404,7 @@ class SKPN(nn.Module):
         masks = {}
         if self.config.norm == "dain":
             masks = {tuple(e.shape[2:]): density_mask(padded, e.shape[2:]) for e in (e0, e1, e2)}
-        if self.config.noise_channels:
+        if self.config.noise_channels and noise_site:
             noise = self.noise_fields(size) if noise is None else noise
             if tuple(noise.shape[2:]) != size or noise.shape[1] != self.config.noise_channels:
                 expected = (1, self.config.noise_channels, *size)

@@ -170,6 +170,7 @@ class PreviewSession:
         self._full: dict = {}
         self._matches: dict = {}
         self._looks: OrderedDict = OrderedDict()  # the fitted look of each style (None: its fit failed)
+        self._sequence = None  # the frames as the pipeline's Frames, made at the first fit (_fitted_frames)
 
     def initial_controls(self) -> Controls:
         return Controls(look=self.look is not None, camera=Camera(distance=self.camera_distance).clamped())
@@ -287,10 +288,9 @@ class PreviewSession:
             return self._looks[key]
         started = time.perf_counter()
         parts = self._parts(controls)
-        density = np.stack(self.frames) if len(self.frames) > 1 else self.frames[0]
         try:
             look = self.pipeline.default_look(
-                density, parts if len(parts) > 1 else parts[0][0], notes=notes, progress=progress
+                self._fitted_frames(), parts if len(parts) > 1 else parts[0][0], notes=notes, progress=progress
             )
         except ValueError:
             self._looks[key] = None
@@ -300,6 +300,13 @@ class PreviewSession:
         while len(self._looks) > MAX_FITTED_LOOKS:
             self._looks.popitem(last=False)
         return look
+
+    def _fitted_frames(self):
+        """The frames as the pipeline's ``Frames``, made once: every style's fit shares its key frames'
+        preparation for the fast layer (their Ls grids), as the frames of one render do."""
+        if self._sequence is None:
+            self._sequence = self.pipeline.frames(np.stack(self.frames) if len(self.frames) > 1 else self.frames[0])
+        return self._sequence
 
     # ------------------------------------------------------------------ images
     def _prepared_density(self, frame: int):

@@ -913,7 +913,9 @@ what was path traced (the default output: a look fitted on the frames)."""
 
 
 def write_report(job: Job, stylized, images, layer_images, report: dict) -> None:
-    """Style metrics of every image against the style, ``report.json``, ``sheet.png`` and a summary line.
+    """Style metrics of every image against the style, ``report.json``, ``sheet.png`` and a summary line;
+    a chunk merged into a sequence's folder (``job.merged``) measures each frame alone, which is all
+    ``merge_chunk`` keeps, and leaves the folder's files to it.
 
     A metric that cannot be computed is ``null`` in the report, with a note, also shown on the console:
     the style metrics of images that see no medium (the pipeline refuses a render where none does, and
@@ -927,12 +929,22 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     style = stylized.target
     started = time.perf_counter()
     visible = [image for image in images if foreground_mask(image).any()]
+    if visible and len(visible) < len(images):
+        unseen = len(images) - len(visible)
+        note = f"{unseen} of {len(images)} image(s) see no medium; the style metrics are of the others"
+        job.notes.append(note)
+        log(f"note: {note}")
+    if not visible:
+        note = "no pixel of the final render sees the medium; the style metrics are left out"
+        job.notes.append(note)
+        log(f"note: {note}")
+    if job.merged:  # the folder's report, sheet and index give each frame's metrics alone: merge_chunk
+        report["frames"] = {
+            f"{job.first + index:04d}": frame_metrics(image, style) for index, image in enumerate(images)
+        }
+        report["metrics_seconds"] = time.perf_counter() - started
+        return
     if visible:
-        if len(visible) < len(images):
-            unseen = len(images) - len(visible)
-            note = f"{unseen} of {len(images)} image(s) see no medium; the style metrics are of the others"
-            job.notes.append(note)
-            log(f"note: {note}")
         final = [style_distance(image, style) for image in visible]
         report["swd_final"] = float(np.mean([distance["swd"] for distance in final]))
         report["hist_final"] = float(np.mean([distance["hist"] for distance in final]))
@@ -941,19 +953,11 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
         report.update(style_fidelity(visible, style))
     else:
         report.update(dict.fromkeys(METRIC_KEYS))
-        note = "no pixel of the final render sees the medium; the style metrics are left out"
-        job.notes.append(note)
-        log(f"note: {note}")
     for key in METRIC_KEYS:
         if report.get(key) is not None and not np.isfinite(report[key]):
             report[key] = None
             job.notes.append(f"{key} left out: too few pixels see the medium to measure it")
     report["metrics_seconds"] = time.perf_counter() - started
-    if job.merged:  # the folder's report, sheet and index describe all its frames: merge_chunk
-        report["frames"] = {
-            f"{job.first + index:04d}": frame_metrics(image, style) for index, image in enumerate(images)
-        }
-        return
     atomic_write_bytes(job.out / REPORT_FILE, (json.dumps(report, indent=1) + "\n").encode())
     seconds = sum(
         report.get(key, 0.0) for key in ("stylize_seconds", "look_seconds", "refine_seconds", "render_seconds")

@@ -110,12 +110,12 @@ def test_sliced_wasserstein_keeps_the_reference_sets_sorted_projections_and_give
         return np.quantile(values, levels, axis=0, method="hazen")
 
     plain = np.sqrt(np.mean((quantiles(a @ directions.T) - quantiles(b @ directions.T)) ** 2))
-    metrics._SORTED_PROJECTIONS.clear()
+    metrics._KEPT.clear()
     first = sliced_wasserstein(a, b)
-    assert len(metrics._SORTED_PROJECTIONS) == 1  # b's sorted projections, kept
+    assert len(metrics._KEPT) == 1  # b's sorted projections, kept
     assert sliced_wasserstein(a, b) == first == pytest.approx(plain, rel=1e-9)
     assert sliced_wasserstein(a, b + 0.1) != first  # other points are not taken for the kept ones
-    assert len(metrics._SORTED_PROJECTIONS) == 2
+    assert len(metrics._KEPT) == 2
 
 
 def test_a_pool_of_projected_target_directions_gives_the_plain_loss_along_the_directions_drawn():

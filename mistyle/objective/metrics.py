@@ -57,33 +57,42 @@ def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, see
     return float(np.sqrt(np.mean((qa - qb) ** 2)))
 
 
-_SORTED_PROJECTIONS: dict = {}
-_SORTED_LOCK = threading.Lock()
-SORTED_CACHE_BYTES = 1 << 28
-"""What ``_sorted_projections`` keeps at most: the sorted projections of the last few reference sets."""
+_KEPT: dict = {}
+_KEPT_LOCK = threading.Lock()
+KEPT_BYTES = 1 << 28
+"""What ``_kept`` holds at most: values computed from the last few reference sets."""
+
+
+def _kept(kind: str, arrays: tuple, compute) -> np.ndarray:
+    """``compute()`` (an array), kept for the next call of this ``kind`` with equal ``arrays``: a run
+    measures every frame and view against one style, and the style's half of a metric (its sorted
+    projections, its hue clusters) is most of a call's time."""
+    import hashlib
+
+    digest = hashlib.blake2b(kind.encode(), digest_size=16)
+    for array in arrays:
+        array = np.ascontiguousarray(array)
+        digest.update(repr((array.dtype.str, array.shape)).encode())
+        digest.update(array.view(np.uint8))
+    key = digest.hexdigest()
+    with _KEPT_LOCK:  # callers may measure from several threads
+        kept = _KEPT.get(key)
+    if kept is not None:
+        return kept
+    value = compute()
+    with _KEPT_LOCK:
+        held = sum(entry.nbytes for entry in _KEPT.values())
+        while _KEPT and held + value.nbytes > KEPT_BYTES:
+            held -= _KEPT.pop(next(iter(_KEPT))).nbytes
+        if value.nbytes <= KEPT_BYTES:
+            _KEPT[key] = value
+    return value
 
 
 def _sorted_projections(points: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """``points @ directions.T`` sorted down each column, kept for the next call with the same points and
-    directions: the second set of ``sliced_wasserstein`` is the style, the same for every frame and
-    view a run measures, and sorting it is most of a call's time."""
-    import hashlib
-
-    digest = hashlib.blake2b(np.ascontiguousarray(points).view(np.uint8), digest_size=16)
-    digest.update(np.ascontiguousarray(directions).view(np.uint8))
-    key = (points.shape, digest.hexdigest())
-    with _SORTED_LOCK:  # callers may measure from several threads
-        kept = _SORTED_PROJECTIONS.get(key)
-    if kept is not None:
-        return kept
-    sorted_values = np.sort(points @ directions.T, axis=0)
-    with _SORTED_LOCK:
-        held = sum(value.nbytes for value in _SORTED_PROJECTIONS.values())
-        while _SORTED_PROJECTIONS and held + sorted_values.nbytes > SORTED_CACHE_BYTES:
-            held -= _SORTED_PROJECTIONS.pop(next(iter(_SORTED_PROJECTIONS))).nbytes
-        if sorted_values.nbytes <= SORTED_CACHE_BYTES:
-            _SORTED_PROJECTIONS[key] = sorted_values
-    return sorted_values
+    """``points @ directions.T`` sorted down each column (the second set of ``sliced_wasserstein``, the
+    style: ``_kept``)."""
+    return _kept("sorted projections", (points, directions), lambda: np.sort(points @ directions.T, axis=0))
 
 
 def bounded_points(points, rng: np.random.Generator, limit: int = MAX_METRIC_POINTS) -> np.ndarray:
@@ -240,7 +249,7 @@ def hue_coverage(pixels: np.ndarray, style: np.ndarray, clusters: int = HUE_CLUS
     ours_ab = srgb_to_lab(bounded_points(np.asarray(pixels).reshape(-1, 3), rng, 1 << 16))[:, 1:]
     if len(ours_ab) == 0:
         return 0.0
-    centres = kmeans(style_ab, clusters, seed)
+    centres = _kept("hue clusters", (style_ab, np.array([clusters, seed])), lambda: kmeans(style_ab, clusters, seed))
 
     def shares(points):
         labels = np.argmin(((points[:, None] - centres[None]) ** 2).sum(-1), axis=1)

@@ -32,6 +32,7 @@ if BLENDER_PYTHON:
 BLENDER_SIDE = Path(__file__).with_name("blender") / "blender_side.py"
 STYLE = ROOT / "mistyle" / "data" / "heldout_styles" / "hokusai_great_wave.jpg"
 DENSITY = ROOT / "examples" / "smoke_64.vol"
+MANTAFLOW = ROOT / "tests" / "data" / "mantaflow"  # a real Blender cache, cut down (tests/data/SOURCES.toml)
 RES, SPP, BLENDER_SPP = 96, 256, 256
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
@@ -204,6 +205,34 @@ def test_addon_stylizes_a_vdb_sequence_over_the_frame_range(rendered, tmp_path):
     assert answer["operator"] == ["FINISHED"] and len(answer["added"]) == 1
     assert answer["is_sequence"] and answer["frame_duration"] == 2
     assert answer["files"] == ["volume_frame0000.vdb", "volume_frame0001.vdb"]
+
+
+def test_addon_stylizes_a_real_fluid_cache_and_its_frames_lie_on_the_source(tmp_path):
+    """Blender's own Mantaflow cache (24 grids, an int32 'flags' among them; the smoke's box grows from
+    11x9x28 to 51x71x29 voxels between the two frames) on a volume object moved off the origin: the
+    stylized object's density lies where the source's does in Blender's world at every frame."""
+    import shutil
+
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    frames = []
+    for number, name in enumerate(("fluid_data_0001.vdb", "fluid_data_0010.vdb"), 1):
+        frames.append(cache / f"fluid_data_{number:04d}.vdb")
+        shutil.copy(MANTAFLOW / name, frames[-1])
+    job = dict(addon_job(tmp_path), frames=[str(frame) for frame in frames], style=str(STYLE))
+    answer = in_blender("addon_cache", job, tmp_path)
+    print("add-on, fluid cache:", json.dumps(answer))
+    assert answer["operator"] == ["FINISHED"] and len(answer["added"]) == 1
+    assert [frame["stylized"]["file"] for frame in answer["frames"]] == ["volume_frame0000.vdb", "volume_frame0001.vdb"]
+    for frame in answer["frames"]:
+        source, stylized = frame["source"], frame["stylized"]
+        voxel = source["voxel"]
+        assert stylized["voxel"] == pytest.approx(voxel, rel=1e-4)
+        assert np.allclose(stylized["centre"], source["centre"], atol=0.05 * voxel)
+        assert np.allclose(stylized["low"], source["low"], atol=1e-3 * voxel)
+        assert np.allclose(stylized["high"], source["high"], atol=1e-3 * voxel)
+    sizes = [np.subtract(frame["source"]["high"], frame["source"]["low"]) for frame in answer["frames"]]
+    assert np.all(sizes[1] > sizes[0] - 1e-6) and np.any(sizes[1] > 2 * sizes[0])  # the box grew
 
 
 DEBIAN_PYTHON = "/usr/bin/python3"

@@ -3,6 +3,7 @@
     python blender_side.py recipe JOB.json     # README's recipe by hand, then a Cycles render
     python blender_side.py addon JOB.json      # install and enable the add-on, run its operator, render
     python blender_side.py addon_sequence JOB.json   # the add-on on a two-frame VDB sequence
+    python blender_side.py addon_cache JOB.json      # the add-on on a real fluid cache: where its frames lie
     python blender_side.py profile JOB.json    # the density's mass along each world axis, read with OpenVDB 13
 
 ``JOB.json`` holds the inputs (paths, camera, sizes); the answers go to ``JOB["result"]`` as JSON. The
@@ -185,30 +186,79 @@ def addon_sequence(job: dict) -> dict:
     return answer
 
 
-def profile(job: dict) -> dict:
-    """Density mass per world-axis coordinate of ``job["vdb"]``'s density grid (read with the OpenVDB
-    module the bpy wheel bundles): for each axis a histogram over the voxels' world positions."""
+def density_voxels(path: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(positions (N, 3), densities (N,), voxel size)`` of the voxels of ``path``'s density grid that hold
+    density, in the file's world space (read with the OpenVDB module the bpy wheel bundles)."""
     bpy.utils.expose_bundled_modules()
     import openvdb
 
-    grid = openvdb.read(job["vdb"], "density")
+    grid = openvdb.read(path, "density")
     low, high = grid.evalActiveVoxelBoundingBox()
     size = tuple(h - lo + 1 for lo, h in zip(low, high))
     dense = np.zeros(size, np.float32)
     grid.copyToArray(dense, ijk=low)
-    i, j, k = np.nonzero(dense)
+    i, j, k = np.nonzero(dense > 0)
     origin = np.array(grid.transform.indexToWorld(tuple(float(v) for v in low)))
     steps = [
         np.array(grid.transform.indexToWorld(tuple(float(v + (a == axis)) for a, v in enumerate(low)))) - origin
         for axis in range(3)
     ]
     world = origin + np.outer(i, steps[0]) + np.outer(j, steps[1]) + np.outer(k, steps[2])
-    mass = dense[i, j, k]
+    return world, dense[i, j, k], float(np.linalg.norm(steps[0]))
+
+
+def addon_cache(job: dict) -> dict:
+    """The add-on on a real Blender fluid cache (``job["frames"]``, a volume object moved away from the
+    origin) over the scene's frame range, and where each frame's density lies in Blender's world: for
+    the source and the stylized object at every frame, the density-weighted centre and the box of the
+    voxels that hold density, through the object's matrix and the frame's own file."""
+    install_addon(job)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, len(job["frames"])
+    source = bpy.data.objects.new("fluid", bpy.data.volumes.new("fluid"))
+    source.data.filepath = job["frames"][0]
+    source.data.is_sequence = True
+    source.data.frame_duration = len(job["frames"])
+    source.location = (1.5, -2.0, 0.5)
+    scene.collection.objects.link(source)
+    bpy.context.view_layer.objects.active = source
+    source.mistyle.style = job["style"]
+    source.mistyle.quality = "FAST"
+    result = bpy.ops.mistyle.stylize()
+    added = [obj for obj in scene.objects if obj.type == "VOLUME" and obj is not source]
+    answer = {"operator": sorted(result), "added": [obj.name for obj in added], "frames": []}
+    if len(added) != 1:
+        return answer
+    for frame in range(scene.frame_start, scene.frame_end + 1):
+        scene.frame_set(frame)
+        placed = {}
+        for role, obj in (("source", source), ("stylized", added[0])):
+            obj.data.grids.load()
+            positions, densities, voxel = density_voxels(obj.data.grids.frame_filepath)
+            matrix = np.array(obj.matrix_world)
+            world = positions @ matrix[:3, :3].T + matrix[:3, 3]
+            placed[role] = {
+                "file": os.path.basename(obj.data.grids.frame_filepath),
+                "centre": (densities @ world / densities.sum()).tolist(),
+                "low": world.min(axis=0).tolist(),
+                "high": world.max(axis=0).tolist(),
+                "voxel": voxel,
+            }
+        answer["frames"].append(placed)
+    return answer
+
+
+def profile(job: dict) -> dict:
+    """Density mass per world-axis coordinate of ``job["vdb"]``'s density grid (read with the OpenVDB
+    module the bpy wheel bundles): for each axis a histogram over the voxels' world positions."""
+    world, mass, _ = density_voxels(job["vdb"])
     profiles = {}
     for axis, name in enumerate("xyz"):
         keys = np.round(world[:, axis], 6)
         values, inverse = np.unique(keys, return_inverse=True)
         profiles[name] = np.bincount(inverse, weights=mass).tolist()
+    import openvdb  # bundled with the bpy wheel (density_voxels exposes it)
+
     return {"profiles": profiles, "openvdb": list(openvdb.LIBRARY_VERSION)}
 
 
@@ -216,6 +266,7 @@ if __name__ == "__main__":
     command, job_path = sys.argv[1], sys.argv[2]
     with open(job_path) as handle:
         job = json.load(handle)
-    answer = {"recipe": recipe, "addon": addon, "addon_sequence": addon_sequence, "profile": profile}[command](job)
+    commands = {"recipe": recipe, "addon": addon, "addon_sequence": addon_sequence, "addon_cache": addon_cache}
+    answer = {**commands, "profile": profile}[command](job)
     with open(job["result"], "w") as handle:
         json.dump(answer, handle)

@@ -41,7 +41,7 @@ def main() -> None:
 
     from mistyle.colour_match import fit_colour_match
     from mistyle.look import LookSettings, fit_look
-    from mistyle.stylizer import style_target
+    from mistyle.style import style_target
 
     stylizer, pairs, score = setting(args)
     radiance = stylizer.config.render.radiance

@@ -4,7 +4,7 @@ Row 1: the bundled smoke stylized with one held-out painting at strengths 0, 0.2
 (``Stylizer.weakened``: the last stylizing kernel blended towards the one that makes a uniform grey
 of the styled medium's brightness). Row 2: a mix of two held-out paintings at weights 1:0, 0.75:0.25,
 0.5:0.5, 0.25:0.75 and 0:1 (``StylizingKernels.blend`` of their predicted kernels). The style pictures
-(or the mix's mosaic, ``api.style_target``) sit at the left and right ends; each tile is the
+(or the mix's mosaic, ``style.style_target``) sit at the left and right ends; each tile is the
 network's albedo as predicted, path traced with ``volpath`` (multiple scattering, training light),
 with its RGB SWD to the row's full style printed on it. Also writes ``<out>.json`` with the numbers.
 
@@ -30,12 +30,13 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=32)
     args = parser.parse_args()
 
-    from mistyle.api import Stylizer, display, path_trace, style_target
+    from mistyle.api import Stylizer, display, path_trace
     from mistyle.data.heldout import held_out_styles
     from mistyle.io import load_density, load_style
     from mistyle.model.features import square_style
     from mistyle.objective.metrics import style_fidelity
     from mistyle.scenes import CameraPath
+    from mistyle.style import style_target
 
     stylizer = Stylizer()
     config = stylizer.config

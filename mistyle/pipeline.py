@@ -38,7 +38,7 @@ import numpy as np
 
 from .conventions import DEVICES, HELD_OUT_VIEW, IMAGE_SIDES, LIGHT_KINDS, MAX_FIT_STEPS
 from .denoise import DENOISERS
-from .io import load_style
+from .style import Style, style_parts, style_target  # noqa: F401 - also the pipeline's names
 from .stylizer import (  # noqa: F401 - also the pipeline's names: callers import them from here
     DEFAULT_CHECKPOINT,
     MIN_MEDIUM_VOXELS,
@@ -46,8 +46,6 @@ from .stylizer import (  # noqa: F401 - also the pipeline's names: callers impor
     check_enough_medium,
     check_finite,
     checked_frames,
-    style_parts,
-    style_target,
     validate_scale_structures,
     validate_strength,
 )
@@ -382,14 +380,13 @@ class Pipeline:
     def stylize(self, density, style, velocities=None, notes: list | None = None) -> Stylization:
         """Network, colour match and refinement for every frame of ``density``.
 
-        ``style``: an image or path, or a mix ``[(image or path, weight)]`` (see ``style_parts``).
+        ``style``: an image or path, a mix ``[(image or path, weight)]`` (see ``style_parts``), or a ``Style``.
         ``notes`` (a list) collects what the user should know (conversions, skipped stages)."""
         s = self.settings
         notes = [] if notes is None else notes
         frames = self.frames(density, velocities)
         self.check_visible(frames)
-        parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
-        target = style_target([image for image, _ in parts], [weight for _, weight in parts])
+        style = Style.of(style, notes)
         refinement = self.refinement(len(frames.densities))
         if s.strength < 1.0 and s.refine_steps is None:
             notes.append(
@@ -402,7 +399,7 @@ class Pipeline:
         stacked = np.stack(frames.densities) if frames.sequence else frames.densities[0]
         network = self.stylizer(
             stacked,
-            parts if len(parts) > 1 else parts[0][0],
+            style,
             s.scale_structures,
             notes=notes,
             strength=s.strength,
@@ -427,8 +424,7 @@ class Pipeline:
 
             started = time.perf_counter()
             with bar(LookSettings().steps if s.look_steps is None else s.look_steps, "fitting a look") as progress_bar:
-                style_given = parts if len(parts) > 1 else parts[0][0]
-                look = self.default_look(frames, style_given, notes=notes, progress=fit_progress(progress_bar))
+                look = self.default_look(frames, style, notes=notes, progress=fit_progress(progress_bar))
             albedos = [look.apply(grid) for grid in frames.densities]
             report["look_seconds"] = time.perf_counter() - started
             report["look_key_frames"] = look.meta["key_frames"]
@@ -437,10 +433,10 @@ class Pipeline:
             seconds = report["look_seconds"]
             self.log(f"fitted a look on {fitted_on} and applied it to {len(albedos)} frame(s) in {seconds:.1f} s")
         elif refinement.layer_steps or refinement.path_steps:
-            albedos, report["refine_seconds"] = self.refine(frames, albedos, target, refinement)
+            albedos, report["refine_seconds"] = self.refine(frames, albedos, style.target, refinement)
             report.update(flicker_report(albedos, frames, "_refined"))
         check_finite("The corrected albedo of frame", albedos)
-        return Stylization(frames, network, albedos, target, refinement, report, notes, look)
+        return Stylization(frames, network, albedos, style.target, refinement, report, notes, look)
 
     def default_look(self, density, style, notes: list | None = None, progress=None):
         """The look the default output fits (``fits_look``) on ``density``'s frames: on the frame, or on a

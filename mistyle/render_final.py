@@ -34,7 +34,7 @@ One output per (density, style) pair (``mistyle.outputs``): a single pair into `
 
 ``--strength`` (0: a uniform grey medium, 1: the full style) and ``--mix`` act on the network's
 predicted stylizing kernels (``pipeline.Stylizer.kernels``); a mix is measured and refined against a
-mosaic of its styles with areas in proportion to the weights (``pipeline.style_target``). By default
+mosaic of its styles with areas in proportion to the weights (``style.style_target``). By default
 at full strength a look is fitted on the frame, or on a sequence's first, middle and last frame, and
 applied to every frame (``Pipeline.fits_look``, ``mistyle.look``), which is what makes the medium take
 on the style's hues and patterns; naming
@@ -85,12 +85,26 @@ def _coat(text: str) -> float:
 
 
 def parser() -> argparse.ArgumentParser:
-    from .scenes.bricks import DEFAULT_BRICK
-
     p = argparse.ArgumentParser(
         prog="mistyle-render", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    source = p.add_mutually_exclusive_group(required=True)
+    for add_options in (
+        _input_options,
+        _style_options,
+        _look_options,
+        _output_options,
+        _network_options,
+        _render_options,
+        _stylize_options,
+    ):
+        add_options(p)
+    return p
+
+
+def _input_options(p: argparse.ArgumentParser) -> None:
+    """The density (or mesh) inputs."""
+    group = p.add_argument_group("inputs")
+    source = group.add_mutually_exclusive_group(required=True)
     source.add_argument(
         "--density",
         type=Path,
@@ -99,10 +113,16 @@ def parser() -> argparse.ArgumentParser:
         help=".vol, .vdb, .npy or .npz densities (one output each), or a folder of frames",
     )
     source.add_argument("--mesh", type=Path, nargs="+", action="extend", help="closed .ply/.obj meshes, voxelized")
-    p.add_argument(
+    group.add_argument(
         "--grid", default=None, help="the float grid to read from .vdb densities (default: 'density', or the only one)"
     )
-    styles = p.add_mutually_exclusive_group(required=True)
+    group.add_argument("--mesh-res", type=int, default=64, help="voxels along the mesh's longest side")
+
+
+def _style_options(p: argparse.ArgumentParser) -> None:
+    """What the medium takes its look from: style images, a mix or a look; the style's strength."""
+    group = p.add_argument_group("style")
+    styles = group.add_mutually_exclusive_group(required=True)
     styles.add_argument(
         "--style",
         type=Path,
@@ -124,7 +144,13 @@ def parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="apply a look fitted with --save-look (no --style; no per-frame refinement unless --refine is given)",
     )
-    p.add_argument(
+    group.add_argument("--strength", type=float, default=1.0, help="0: a uniform grey medium ... 1: the full style")
+
+
+def _look_options(p: argparse.ArgumentParser) -> None:
+    """Fitting a look once and rendering chunks of a sequence from it."""
+    group = p.add_argument_group("looks and chunks")
+    group.add_argument(
         "--save-look",
         type=Path,
         default=None,
@@ -132,14 +158,14 @@ def parser() -> argparse.ArgumentParser:
         help="fit the style as a look on --key-frames of the density and write it to FILE; with --out, "
         "also render every frame from it",
     )
-    p.add_argument(
+    group.add_argument(
         "--key-frames",
         default=None,
         metavar="I,J,...",
         help="0-based frames the look is fitted on, with --save-look or for the default output's look "
         "(default: the first, middle and last frame)",
     )
-    p.add_argument(
+    group.add_argument(
         "--look-steps",
         type=int,
         default=None,
@@ -147,21 +173,25 @@ def parser() -> argparse.ArgumentParser:
         help="steps of a look's fit, with --save-look or for the default output's look (default: "
         "mistyle.look.LookSettings.steps)",
     )
-    p.add_argument(
+    group.add_argument(
         "--frames",
         default=None,
         metavar="A-B",
         help="render only frames A to B (0-based, inclusive) of a sequence; files keep their index in the whole "
         "sequence, so chunks rendered into one --out merge there (each replaces only its own frames)",
     )
-    p.add_argument("--strength", type=float, default=1.0, help="0: a uniform grey medium ... 1: the full style")
-    p.add_argument("--out", type=Path, default=None, help="the output folder (optional with --save-look)")
-    p.add_argument("--overwrite", action="store_true", help="replace outputs that already exist")
-    p.add_argument(
+
+
+def _output_options(p: argparse.ArgumentParser) -> None:
+    """Where outputs go and what may be replaced."""
+    group = p.add_argument_group("outputs")
+    group.add_argument("--out", type=Path, default=None, help="the output folder (optional with --save-look)")
+    group.add_argument("--overwrite", action="store_true", help="replace outputs that already exist")
+    group.add_argument(
         "--resume", action="store_true", help="keep the outputs already complete, make only the missing ones"
     )
-    p.add_argument("--vdb", action="store_true", help="also write volume.vdb for densities that are not .vdb files")
-    p.add_argument(
+    group.add_argument("--vdb", action="store_true", help="also write volume.vdb for densities that are not .vdb files")
+    group.add_argument(
         "--up",
         choices=UP_AXES,
         default=None,
@@ -169,30 +199,50 @@ def parser() -> argparse.ArgumentParser:
         "Read .vdb densities are turned so that it is up in mistyle's renders, and volume.vdb is written in that "
         "world (default: what a mistyle .vdb records, else y)",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)")
-    p.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
-    p.add_argument("--vgg-weights", default=None, help="VGG16 weights, for checkpoints trained with VGG16")
-    p.add_argument("--view", type=float, default=HELD_OUT_VIEW, help="camera position on the training orbit, in [0, 1)")
-    p.add_argument("--turntable", type=int, default=0, help="render N frames around the orbit (a video)")
-    p.add_argument("--camera-distance", type=float, default=None, help="orbit radius (default: the checkpoint's)")
-    p.add_argument(
+    group.add_argument(
+        "--quiet", action="store_true", help="no progress bars or status lines (errors are still printed)"
+    )
+    group.add_argument("--fps", type=int, default=12)
+
+
+def _network_options(p: argparse.ArgumentParser) -> None:
+    """The network and the device it runs on."""
+    group = p.add_argument_group("network")
+    group.add_argument("--checkpoint", type=Path, default=None, help="SKPN checkpoint (default: the bundled one)")
+    group.add_argument("--vgg-weights", default=None, help="VGG16 weights, for checkpoints trained with VGG16")
+    group.add_argument("--device", choices=DEVICES, default="cpu")
+
+
+def _render_options(p: argparse.ArgumentParser) -> None:
+    """The final render: camera, light, samples, medium."""
+    from .scenes.bricks import DEFAULT_BRICK
+
+    group = p.add_argument_group("final render")
+    group.add_argument(
+        "--view", type=float, default=HELD_OUT_VIEW, help="camera position on the training orbit, in [0, 1)"
+    )
+    group.add_argument("--turntable", type=int, default=0, help="render N frames around the orbit (a video)")
+    group.add_argument("--camera-distance", type=float, default=None, help="orbit radius (default: the checkpoint's)")
+    group.add_argument(
         "--light", default=LIGHT_KINDS[0], help="constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]"
     )
-    p.add_argument("--spp", type=int, default=64)
-    p.add_argument("--max-depth", type=int, default=-1, help="-1: full multiple scattering; 2: single scattering")
-    p.add_argument(
+    group.add_argument("--spp", type=int, default=64)
+    group.add_argument("--max-depth", type=int, default=-1, help="-1: full multiple scattering; 2: single scattering")
+    group.add_argument(
         "--denoise",
         choices=DENOISERS,
         default=DENOISERS[0],
         help="oidn: denoise the path-traced images with Intel Open Image Denoise, guided by the albedo the "
         "camera sees (default); none: the path tracer's images as they are",
     )
-    p.add_argument("--res", type=int, default=256)
-    p.add_argument(
+    group.add_argument("--res", type=int, default=256)
+    group.add_argument(
         "--density-scale", type=float, default=None, help="extinction per unit density (default: training's)"
     )
-    p.add_argument("--coat", type=_coat, default=None, metavar="dielectric[:ior]", help="smooth dielectric boundary")
-    p.add_argument(
+    group.add_argument(
+        "--coat", type=_coat, default=None, metavar="dielectric[:ior]", help="smooth dielectric boundary"
+    )
+    group.add_argument(
         "--bricks",
         type=int,
         default=None,
@@ -200,15 +250,19 @@ def parser() -> argparse.ArgumentParser:
         help=f"path-trace the medium as bricks of this many voxels, each with its own majorant (default "
         f"{DEFAULT_BRICK}; 0: one medium; always 0 with --coat)",
     )
-    p.add_argument("--scale-structures", type=float, default=1.0, help="resample the density by f before stylizing")
-    p.add_argument("--mesh-res", type=int, default=64, help="voxels along the mesh's longest side")
-    p.add_argument(
+
+
+def _stylize_options(p: argparse.ArgumentParser) -> None:
+    """How the albedo is made beyond the network."""
+    group = p.add_argument_group("stylization")
+    group.add_argument("--scale-structures", type=float, default=1.0, help="resample the density by f before stylizing")
+    group.add_argument(
         "--no-colour-match",
         dest="colour_match",
         action="store_false",
         help="keep the network's own colours (default: its arrangement gets the style's colours, mistyle.colour_match)",
     )
-    p.add_argument(
+    group.add_argument(
         "--refine",
         type=int,
         default=None,
@@ -217,7 +271,7 @@ def parser() -> argparse.ArgumentParser:
         f"(default: 0, a look fitted on the frame or a sequence's key frames instead; {REFINE_LAYER_STEPS} "
         "for a single frame with --no-colour-match)",
     )
-    p.add_argument(
+    group.add_argument(
         "--refine-path",
         type=int,
         default=None,
@@ -225,9 +279,6 @@ def parser() -> argparse.ArgumentParser:
         help=f"then STEPS steps with the path tracer in the loop (multiple scattering; default: "
         f"0, or {REFINE_PATH_STEPS} for a single frame at full strength with --no-colour-match)",
     )
-    p.add_argument("--fps", type=int, default=12)
-    p.add_argument("--device", choices=DEVICES, default="cpu")
-    return p
 
 
 def main(argv=None) -> int:
@@ -299,7 +350,7 @@ class Job:
     args: argparse.Namespace
     output: object  # outputs.Output: the (density, style) pair and its folder
     pipeline: object  # pipeline.Pipeline
-    style_parts: list  # [(decoded image, weight)]: what the pipeline is given
+    style: object  # style.Style: the output's style, loaded once
     frames: object  # pipeline.Frames
     names: list[str]
     views: list  # scenes.View
@@ -434,6 +485,7 @@ def save_look(args, pipeline, styles: dict):
     from .io import load_density_frames
     from .look import LookSettings, parse_key_frames
     from .progress import bar, fit_progress
+    from .style import Style
 
     source = (args.density or args.mesh)[0]
     if args.mesh:
@@ -446,18 +498,21 @@ def save_look(args, pipeline, styles: dict):
         densities, names = loaded.densities, loaded.names
     frames = pipeline.frames(densities, None, names)
     keys = None if args.key_frames is None else parse_key_frames(args.key_frames, len(frames.densities))
-    parts = [(styles[path][0], weight) for path, weight in _look_style_parts(args)]
-    names = [Path(path).name for path, _ in _look_style_parts(args)]
+    chosen = _look_style_parts(args)
+    style = Style(
+        tuple(styles[path][0] for path, _ in chosen),
+        tuple(weight for _, weight in chosen),
+        tuple(Path(path).name for path, _ in chosen),
+    )
     notes: list[str] = []
     steps = LookSettings().steps if args.look_steps is None else args.look_steps
     with bar(steps, "fitting the look") as progress_bar:
         look = pipeline.fit_look(
             frames,
-            parts if len(parts) > 1 else parts[0][0],
+            style,
             key_frames=keys,
             notes=notes,
             progress=fit_progress(progress_bar),
-            style_names=names,
         )
     for note in notes:
         log(f"note: {note}")
@@ -622,9 +677,14 @@ def load(args, output, pipeline, styles: dict) -> Job:
     """Check and load one output's inputs (``styles``: path -> (decoded image, conversion notes));
     nothing heavy runs before this returns."""
     from .io import density_frame_files, load_density_frames
+    from .style import Style
 
     notes = [note for path, _ in output.style.parts for note in styles[path][1]]
-    parts = [(styles[path][0], weight) for path, weight in output.style.parts]
+    style = Style(
+        tuple(styles[path][0] for path, _ in output.style.parts),
+        tuple(weight for _, weight in output.style.parts),
+        tuple(Path(path).name for path, _ in output.style.parts),
+    )
     pipeline.light()  # a bad --light fails here, before the density is read
     coat_mesh, transforms, sources, up = None, None, None, args.up or "y"
     if output.density.mesh:
@@ -661,7 +721,7 @@ def load(args, output, pipeline, styles: dict) -> Job:
         args=args,
         output=output,
         pipeline=pipeline,
-        style_parts=parts,
+        style=style,
         frames=frames,
         names=names,
         views=pipeline.views(),
@@ -772,8 +832,7 @@ def stylize_frames(job: Job, report: dict):
     if job.look is not None:
         stylized = job.pipeline.look_stylization(job.frames, job.look, notes=job.notes)
     else:
-        style = job.style_parts if len(job.style_parts) > 1 else job.style_parts[0][0]
-        stylized = job.pipeline.stylize(job.frames, style, notes=job.notes)
+        stylized = job.pipeline.stylize(job.frames, job.style, notes=job.notes)
     report.update(stylized.report)
     for index, albedo in enumerate(stylized.network):
         write_npy(job.out / f"albedo{_frame_suffix(job, index)}.npy", albedo)
@@ -1081,7 +1140,7 @@ def _merge_chunk_files(job: Job, folder: Path) -> None:
             write_gif(folder / "sequence.gif", shown, job.args.fps).name,
         ]
     first = stems[0]
-    style = job.look.style if job.look is not None else job.style_parts[0][0]
+    style = job.look.style if job.look is not None else job.style.images[0]
     # The look's own record of its style, not its file's name: a farm's workers hold it under another.
     described = (
         job.look.meta.get("style", "a look") if job.look is not None else job.output.style.describe(names_only=True)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import load_style
+from .style import Style
 
 PACKAGE = Path(__file__).resolve().parent
 DEFAULT_CHECKPOINT = PACKAGE / "checkpoints" / "skpn_noise.pt"
@@ -34,50 +34,6 @@ def validate_strength(strength, name: str = "strength") -> float:
     if not (np.isfinite(strength) and 0.0 <= strength <= 1.0):
         raise ValueError(f"{name} must lie in [0, 1] (0: a uniform grey medium, 1: the full style), got {strength}.")
     return float(strength)
-
-
-def style_parts(style) -> list[tuple[object, float]]:
-    """``style`` as ``[(image or path, weight)]``: one image or path, or a list of ``(style, weight)``."""
-    if isinstance(style, (list, tuple)) and not all(isinstance(p, tuple) and len(p) == 2 for p in style or [None]):
-        raise ValueError(
-            f"A style is an image (array or path) or a mix [(style, weight), ...]; got a list of {len(style)} "
-            "item(s) that are not (style, weight) pairs."
-        )
-    if isinstance(style, (list, tuple)):
-        weights = [float(w) for _, w in style]
-        if not all(np.isfinite(w) and w >= 0 for w in weights) or sum(weights) <= 0:
-            raise ValueError(f"Style mix weights must be >= 0 with a positive sum, got {weights}.")
-        return [(image, float(w)) for image, w in style]
-    return [(style, 1.0)]
-
-
-def style_target(images: list[np.ndarray], weights, height: int = 256) -> np.ndarray:
-    """The picture a style's look is measured and refined against: the image itself, or for a mix a
-    mosaic ``(height, W, 3)`` of its images side by side, each given a width in proportion to its
-    weight (scaled to ``height``, tiled across its strip), so every style's colours and patterns
-    count as much as its weight."""
-    from PIL import Image
-
-    if len(images) == 1:
-        return images[0]
-    weights = np.asarray(weights, dtype=np.float64) / np.sum(weights)
-    strips = []
-    for image, weight in zip(images, weights):
-        width = round(height * len(images) * weight)
-        if width < 1:
-            continue
-        scaled = (
-            np.asarray(
-                Image.fromarray((image * 255 + 0.5).astype(np.uint8)).resize(
-                    (max(1, round(image.shape[1] * height / image.shape[0])), height), Image.LANCZOS
-                ),
-                dtype=np.float32,
-            )
-            / 255
-        )
-        repeats = -(-width // scaled.shape[1])
-        strips.append(np.tile(scaled, (1, repeats, 1))[:, :width])
-    return np.concatenate(strips, axis=1)
 
 
 class Stylizer:
@@ -147,8 +103,8 @@ class Stylizer:
         with torch.no_grad():
             return StylizingKernels.blend(
                 [
-                    (model.predict_kernels(self.style_inputs(load_style(image, notes))), weight)
-                    for image, weight in style_parts(style)
+                    (model.predict_kernels(self.style_inputs(image)), weight)
+                    for image, weight in Style.of(style, notes).parts
                 ]
             )
 
@@ -197,8 +153,8 @@ class Stylizer:
         frames = array if sequence else array[None]
         validate_scale_structures(scale_structures)
         validate_strength(strength)
-        parts = [(load_style(image, notes), weight) for image, weight in style_parts(style)]
-        inputs = self.kernels(parts)
+        style = Style.of(style, notes)
+        inputs = self.kernels(style)
         grids, albedos = [], []
         for index, frame in enumerate(frames):
             grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
@@ -212,9 +168,14 @@ class Stylizer:
             grids.append(grid)
             albedos.append(self.network_albedo(grid, inputs, scale_structures))
         if match_colours and strength > 0:
-            target = style_target([image for image, _ in parts], [weight for _, weight in parts])
             albedos = self.match_colours(
-                albedos, grids, target, strength, notes, density_scale=density_scale, camera_distance=camera_distance
+                albedos,
+                grids,
+                style.target,
+                strength,
+                notes,
+                density_scale=density_scale,
+                camera_distance=camera_distance,
             )
         return np.stack(albedos) if sequence else albedos[0]
 

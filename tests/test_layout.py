@@ -11,7 +11,7 @@ LAYERS = [
     {"conventions", "vdb_convert", "version"},
     {"tone", "volume", "warp", "backend", "progress", "stops", "vdb"},
     {"io", "ownership"},
-    {"scenes", "pages", "outputs"},
+    {"scenes", "pages", "outputs", "style"},
     {"integrators"},
     {"bridge_torch", "reference_torch", "pathtrace", "denoise", "adam"},
     {"model", "objective"},
@@ -148,3 +148,18 @@ def test_the_version_is_the_projects():
 
     project = tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["project"]
     assert mistyle.__version__ == project["version"]
+
+
+MAX_FUNCTION_LINES = 120
+"""A function longer than this is split into parts that each say what they do (issue #50)."""
+
+
+def test_no_function_of_the_package_is_longer_than_a_screenful_or_two():
+    long = []
+    for path in sorted(ROOT.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_FUNCTION_LINES:
+                    long.append(f"{path.relative_to(ROOT.parent)}:{node.lineno} {node.name} ({lines} lines)")
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {', '.join(long)}"

@@ -26,7 +26,7 @@ from mistyle.preview.session import (
     Camera,
     Controls,
     PreviewSession,
-    Style,
+    StyleOption,
     decode_upload,
     thumbnail_jpeg,
 )
@@ -39,7 +39,7 @@ def session(tmp_path_factory, tiny_checkpoint_factory, blob_density):
     styles = []
     for name, colour in (("red.png", (0.6, 0.1, 0.1)), ("blue.png", (0.1, 0.2, 0.6))):
         image = np.clip(rng.random((32, 32, 3)) * 0.3 + np.asarray(colour), 0, 1).astype(np.float32)
-        styles.append(Style(name, image, thumbnail_jpeg(image)))
+        styles.append(StyleOption(name, image, thumbnail_jpeg(image)))
     pipeline = Pipeline(PipelineSettings(checkpoint=checkpoint, look_steps=3))
     return PreviewSession(pipeline, [blob_density, blob_density[::-1].copy()], styles, res=64)
 
@@ -74,7 +74,7 @@ def test_the_look_the_page_fits_is_the_final_renders_bit_for_bit(mi, tmp_path, t
     Image.fromarray((rng.random((24, 24, 3)) * [255, 160, 60]).astype(np.uint8)).save(style_path)
     image = load_style(style_path)
     options = ["--look-steps", "3", "--checkpoint", str(checkpoint), "--res", "16", "--spp", "2", "--denoise", "none"]
-    styles = [Style("warm.png", image, thumbnail_jpeg(image))]
+    styles = [StyleOption("warm.png", image, thumbnail_jpeg(image))]
     session = PreviewSession(Pipeline(job_settings(density, options)), [blob_density], styles, res=32)
     controls = session.checked(session.initial_controls())
     assert session.fits_look(controls) and session.shown_look(controls) is None

@@ -10,7 +10,8 @@ import torch
 from mistyle.data.heldout import held_out_styles
 from mistyle.io import load_style
 from mistyle.model.skpn import SKPN, SKPNConfig, StylizingKernels
-from mistyle.stylizer import LUMA_WEIGHTS, Stylizer, style_parts, validate_strength
+from mistyle.style import style_parts
+from mistyle.stylizer import LUMA_WEIGHTS, Stylizer, validate_strength
 
 
 class NetworkOnly:

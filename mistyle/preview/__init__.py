@@ -65,7 +65,7 @@ def load(args) -> tuple:
     from ..outputs import style_files
     from ..pipeline import Pipeline
     from ..stylizer import checked_frames
-    from .session import PreviewSession, Style, thumbnail_jpeg
+    from .session import PreviewSession, StyleOption, thumbnail_jpeg
 
     if not 64 <= args.res <= 1024:
         raise ValueError(f"--res takes 64 to 1024 pixels, got {args.res}.")
@@ -79,7 +79,7 @@ def load(args) -> tuple:
     styles = []
     for path in paths:
         image = load_style(path)
-        styles.append(Style(path.name, image, thumbnail_jpeg(image)))
+        styles.append(StyleOption(path.name, image, thumbnail_jpeg(image)))
     look = Look.load(args.look, pipeline.stylizer) if args.look is not None else None
     session = PreviewSession(pipeline, frames, styles, look=look, res=args.res)
     return session, list(paths), options

@@ -367,31 +367,56 @@ def build_app(
     ``mistyle-render`` options for the page's jobs; ``host``: the address it was told to listen on
     (``--host``), a ``Host`` it answers besides the socket's own address; ``max_uploads`` and
     ``max_uploads_bytes``: what a run keeps of uploads."""
-    from aiohttp import WSMsgType, web
+    from aiohttp import web
 
-    sockets: set = set()
-    loop_holder: dict = {}
-    token = secrets.token_urlsafe(32)
-    uploads = Uploads(max_uploads, max_uploads_bytes)
-    upload_lock = asyncio.Lock()  # one upload at a time: the caps are checked and kept together
-    jobs = Jobs(out, density, look, list(render_options))
+    preview = PreviewApp(
+        session,
+        style_paths,
+        Jobs(out, density, look, list(render_options)),
+        host,
+        Uploads(max_uploads, max_uploads_bytes),
+    )
 
-    def send(message) -> None:
+    @web.middleware
+    async def guard(request, handler):  # aiohttp takes a function marked as a middleware, not a method
+        return await preview.guard(request, handler)
+
+    app = web.Application(client_max_size=80 * 1024 * 1024, middlewares=[guard])
+    app.router.add_get("/", preview.page)
+    app.router.add_get(r"/thumb/{index:\d+}.jpg", preview.thumbnail)
+    app.router.add_post("/upload", preview.upload)
+    app.router.add_post(r"/job/{kind:final|look}", preview.job)
+    app.router.add_get("/ws", preview.websocket)
+    app.on_startup.append(preview.started)
+    app.on_cleanup.append(preview.stopped)
+    return app
+
+
+class PreviewApp:
+    """The page's handlers and what they share: the session, the open pages (websockets), the worker
+    thread that renders the newest controls, this run's token, the uploads kept and the page's jobs."""
+
+    def __init__(self, session: PreviewSession, style_paths: list[Path], jobs: Jobs, host: str | None, uploads):
+        self.session, self.style_paths, self.jobs, self.host, self.uploads = session, style_paths, jobs, host, uploads
+        self.sockets: set = set()
+        self.loop = None
+        self.token = secrets.token_urlsafe(32)
+        self.upload_lock = asyncio.Lock()  # one upload at a time: the caps are checked and kept together
+        self.worker = Worker(session, self.send)
+
+    def send(self, message) -> None:
         """From the worker thread: to every open page, waiting until sent (so frames never pile up)."""
-        loop = loop_holder.get("loop")
-        if loop is None:
+        if self.loop is None:
             return
-        for socket in list(sockets):
+        for socket in list(self.sockets):
             coroutine = socket.send_bytes(message) if isinstance(message, bytes) else socket.send_json(message)
             try:
-                asyncio.run_coroutine_threadsafe(coroutine, loop).result(timeout=5)
+                asyncio.run_coroutine_threadsafe(coroutine, self.loop).result(timeout=5)
             except Exception:  # a closed page: its handler removes it
                 pass
 
-    worker = Worker(session, send)
-
-    def state() -> dict:
-        controls = worker.controls
+    def state(self) -> dict:
+        controls, session = self.worker.controls, self.session
         return {
             "type": "state",
             "styles": [style.name for style in session.styles],
@@ -408,8 +433,13 @@ def build_app(
             },
         }
 
-    @web.middleware
-    async def guard(request, handler):
+    async def send_state(self) -> None:
+        for socket in list(self.sockets):
+            await socket.send_json(self.state())
+
+    async def guard(self, request, handler):
+        from aiohttp import web
+
         transport = request.transport
         why = refusal(
             method=request.method,
@@ -417,16 +447,18 @@ def build_app(
             headers=request.headers,
             query=request.query,
             local=transport.get_extra_info("sockname") if transport is not None else None,
-            host=host,
-            token=token,
+            host=self.host,
+            token=self.token,
         )
         if why is not None:
             return web.json_response({"error": why}, status=403)
         return await handler(request)
 
-    async def page(request):
+    async def page(self, request):
+        from aiohttp import web
+
         text = resources.files("mistyle.preview").joinpath("page.html").read_text()
-        text = text.replace(TOKEN_PLACEHOLDER, html.escape(token))
+        text = text.replace(TOKEN_PLACEHOLDER, html.escape(self.token))
         headers = {
             "Cache-Control": "no-store",  # the token is this run's: a cached page would hold a stale one
             "Content-Security-Policy": "frame-ancestors 'none'",  # no other site may frame it and click it
@@ -434,20 +466,24 @@ def build_app(
         }
         return web.Response(text=text, content_type="text/html", headers=headers)
 
-    async def thumbnail(request):
+    async def thumbnail(self, request):
+        from aiohttp import web
+
         index = int(request.match_info["index"])
-        if not 0 <= index < len(session.styles):
+        if not 0 <= index < len(self.session.styles):
             raise web.HTTPNotFound()
-        return web.Response(body=session.styles[index].thumbnail, content_type="image/jpeg")
+        return web.Response(body=self.session.styles[index].thumbnail, content_type="image/jpeg")
 
-    async def upload(request):
-        async with upload_lock:
-            return await upload_one(request)
+    async def upload(self, request):
+        async with self.upload_lock:
+            return await self.upload_one(request)
 
-    async def upload_one(request):
+    async def upload_one(self, request):
+        from aiohttp import web
+
         from .session import decode_upload
 
-        full = uploads.refusal()
+        full = self.uploads.refusal()
         if full is not None:  # before reading the body: a full server does no work for it
             return web.json_response({"error": full}, status=413)
         try:
@@ -457,7 +493,7 @@ def build_app(
                 raise ValueError("The upload holds no picture (a form field named 'style').")
             name = part.filename or "upload.png"
             data = bytes(await part.read(decode=False))
-            full = uploads.refusal(len(data), name)
+            full = self.uploads.refusal(len(data), name)
             if full is not None:
                 return web.json_response({"error": full}, status=413)
             style = await asyncio.get_running_loop().run_in_executor(None, decode_upload, name, data)
@@ -465,85 +501,77 @@ def build_app(
             return web.json_response({"error": str(error)}, status=400)
         except Exception as error:  # a malformed request: the page says so, the server goes on
             return web.json_response({"error": f"The upload could not be read ({error})."}, status=400)
-        index = len(session.styles)
-        path = uploads.keep(index, style.name, data)
-        style_paths.append(path)
-        session.styles.append(style)
-        worker.update(replace(worker.controls, style=index, look=False))
-        for socket in list(sockets):
-            await socket.send_json(state())
+        index = len(self.session.styles)
+        path = self.uploads.keep(index, style.name, data)
+        self.style_paths.append(path)
+        self.session.styles.append(style)
+        self.worker.update(replace(self.worker.controls, style=index, look=False))
+        await self.send_state()
         return web.json_response({"index": index, "name": style.name})
 
-    async def job(request):
+    async def job(self, request):
+        from aiohttp import web
+
         kind = request.match_info["kind"]
         try:
-            target = jobs.start(kind, worker.controls, session, style_paths)
+            target = self.jobs.start(kind, self.worker.controls, self.session, self.style_paths)
         except ValueError as error:
             return web.json_response({"error": str(error)}, status=409)
-
-        async def watch():
-            process = jobs.process
-            output = await asyncio.get_running_loop().run_in_executor(None, process.communicate)
-            lines = [line for line in (output[0] or "").splitlines() if line.strip()]
-            if process.returncode == 0:
-                message = {"type": "job", "kind": kind, "done": True, "path": str(target)}
-                if kind == "look":  # the page can apply the look it just saved
-                    from ..look import Look
-
-                    session.look = Look.load(target, session.stylizer)
-                    jobs.look = target
-                    for socket in list(sockets):
-                        await socket.send_json(state())
-            else:
-                message = {"type": "job", "kind": kind, "error": lines[-1] if lines else "mistyle-render failed"}
-            for socket in list(sockets):
-                await socket.send_json(message)
-
-        asyncio.get_running_loop().create_task(watch())
+        asyncio.get_running_loop().create_task(self.watch(kind, target))
         return web.json_response({"started": kind, "path": str(target)})
 
-    async def websocket(request):
+    async def watch(self, kind: str, target: Path) -> None:
+        """Until the page's job ends, then tell every page how it went; a saved look becomes the session's."""
+        process = self.jobs.process
+        output = await asyncio.get_running_loop().run_in_executor(None, process.communicate)
+        lines = [line for line in (output[0] or "").splitlines() if line.strip()]
+        if process.returncode == 0:
+            message = {"type": "job", "kind": kind, "done": True, "path": str(target)}
+            if kind == "look":  # the page can apply the look it just saved
+                from ..look import Look
+
+                self.session.look = Look.load(target, self.session.stylizer)
+                self.jobs.look = target
+                await self.send_state()
+        else:
+            message = {"type": "job", "kind": kind, "error": lines[-1] if lines else "mistyle-render failed"}
+        for socket in list(self.sockets):
+            await socket.send_json(message)
+
+    async def websocket(self, request):
+        from aiohttp import WSMsgType, web
+
         socket = web.WebSocketResponse(max_msg_size=1 << 20)
         await socket.prepare(request)
-        sockets.add(socket)
-        await socket.send_json(state())
-        worker.update(worker.controls)  # a first image for the new page
+        self.sockets.add(socket)
+        await socket.send_json(self.state())
+        self.worker.update(self.worker.controls)  # a first image for the new page
         try:
             async for message in socket:
                 if message.type != WSMsgType.TEXT:
                     continue
                 try:
                     fields = json.loads(message.data)
-                    controls = session.checked(controls_from(worker.controls, fields, session))
+                    controls = self.session.checked(controls_from(self.worker.controls, fields, self.session))
                 except (ValueError, TypeError, RecursionError) as error:
                     # To this page only, with the state it should show again: nothing of the message was applied.
                     await socket.send_json({"type": "error", "message": f"bad control message: {error}"})
-                    await socket.send_json(state())
+                    await socket.send_json(self.state())
                     continue
-                worker.update(controls)
+                self.worker.update(controls)
         finally:
-            sockets.discard(socket)
+            self.sockets.discard(socket)
         return socket
 
-    async def started(app):
-        loop_holder["loop"] = asyncio.get_running_loop()
-        worker.start()
+    async def started(self, app):
+        self.loop = asyncio.get_running_loop()
+        self.worker.start()
 
-    async def stopped(app):
-        worker.stop()
+    async def stopped(self, app):
+        self.worker.stop()
         # A daemon thread killed inside Mitsuba at exit aborts the process: let it finish its pass.
-        await asyncio.get_running_loop().run_in_executor(None, worker.join, 60)
-        uploads.remove()
-
-    app = web.Application(client_max_size=80 * 1024 * 1024, middlewares=[guard])
-    app.router.add_get("/", page)
-    app.router.add_get(r"/thumb/{index:\d+}.jpg", thumbnail)
-    app.router.add_post("/upload", upload)
-    app.router.add_post(r"/job/{kind:final|look}", job)
-    app.router.add_get("/ws", websocket)
-    app.on_startup.append(started)
-    app.on_cleanup.append(stopped)
-    return app
+        await asyncio.get_running_loop().run_in_executor(None, self.worker.join, 60)
+        self.uploads.remove()
 
 
 def shown(value) -> str:

@@ -97,7 +97,9 @@ def mix_weights(mix: float) -> tuple[float, float]:
 
 
 @dataclass
-class Style:
+class StyleOption:
+    """A style the page offers: its name, its picture and the thumbnail the page shows."""
+
     name: str
     image: np.ndarray  # (H, W, 3) float32 display RGB, decoded by io.load_style
     thumbnail: bytes  # JPEG
@@ -124,7 +126,7 @@ def jpeg(image: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
-def decode_upload(name: str, data: bytes) -> Style:
+def decode_upload(name: str, data: bytes) -> StyleOption:
     """An uploaded picture through the decoder and limits of ``--style`` (``io.load_style``).
 
     Raises:
@@ -141,13 +143,13 @@ def decode_upload(name: str, data: bytes) -> Style:
             image = load_style(path)
         except ValueError as error:
             raise ValueError(str(error).replace(str(path), name)) from None
-    return Style(Path(name).name, image, thumbnail_jpeg(image))
+    return StyleOption(Path(name).name, image, thumbnail_jpeg(image))
 
 
 class PreviewSession:
     """A density's frames, the styles, and the images of ``Controls`` (module docstring)."""
 
-    def __init__(self, pipeline, frames: list[np.ndarray], styles: list[Style], *, look=None, res: int = 256):
+    def __init__(self, pipeline, frames: list[np.ndarray], styles: list[StyleOption], *, look=None, res: int = 256):
         """``pipeline``: a ``pipeline.Pipeline`` with the settings of the page's final renders (its network,
         density scale, orbit and look settings are the preview's); ``look``: a loaded ``look.Look`` the
         page can apply."""
@@ -194,13 +196,16 @@ class PreviewSession:
         )
 
     # ------------------------------------------------------------------ albedo
-    def _parts(self, controls: Controls) -> list[tuple[np.ndarray, float]]:
-        first = self.styles[controls.style].image
+    def _style(self, controls: Controls):
+        """The controls' style (``mistyle.style.Style``): the chosen picture, or its mix with the second."""
+        from ..style import Style
+
+        first = self.styles[controls.style]
         key = controls.style_key
         if key[1] is None:
-            return [(first, 1.0)]
-        first_weight, second_weight = mix_weights(key[2])
-        return [(first, first_weight), (self.styles[key[1]].image, second_weight)]
+            return Style((first.image,), (1.0,), (first.name,))
+        second = self.styles[key[1]]
+        return Style((first.image, second.image), mix_weights(key[2]), (first.name, second.name))
 
     def _kernels_for(self, controls: Controls):
         """The kernels at the controls' strength; the full-strength kernels and their neutral (what the
@@ -209,7 +214,7 @@ class PreviewSession:
         if key not in self._kernels:
             style = key[:3]
             if style not in self._full:
-                full = self.stylizer.kernels(self._parts(controls))
+                full = self.stylizer.kernels(self._style(controls))
                 self._full[style] = (full, self.stylizer.neutral(full, self.frames[0]))
             full, neutral = self._full[style]
             self._kernels[key] = self.stylizer.weakened(full, self.frames[0], controls.strength, neutral)
@@ -218,12 +223,10 @@ class PreviewSession:
     def _match_for(self, controls: Controls):
         """The colour match of the style (fitted on the first frame, shared by every frame, as a sequence's)."""
         from ..colour_match import InvisibleMedium, fit_colour_match
-        from ..stylizer import style_target
 
         key = controls.style_key
         if key not in self._matches:
-            parts = self._parts(controls)
-            target = style_target([image for image, _ in parts], [weight for _, weight in parts])
+            target = self._style(controls).target
             first = self.stylizer.network_albedo(self.frames[0], self._kernels_for(controls))
             try:
                 self._matches[key] = fit_colour_match(
@@ -287,10 +290,9 @@ class PreviewSession:
         if key in self._looks:
             return self._looks[key]
         started = time.perf_counter()
-        parts = self._parts(controls)
         try:
             look = self.pipeline.default_look(
-                self._fitted_frames(), parts if len(parts) > 1 else parts[0][0], notes=notes, progress=progress
+                self._fitted_frames(), self._style(controls), notes=notes, progress=progress
             )
         except ValueError:
             self._looks[key] = None

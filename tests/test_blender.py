@@ -3,7 +3,7 @@
 Kept out of ``make test`` (marker ``blender``): it needs the ~430 MB wheel in an environment of its own,
 ``.venv-blender`` (``scripts/setup_blender.sh``), named to these tests by ``$MISTYLE_BLENDER_PYTHON``.
 
-* README's Blender recipe, done as written, renders mistyle's ``volume.vdb`` (``--up z``) with Cycles on
+* The Blender recipe of docs/usage.md, done as written, renders mistyle's ``volume.vdb`` (``--up z``) with Cycles on
   the CPU like mistyle's own path tracer from the same camera: luminance correlation >= 0.95,
   foreground IoU >= 0.85, mean foreground colour within 0.05 (display values);
 * the plume is upright: the density's mass along Blender's world Z is mistyle's along its up axis;
@@ -125,7 +125,7 @@ def test_readme_recipe_renders_like_mistyle(rendered, tmp_path):
     answer = in_blender("recipe", job, tmp_path)
     assert answer["grids"] == ["Cd", "density"]
     scores = agreement(rendered / "final.exr", tmp_path / "recipe.exr")
-    print("README recipe:", json.dumps(scores))
+    print("Blender recipe:", json.dumps(scores))
     assert scores["correlation"] >= 0.95
     assert scores["iou"] >= 0.85
     assert scores["colour_difference"] <= 0.05

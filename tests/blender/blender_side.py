@@ -1,6 +1,6 @@
 """What ``tests/test_blender.py`` runs inside Blender (the ``bpy`` wheel's Python, not mistyle's).
 
-    python blender_side.py recipe JOB.json     # README's recipe by hand, then a Cycles render
+    python blender_side.py recipe JOB.json     # docs/usage.md's Blender recipe by hand, then a Cycles render
     python blender_side.py addon JOB.json      # install and enable the add-on, run its operator, render
     python blender_side.py addon_sequence JOB.json   # the add-on on a two-frame VDB sequence
     python blender_side.py addon_cache JOB.json      # the add-on on a real fluid cache: where its frames lie
@@ -77,7 +77,7 @@ def render(path: str) -> None:
 
 
 def recipe(job: dict) -> dict:
-    """README's Blender recipe, step by step, as a user clicks it."""
+    """docs/usage.md's Blender recipe, step by step, as a user clicks it."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     vdb = job["vdb"]

@@ -372,6 +372,23 @@ def test_a_results_file_of_two_settings_gets_a_table_for_each(tmp_path, capsys):
     assert "optimise_factor 3.0" in table and capsys.readouterr().out == table
 
 
+def test_a_results_folders_notes_stay_and_do_not_stop_the_benchmark(tmp_path, capsys):
+    """Every results folder has a README.md that people wrote; the benchmark refused any folder holding one."""
+    from mistyle.benchmark.__main__ import main
+
+    out = tmp_path / "bench"
+    out.mkdir()
+    (out / "rows.jsonl").write_text(_rows([QUICK]))
+    assert main(["--report-only", "--out", str(out)]) == 0
+    (out / "README.md").write_text("what made these rows\n")
+    (out / "notes.txt").write_text("not the benchmark's\n")
+    assert main(["--report-only", "--out", str(out)]) == 2
+    assert "holds notes.txt: mistyle did not write them" in capsys.readouterr().err
+    (out / "notes.txt").unlink()
+    assert main(["--report-only", "--out", str(out)]) == 0
+    assert (out / "README.md").read_text() == "what made these rows\n" and (out / "table.md").is_file()
+
+
 @pytest.mark.parametrize(
     "damage, where",
     [(lambda data: data[: len(data) // 2 + 7], "line 2"), (lambda data: data + b"\x89PNG\r\n\x1a\n\xff", "line 3")],

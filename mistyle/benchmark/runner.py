@@ -34,6 +34,9 @@ TILE = 128
 BENCHMARK_KIND = "benchmark"
 LAYOUT = re.compile(r"rows\.jsonl|table\.md|sheet\.jpg|index\.html|tiles/[^/]+\.png")
 """The files a benchmark folder holds: what one an older mistyle wrote (no manifest) may hold."""
+NOTES_FILE = "README.md"
+"""A results folder's notes, written by people (what made the rows, which record cites them): the benchmark
+never writes, replaces or deletes it, and it does not make the folder another's."""
 
 
 @dataclass
@@ -284,7 +287,9 @@ def owned_folder(out: Path, names: list[str]):
         raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
     with output_lock(out):
         older = out.is_dir() and read_manifest(out) is None  # an older mistyle's folder: its layout is ours
-        check_replaceable(out, "--out", also_ours=lambda name: older and LAYOUT.fullmatch(name) is not None)
+        check_replaceable(
+            out, "--out", also_ours=lambda name: name == NOTES_FILE or (older and LAYOUT.fullmatch(name) is not None)
+        )
         rows = read_rows(out / ROWS_FILE)
         adopt_older(out, BENCHMARK_KIND, LAYOUT)
         with adding(out, BENCHMARK_KIND, names, rewritten=names, locked=True):

@@ -228,6 +228,7 @@ def test_addon_stylizes_a_real_fluid_cache_and_its_frames_lie_on_the_source(tmp_
         source, stylized = frame["source"], frame["stylized"]
         voxel = source["voxel"]
         assert stylized["voxel"] == pytest.approx(voxel, rel=1e-4)
+        assert source["translation"] == pytest.approx([1.5, -2.0, 0.5]) == stylized["translation"]
         assert np.allclose(stylized["centre"], source["centre"], atol=0.05 * voxel)
         assert np.allclose(stylized["low"], source["low"], atol=1e-3 * voxel)
         assert np.allclose(stylized["high"], source["high"], atol=1e-3 * voxel)

@@ -243,6 +243,7 @@ def addon_cache(job: dict) -> dict:
                 "low": world.min(axis=0).tolist(),
                 "high": world.max(axis=0).tolist(),
                 "voxel": voxel,
+                "translation": matrix[:3, 3].tolist(),
             }
         answer["frames"].append(placed)
     return answer

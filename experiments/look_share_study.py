@@ -29,7 +29,6 @@ of several, the lowest structure; ties (within 0.01) go to the larger share.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import sys
 from pathlib import Path
@@ -80,33 +79,10 @@ def register_arms() -> list[str]:
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--report-only", action="store_true")
-    parser.add_argument("--heldout", default="", help="an arm to score on the held-out split (out/heldout)")
-    args = parser.parse_args(argv)
     from solid_texture_study import pairs
+    from study import arm_study
 
-    from mistyle.benchmark.runner import report, run
-
-    arms = register_arms()
-    if args.report_only:
-        report(OUT)
-        return
-    if args.heldout:
-        from mistyle.benchmark.splits import split_pairs
-
-        run(
-            OUT / "heldout",
-            split_pairs("heldout"),
-            [args.heldout],
-            res=256,
-            spp=64,
-            denoise="oidn",
-            split="heldout",
-            resume=True,
-        )
-        return
-    run(OUT, pairs(), ["default"] + arms, res=256, spp=64, denoise="oidn", split="validation", resume=True)
+    arm_study(__doc__.splitlines()[0], OUT, register_arms, pairs, argv)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ from __future__ import annotations
 from mistyle.benchmark.methods import uniform_baseline
 from mistyle.benchmark.runner import METRIC_VIEWS, metric_views, score
 
-__all__ = ["METRIC_VIEWS", "add_metric_arguments", "metric_views", "score", "uniform_baseline"]
+__all__ = ["METRIC_VIEWS", "add_metric_arguments", "arm_study", "metric_views", "score", "uniform_baseline"]
 
 
 def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:
@@ -18,3 +18,28 @@ def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:
     parser.add_argument("--res", type=int, default=res, help="metric renders' side")
     parser.add_argument("--spp", type=int, default=spp, help="metric renders' paths per pixel")
     parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
+
+
+def arm_study(description: str, out, register_arms, validation_pairs, argv=None) -> None:
+    """The command line of a study of look arms scored as users see them (256^2, 64 spp, OIDN): the
+    default output and the arms (``register_arms()``: their names, registered as benchmark methods) on
+    ``validation_pairs()``; ``--heldout ARM``: one arm on the held-out split, into ``out/heldout``;
+    ``--report-only``: the report of ``out``'s rows."""
+    import argparse
+    from pathlib import Path
+
+    from mistyle.benchmark.runner import report, run
+    from mistyle.benchmark.splits import split_pairs
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--report-only", action="store_true")
+    parser.add_argument("--heldout", default="", help="an arm to score on the held-out split (out/heldout)")
+    args = parser.parse_args(argv)
+    out, arms = Path(out), register_arms()
+    scoring = dict(res=256, spp=64, denoise="oidn", resume=True)
+    if args.report_only:
+        report(out)
+    elif args.heldout:
+        run(out / "heldout", split_pairs("heldout"), [args.heldout], split="heldout", **scoring)
+    else:
+        run(out, validation_pairs(), ["default"] + arms, split="validation", **scoring)

@@ -160,9 +160,10 @@ def addon(job: dict) -> dict:
     return answer
 
 
-def addon_sequence(job: dict) -> dict:
-    """The add-on on a VDB sequence (``job["frames"]``, numbered from 1 as Blender's caches are) over the
-    scene's frame range: one mistyle run, one new volume object that plays the stylized frames."""
+def stylized_sequence(job: dict, location=(0.0, 0.0, 0.0), quality: str | None = None):
+    """Install the add-on, make a volume object of the VDB sequence ``job["frames"]`` (numbered from 1, as
+    Blender's caches are) at ``location``, and run the add-on's operator on it over the scene's frame
+    range: ``(scene, source, the operator's result, the volume objects it added)``."""
     install_addon(job)
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, len(job["frames"])
@@ -170,11 +171,21 @@ def addon_sequence(job: dict) -> dict:
     source.data.filepath = job["frames"][0]
     source.data.is_sequence = True
     source.data.frame_duration = len(job["frames"])
+    source.location = location
     scene.collection.objects.link(source)
     bpy.context.view_layer.objects.active = source
     source.mistyle.style = job["style"]
+    if quality is not None:
+        source.mistyle.quality = quality
     result = bpy.ops.mistyle.stylize()
     added = [obj for obj in scene.objects if obj.type == "VOLUME" and obj is not source]
+    return scene, source, result, added
+
+
+def addon_sequence(job: dict) -> dict:
+    """The add-on on a VDB sequence (``job["frames"]``, numbered from 1 as Blender's caches are) over the
+    scene's frame range: one mistyle run, one new volume object that plays the stylized frames."""
+    scene, source, result, added = stylized_sequence(job)
     answer = {"operator": sorted(result), "added": [obj.name for obj in added]}
     if len(added) == 1:
         volume = added[0].data
@@ -212,20 +223,7 @@ def addon_cache(job: dict) -> dict:
     origin) over the scene's frame range, and where each frame's density lies in Blender's world: for
     the source and the stylized object at every frame, the density-weighted centre and the box of the
     voxels that hold density, through the object's matrix and the frame's own file."""
-    install_addon(job)
-    scene = bpy.context.scene
-    scene.frame_start, scene.frame_end = 1, len(job["frames"])
-    source = bpy.data.objects.new("fluid", bpy.data.volumes.new("fluid"))
-    source.data.filepath = job["frames"][0]
-    source.data.is_sequence = True
-    source.data.frame_duration = len(job["frames"])
-    source.location = (1.5, -2.0, 0.5)
-    scene.collection.objects.link(source)
-    bpy.context.view_layer.objects.active = source
-    source.mistyle.style = job["style"]
-    source.mistyle.quality = "FAST"
-    result = bpy.ops.mistyle.stylize()
-    added = [obj for obj in scene.objects if obj.type == "VOLUME" and obj is not source]
+    scene, source, result, added = stylized_sequence(job, location=(1.5, -2.0, 0.5), quality="FAST")
     answer = {"operator": sorted(result), "added": [obj.name for obj in added], "frames": []}
     if len(added) != 1:
         return answer

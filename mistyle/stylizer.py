@@ -93,7 +93,7 @@ class Stylizer:
 
     def kernels(self, style, notes: list | None = None):
         """The stylizing kernels (``model.skpn.StylizingKernels``) the network applies for ``style``:
-        one image or path, or a mix ``[(style, weight)]``, whose kernels are blended with the
+        one image or path, a mix ``[(style, weight)]`` or a ``style.Style``, whose kernels are blended with the
         weights normalised to sum 1."""
         import torch
 

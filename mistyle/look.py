@@ -814,7 +814,7 @@ def fit_look(
     style_names: list[str] | None = None,
     prepared: Callable[[int], object] | None = None,
 ) -> Look:
-    """Fit a ``Look`` of ``style`` (an image or path, or a mix ``[(style, weight)]``) on the
+    """Fit a ``Look`` of ``style`` (an image or path, a mix ``[(style, weight)]`` or a ``style.Style``) on the
     ``key_frames`` (default ``default_key_frames``) of ``densities`` (checked ``(Z, Y, X)`` frames of one
     shape) with ``stylizer``'s network (``stylizer.Stylizer``). ``progress(step, steps, loss)`` after
     each step. ``style_names``: what the look calls its style (default: the image files' names).

@@ -28,22 +28,22 @@ OUT = ROOT / "results" / "structure_seed_spread"
 
 
 def structure(context, density, albedo, style, seed: int) -> float:
-    """The benchmark's structure distance of ``albedo`` path traced with ``seed`` and denoised."""
-    from mistyle.denoise import denoise
-    from mistyle.objective.metrics import style_fidelity
-    from mistyle.pathtrace import path_trace
+    """The benchmark's structure distance of ``albedo`` path traced with ``seed`` (``runner.score``)."""
+    from mistyle.benchmark.runner import score
 
-    images, _ = path_trace(
+    metrics, _ = score(
         density,
         albedo,
+        style,
         context.views,
         res=256,
         spp=64,
         density_scale=context.density_scale,
-        light=f"constant:{context.radiance}",
+        radiance=context.radiance,
+        denoise="oidn",
         seed=seed,
     )
-    return float(style_fidelity([denoise(image) for image in images], style)["structure"])
+    return float(metrics["structure"])
 
 
 def main(argv=None) -> None:

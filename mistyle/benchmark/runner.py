@@ -67,15 +67,26 @@ def metric_views(camera_distance: float, count: int = METRIC_VIEWS) -> list:
 
 
 def score(
-    density, albedo, style, views, *, res: int, spp: int, density_scale: float, radiance: float, denoise: str = "none"
+    density,
+    albedo,
+    style,
+    views,
+    *,
+    res: int,
+    spp: int,
+    density_scale: float,
+    radiance: float,
+    denoise: str = "none",
+    seed: int = 0,
 ):
-    """``(style_fidelity metrics, images)`` of ``albedo`` on ``density`` path traced from ``views``, and
-    denoised as ``mistyle-render`` denoises its final images when ``denoise`` is ``"oidn"``."""
+    """``(style_fidelity metrics, images)`` of ``albedo`` on ``density`` path traced from ``views`` (with the
+    path tracer's ``seed``), and denoised as ``mistyle-render`` denoises its final images when ``denoise``
+    is ``"oidn"``."""
     from ..objective.metrics import style_fidelity
     from ..pathtrace import path_trace
 
     images, _ = path_trace(
-        density, albedo, views, res=res, spp=spp, density_scale=density_scale, light=f"constant:{radiance}"
+        density, albedo, views, res=res, spp=spp, density_scale=density_scale, light=f"constant:{radiance}", seed=seed
     )
     if denoise == "oidn":
         from ..denoise import denoise as oidn

@@ -20,11 +20,11 @@ def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:
     parser.add_argument("--cache", default="data/heldout", help="where held-out densities are cached")
 
 
-def arm_study(description: str, out, register_arms, validation_pairs, argv=None) -> None:
+def arm_study(description: str, out, register_arms, validation_pairs, argv=None, baselines=()) -> None:
     """The command line of a study of look arms scored as users see them (256^2, 64 spp, OIDN): the
-    default output and the arms (``register_arms()``: their names, registered as benchmark methods) on
-    ``validation_pairs()``; ``--heldout ARM``: one arm on the held-out split, into ``out/heldout``;
-    ``--report-only``: the report of ``out``'s rows."""
+    default output, the ``baselines`` (benchmark methods) and the arms (``register_arms()``: their names,
+    registered as benchmark methods) on ``validation_pairs()``; ``--heldout ARM``: one arm on the
+    held-out split, into ``out/heldout``; ``--report-only``: the report of ``out``'s rows."""
     import argparse
     from pathlib import Path
 
@@ -42,4 +42,4 @@ def arm_study(description: str, out, register_arms, validation_pairs, argv=None)
     elif args.heldout:
         run(out / "heldout", split_pairs("heldout"), [args.heldout], split="heldout", **scoring)
     else:
-        run(out, validation_pairs(), ["default"] + arms, split="validation", **scoring)
+        run(out, validation_pairs(), ["default", *baselines] + arms, split="validation", **scoring)

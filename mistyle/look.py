@@ -84,6 +84,7 @@ class LookSettings:
     rgb_weight: float = 1.0
     patch_weight: float = 0.05
     tv_weight: float = 10.0
+    structure_weight: float = 0.0  # > 0: the objective's gradient term (SlicedObjective.structure_weight)
     colour_match: str = (
         "after"  # "after": fitted on the tuned network's albedo; "through": first, fitted through; "none"
     )
@@ -1041,6 +1042,9 @@ def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, 
         patch_weight=settings.patch_weight,
         seed=settings.seed,
         direction_pool=settings.direction_pool,
+        structure_weight=settings.structure_weight,
+        # The style's gradients at the scale a final render shows it: its side over the views' side.
+        structure_style_pool=max(1, round(SLICED_STYLE_SIZE / settings.layer_res)),
     )
     targets = objective.targets(square_style(target, SLICED_STYLE_SIZE).to(device)[None])
     orbit, rng = CameraPath(distance=scene.camera_distance), np.random.default_rng(settings.seed)

@@ -123,6 +123,30 @@ def test_sliced_objective_prefers_the_style_and_ignores_pixels_outside_the_mask(
     )
 
 
+def test_gradient_points_are_the_opponent_channels_differences_inside_the_mask():
+    from mistyle.objective.losses import gradient_points
+
+    ramp = torch.linspace(0, 1, 16).repeat(1, 3, 16, 1)  # grey, brighter to the right: d/dx only
+    points = gradient_points(ramp, None, 1)
+    assert points.shape == (14 * 14, 6)
+    assert torch.allclose(points[:, 0], torch.full((14 * 14,), 1 / 15)) and points[:, 1:].abs().max() < 1e-6
+    mask = torch.ones(1, 1, 16, 16)
+    mask[..., :8] = 0
+    assert len(gradient_points(ramp, mask, 1)) == 14 * 6  # centres x = 9..14: whole 3x3 neighbourhoods inside
+    assert gradient_points(ramp, None, 2).shape == (6 * 6, 6)
+
+
+def test_structure_term_tells_the_style_s_orientation_from_another():
+    stripes = (np.sin(np.arange(32) / 1.5) * 0.4 + 0.5).astype(np.float32)
+    style = np.repeat(np.broadcast_to(stripes[None, :], (32, 32))[..., None], 3, axis=2).copy()  # vertical
+    objective = SlicedObjective(rgb_weight=0.0, patch_weight=0.0, structure_weight=1.0, structure_scales=(1,))
+    targets = objective.targets(torch.from_numpy(style).permute(2, 0, 1)[None])
+    as_render = lambda image: torch.from_numpy(linear_from_display(image)).permute(2, 0, 1)[None, None]  # noqa: E731
+    same = objective.loss(as_render(style), targets)
+    turned = objective.loss(as_render(style.transpose(1, 0, 2)), targets)  # the same stripes, horizontal
+    assert float(same) < 0.05 * float(turned)
+
+
 def test_body_mask_keeps_pixels_a_white_albedo_makes_bright():
     white = torch.zeros(1, 3, 4, 4)
     white[..., :2] = 5.0  # bright body

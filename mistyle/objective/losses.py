@@ -189,6 +189,29 @@ def scaled_patches(images: torch.Tensor, mask: torch.Tensor | None, scale: int, 
     return masked_patches(images, mask, size)
 
 
+OPPONENT = ((1 / 3, 1 / 3, 1 / 3), (1 / 2, -1 / 2, 0.0), (1 / 4, 1 / 4, -1 / 2))
+"""Display RGB -> luminance and two colour-opponent channels, as ``objective.structure`` measures them."""
+
+
+def gradient_points(images: torch.Tensor, mask: torch.Tensor | None, scale: int) -> torch.Tensor:
+    """``(N, 6)``: the central-difference gradients ``(d/dx, d/dy)`` of the luminance and the two opponent
+    channels (``OPPONENT``) of ``images (B, 3, H, W)`` box-downsampled by ``scale``, at the pixels whose
+    3x3 neighbourhood lies wholly inside ``mask (B, 1, H, W)`` (min-pooled like ``scaled_patches``)."""
+    if scale > 1:
+        images = F.avg_pool2d(images, scale)
+        mask = None if mask is None else -F.max_pool2d(-mask, scale)
+    if min(images.shape[-2:]) < 3:
+        return images.new_zeros((0, 6))
+    channels = torch.einsum("oc,bchw->bohw", images.new_tensor(OPPONENT), images)
+    dx = (channels[..., 1:-1, 2:] - channels[..., 1:-1, :-2]) / 2
+    dy = (channels[..., 2:, 1:-1] - channels[..., :-2, 1:-1]) / 2
+    points = torch.cat([dx, dy], dim=1).permute(0, 2, 3, 1).reshape(-1, 6)
+    if mask is None:
+        return points
+    inside = -F.max_pool2d(-mask, 3, stride=1)  # (B, 1, H-2, W-2): the whole 3x3 neighbourhood inside
+    return points[inside.reshape(-1) > 0.5]
+
+
 def tv_loss(volume: torch.Tensor) -> torch.Tensor:
     """3D total variation (paper Eq. 15): mean squared finite differences along x, y and z.
 

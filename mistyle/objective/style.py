@@ -14,6 +14,7 @@ import torch.nn as nn
 from ..conventions import STYLE_LOSSES
 from ..tone import tone_map
 from .losses import (
+    gradient_points,
     gram_loss,
     histogram_loss,
     mean_std_loss,
@@ -86,9 +87,13 @@ SLICED_STYLE_SIZE = 128
 class SlicedObjective:
     """Sliced-Wasserstein style objective on display pixels and multi-scale pixel patches.
 
-    ``loss = rgb_weight * SW(pixel colours) + patch_weight * mean over scales SW(5x5 patches)``, each a
-    squared sliced 2-Wasserstein distance (``losses.sliced_wasserstein_loss``) between the render's
-    masked values and the style's. Patches are taken from the display image box-downsampled by each
+    ``loss = rgb_weight * SW(pixel colours) + patch_weight * mean over scales SW(5x5 patches)
+    + structure_weight * mean over scales SW(gradients)``, each a squared sliced 2-Wasserstein distance
+    (``losses.sliced_wasserstein_loss``) between the render's masked values and the style's. The
+    gradients are the luminance and colour-opponent channels' ``(d/dx, d/dy)`` (``losses.gradient_points``)
+    at each of ``structure_scales``, divided by the style's RMS gradient at that scale so that every
+    scale counts alike; the style's are taken at ``structure_style_pool`` times each scale, for a style
+    shown larger than the renders show the medium. Patches are taken from the display image box-downsampled by each
     of ``patch_scales`` and must lie wholly inside the (min-pooled) mask, so the medium's silhouette
     edge is never compared with the style's interior. The same statistics as the benchmark's
     ``rgb_swd`` and ``patch_swd`` (``metrics.style_fidelity``), in a differentiable form.
@@ -108,6 +113,9 @@ class SlicedObjective:
         max_render_patches: int = 4096,
         seed: int = 0,
         direction_pool: int = 0,
+        structure_weight: float = 0.0,
+        structure_scales=(1, 2, 4),
+        structure_style_pool: int = 1,
     ):
         self.rgb_weight, self.patch_weight, self.patch_size = rgb_weight, patch_weight, patch_size
         self.patch_scales, self.projections, self.max_target_points = (
@@ -117,6 +125,8 @@ class SlicedObjective:
         )
         self.max_render_patches = max_render_patches
         self.direction_pool = int(direction_pool)
+        self.structure_weight, self.structure_scales = structure_weight, tuple(structure_scales)
+        self.structure_style_pool = int(structure_style_pool)
         self.generator = torch.Generator().manual_seed(seed)
 
     def _subsample(self, points: torch.Tensor, limit: int | None = None) -> torch.Tensor:
@@ -127,8 +137,10 @@ class SlicedObjective:
 
     @torch.no_grad()
     def targets(self, styles: torch.Tensor, levels=None) -> list[list[torch.Tensor]]:
-        """Per style of ``styles (B, 3, S, S)``: ``[pixels (N, 3), patches at each scale (N_s, 75)]``
-        (``levels``, the extractor's output, is not used: the same call as ``StyleObjective``'s). With
+        """Per style of ``styles (B, 3, S, S)``: ``[pixels (N, 3), patches at each scale (N_s, 75)]``, then
+        with ``structure_weight`` its scaled gradients at each structure scale ``(N_s, 6)`` and their RMS
+        values ``(scales,)`` (``levels``, the extractor's output, is not used: the same call as
+        ``StyleObjective``'s). With
         ``direction_pool`` > 0 each set comes projected on that many directions and sorted
         (``losses.ProjectedTarget``): each step then draws its directions from the pool and sorts only
         the render's projections."""
@@ -137,8 +149,15 @@ class SlicedObjective:
             entry = [self._subsample(style.reshape(3, -1).T)]
             for scale in self.patch_scales if self.patch_weight else ():
                 entry.append(self._subsample(scaled_patches(style[None], None, scale, self.patch_size)))
+            rms = []
+            for scale in self.structure_scales if self.structure_weight else ():
+                gradients = gradient_points(style[None], None, scale * self.structure_style_pool)
+                rms.append(gradients.square().mean().sqrt().clamp_min(1e-4))
+                entry.append(self._subsample(gradients / rms[-1]))
             if self.direction_pool:
                 entry = [project_target(points, self.direction_pool, self.generator) for points in entry]
+            if rms:
+                entry.append(torch.stack(rms))  # the last item: the style's RMS gradient per structure scale
             result.append(entry)
         return result
 
@@ -156,7 +175,7 @@ class SlicedObjective:
             )
             if self.patch_weight:
                 patch_terms = []
-                for scale, target in zip(self.patch_scales, targets[item][1:]):
+                for scale, target in zip(self.patch_scales, targets[item][1 : 1 + len(self.patch_scales)]):
                     # A fresh random subset each step: over the steps every patch is matched, at a fraction of the cost.
                     patches = self._subsample(
                         scaled_patches(image, mask, scale, self.patch_size), self.max_render_patches
@@ -165,7 +184,20 @@ class SlicedObjective:
                         patch_terms.append(sliced_wasserstein_loss(patches, target, self.projections, self.generator))
                 if patch_terms:
                     total = total + self.patch_weight * torch.stack(patch_terms).mean()
+            if self.structure_weight:
+                total = total + self.structure_weight * self._structure_term(image, mask, targets[item])
         return total / batch
+
+    def _structure_term(self, image: torch.Tensor, mask: torch.Tensor, target: list) -> torch.Tensor:
+        """The mean over ``structure_scales`` of the SW distance between the render's gradients and the
+        style's, both divided by the style's RMS gradient at that scale."""
+        gradients = target[-1 - len(self.structure_scales) : -1]
+        terms = []
+        for scale, theirs, rms in zip(self.structure_scales, gradients, target[-1]):
+            ours = self._subsample(gradient_points(image, mask, scale), self.max_render_patches)
+            if len(ours):
+                terms.append(sliced_wasserstein_loss(ours / rms, theirs, self.projections, self.generator))
+        return torch.stack(terms).mean() if terms else image.new_zeros(())
 
 
 def make_objective(loss_config, extractor: nn.Module):

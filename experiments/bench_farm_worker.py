@@ -1,10 +1,10 @@
 """What a farm worker's chunks cost after its first (#51 part 3): a warm process against a fresh one per chunk.
 
-``mistyle-farm`` sends each chunk of frames to a Dask worker as ``farm.render_chunk``, which runs
-``mistyle-render --look ... --frames a-b`` inside the worker's process. A worker is one long-lived
-process, so what a chunk loads or compiles stays for its next chunk: the network and the checkpoint
-(``Stylizer``), the path tracer's scene and its Dr.Jit kernels (``pathtrace.SCENES``), torch's and
-Dr.Jit's own start-up. This measures it: a look is saved once (``mistyle-render --save-look``), then the
+``mistyle-farm`` sends each chunk of frames to a Dask worker as ``farm.render_chunk``, which does what
+``mistyle-render --look ... --frames a-b`` does (``job.render_look_chunk``) inside the worker's process.
+A worker is one long-lived process, so what a chunk loads or compiles stays for its next chunk: the
+pipeline with its network (``farm.worker_pipeline``), the path tracer's scene and its Dr.Jit kernels
+(``pathtrace.SCENES``), torch's and Dr.Jit's own start-up. This measures it: a look is saved once (``mistyle-render --save-look``), then the
 same chunks are rendered (a) one after another by ``farm.render_chunk`` in one process, as a worker
 does, and (b) each by a fresh ``python -m mistyle.render_final`` process, as a farm that started a
 process per chunk would. Each chunk's seconds from its call to its files; (b) includes the process's
@@ -55,7 +55,7 @@ def main(argv=None) -> None:
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args(argv)
-    from mistyle.farm import chunk_argv, frame_chunks, render_chunk
+    from mistyle.farm import chunk_argv, chunk_settings, frame_chunks, render_chunk
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -72,7 +72,9 @@ def main(argv=None) -> None:
         warm = []
         for first, last in chunks:
             started = time.perf_counter()
-            result = render_chunk(look.read_bytes(), str(density), str(work / "warm"), first, last, options)
+            result = render_chunk(
+                look.read_bytes(), str(density), str(work / "warm"), first, last, *chunk_settings(options)
+            )
             if "error" in result:
                 raise SystemExit(f"chunk {first}-{last}: {result['error']}")
             warm.append(time.perf_counter() - started)

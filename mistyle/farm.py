@@ -7,9 +7,10 @@
 
 The look file is read once here and shipped to every worker with the tasks (``Client.scatter``), so
 workers need only mistyle, the density frames and the output folder on a shared file system (and a
-``--checkpoint`` there, if the look was not fitted with the bundled network). Each task is
-``mistyle-render --look ... --frames A-B`` (``render_chunk``): its frames are stylized from the look
-alone and path traced with per-frame seeds, and it merges them into ``--out`` under the folder's lock,
+``--checkpoint`` there, if the look was not fitted with the bundled network). Each task does what
+``mistyle-render --look ... --frames A-B`` does (``render_chunk``, through ``job.render_look_chunk``, with
+the settings parsed once here; a worker keeps its network loaded from one chunk to the next): its
+frames are stylized from the look alone and path traced with per-frame seeds, and it merges them into ``--out`` under the folder's lock,
 so the folder equals one process's render bit for bit whatever the chunks and their order
 (``tests/test_look.py``). A failed chunk is reported with its frames; rerun just those with ``--frames``.
 
@@ -53,31 +54,62 @@ def frame_chunks(count: int, size: int, frames: tuple[int, int] | None = None) -
 
 
 def chunk_argv(density, look, out, first: int, last: int, options: list[str]) -> list[str]:
-    """The ``mistyle-render`` arguments of one chunk: the farm's own options, then the user's."""
+    """The ``mistyle-render`` arguments of one chunk: the farm's own options, then the user's (parsed once,
+    here, by ``check_render_options``)."""
     argv = ["--density", str(density), "--look", str(look), "--out", str(out), "--frames", f"{first}-{last}"]
     return [*argv, "--quiet", *options]
 
 
-def render_chunk(look: bytes, density: str, out: str, first: int, last: int, options: list[str]) -> dict:
-    """On a worker: ``mistyle-render --density density --look <look> --out out --frames first-last options``.
-    Returns ``{"frames": [first, last]}``, with ``"error"`` (the command's message) if it failed: a
-    task that returns its failure keeps Dask from logging it as a crash on the worker."""
+def chunk_settings(options: list[str]) -> tuple:
+    """``(pipeline.PipelineSettings, job.OutputSpec)`` of every chunk, from the ``mistyle-render`` options
+    after ``--`` (parsed as that command parses them; ``check_render_options`` checks them)."""
+    from .render_final import output_spec, parser, settings_from
+
+    parsed = parser().parse_args(chunk_argv("density", "look", "out", 0, 0, options))
+    return settings_from(parsed), output_spec(parsed)
+
+
+_WORKER_PIPELINES: dict = {}
+"""A worker process's pipelines by their settings: its network stays loaded from one chunk to the next."""
+
+
+def worker_pipeline(settings):
+    """The ``pipeline.Pipeline`` of ``settings`` in this process, made on its first chunk."""
+    from .backend import use_variant
+    from .pipeline import Pipeline
+
+    key = repr(settings)
+    if key not in _WORKER_PIPELINES:
+        use_variant(settings.device)
+        _WORKER_PIPELINES.clear()  # one network at a time in a worker's memory
+        _WORKER_PIPELINES[key] = Pipeline(settings)
+    return _WORKER_PIPELINES[key]
+
+
+def render_chunk(look: bytes, density: str, out: str, first: int, last: int, settings, spec) -> dict:
+    """On a worker: frames ``first``-``last`` of ``density`` from the look (its file's bytes), with the
+    ``pipeline.PipelineSettings`` and ``job.OutputSpec`` that ``check_render_options`` made of the options,
+    merged into ``out`` (``job.render_look_chunk``, as ``mistyle-render --look ... --frames A-B``).
+    Returns ``{"frames": [first, last]}``, with ``"error"`` (one line) if it failed: a task that returns
+    its failure keeps Dask from logging it as a crash on the worker."""
     import contextlib
     import io
 
+    from .backend import BackendError
+    from .job import render_look_chunk
     from .ownership import chunk_staging
-    from .render_final import main
+    from .progress import set_quiet
 
+    set_quiet(True)
     # The look lies in a staging folder beside the output, named after this worker process: removed
     # after the chunk, or by the next run once the process is gone (``ownership.remove_dead_staging``).
-    with chunk_staging(Path(out)) as folder:
-        path = folder / "shipped.look"
-        path.write_bytes(look)
-        errors = io.StringIO()
-        with contextlib.redirect_stderr(errors), contextlib.redirect_stdout(io.StringIO()):
-            code = main(chunk_argv(density, path, out, first, last, options))
-    if code != 0:
-        return {"frames": [first, last], "error": errors.getvalue().strip() or f"exit status {code}"}
+    try:
+        with chunk_staging(Path(out)) as folder, contextlib.redirect_stdout(io.StringIO()):
+            path = folder / "shipped.look"
+            path.write_bytes(look)
+            render_look_chunk(worker_pipeline(settings), spec, density, path, out, (first, last))
+    except (ValueError, OSError, BackendError) as error:
+        return {"frames": [first, last], "error": str(error).splitlines()[0] if str(error) else type(error).__name__}
     return {"frames": [first, last]}
 
 
@@ -100,10 +132,11 @@ def render_on_cluster(
     from .stops import raise_if_requested
 
     ranges = frame_chunks(len(density_frame_files(density)), chunk, frames)
+    settings = chunk_settings(list(options or []))
     shipped = client.scatter(Path(look).read_bytes(), broadcast=True)
     density, out = str(Path(density).resolve()), str(Path(out).resolve())
     tasks = [
-        client.submit(render_chunk, shipped, density, out, first, last, list(options or []), pure=False)
+        client.submit(render_chunk, shipped, density, out, first, last, *settings, pure=False)
         for first, last in ranges
     ]
     # Polled rather than gathered: Ctrl-C then finds no gather of Dask's half way, to be cancelled noisily.

@@ -122,14 +122,15 @@ def test_a_killed_chunk_leaves_nothing_that_the_next_run_does_not_remove(farm_in
     """A chunk killed with SIGKILL leaves its staging folders (the render's and the shipped look's, both
     named after its process); the next chunk into the same folder removes them. The look once went to a
     ``mistyle-look-*`` folder in the temporary directory that nothing removed."""
-    from mistyle.farm import render_chunk
+    from mistyle.farm import chunk_settings, render_chunk
 
     out, scratch = tmp_path / "shots" / "fb", tmp_path / "tmp"
     scratch.mkdir()
     slow = ["--checkpoint", str(farm_inputs["checkpoint"]), "--res", "64", "--spp", "256"]
     script = (
-        "import sys; from pathlib import Path; from mistyle.farm import render_chunk\n"
-        "render_chunk(Path(sys.argv[1]).read_bytes(), sys.argv[2], sys.argv[3], 0, 3, sys.argv[4:])\n"
+        "import sys; from pathlib import Path; from mistyle.farm import chunk_settings, render_chunk\n"
+        "settings = chunk_settings(sys.argv[4:])\n"
+        "render_chunk(Path(sys.argv[1]).read_bytes(), sys.argv[2], sys.argv[3], 0, 3, *settings)\n"
     )
     process = subprocess.Popen(
         [sys.executable, "-c", script, farm_inputs["look"], farm_inputs["frames"], out, *slow],
@@ -145,7 +146,8 @@ def test_a_killed_chunk_leaves_nothing_that_the_next_run_does_not_remove(farm_in
     left = staging_beside(out)
     assert len(left) == 2 and all(".chunk-" in name for name in left), left
 
-    result = render_chunk(farm_inputs["look"].read_bytes(), str(farm_inputs["frames"]), str(out), 0, 0, slow[:2] + FAST)
+    settings = chunk_settings(slow[:2] + FAST)
+    result = render_chunk(farm_inputs["look"].read_bytes(), str(farm_inputs["frames"]), str(out), 0, 0, *settings)
     assert result == {"frames": [0, 0]}
     assert staging_beside(out) == [] and (out / "sequence_0000.exr").is_file()
     assert list(scratch.iterdir()) == []

@@ -20,12 +20,12 @@ LAYERS = [
     {"stylizer"},
     {"look"},
     {"pipeline"},
-    {"api", "benchmark"},
+    {"api", "benchmark", "job"},
     {"render_final", "train"},
     {"demo", "farm", "preview"},
 ]
 RANK = {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
-INFERENCE = ("stylizer", "look", "pipeline", "api", "benchmark", "render_final", "demo", "farm", "preview")
+INFERENCE = ("stylizer", "look", "pipeline", "api", "benchmark", "job", "render_final", "demo", "farm", "preview")
 
 
 def unit_of(module: str) -> str:

@@ -442,7 +442,7 @@ def test_random_bad_option_values_give_one_clear_line_and_write_nothing(mi, chec
 
 
 def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint, inputs, tmp_path, monkeypatch):
-    from mistyle import render_final
+    from mistyle import job
 
     out = tmp_path / "out"
     arguments = [
@@ -467,7 +467,7 @@ def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint,
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(render_final, "write_report", interrupted)
+    monkeypatch.setattr(job, "write_report", interrupted)
     assert main(arguments + ["--view", "0.5", "--overwrite"]) == 130
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder or lock left

@@ -31,6 +31,9 @@ METRIC_VIEWS = 3
 ROWS_FILE, TABLE_FILE, SHEET_FILE, INDEX_FILE = "rows.jsonl", "table.md", "sheet.jpg", "index.html"
 REPORT_FILES = (TABLE_FILE, SHEET_FILE, INDEX_FILE)
 TILE = 128
+"""The side of a pair's cell on ``sheet.jpg`` (committed with the rows: small)."""
+SAVED_TILE = 256
+"""The largest side of a saved tile (``tiles/``, shown by ``index.html``)."""
 BENCHMARK_KIND = "benchmark"
 LAYOUT = re.compile(r"rows\.jsonl|table\.md|sheet\.jpg|index\.html|tiles/[^/]+\.png")
 """The files a benchmark folder holds: what one an older mistyle wrote (no manifest) may hold."""
@@ -451,15 +454,31 @@ def tile_path(folder: Path, row: Row) -> Path:
 
 
 def save_tile(folder: Path, row: Row, image: np.ndarray) -> None:
-    """The first metric view of a row, on display, as a ``TILE``^2 PNG for the contact sheet."""
+    """The first metric view of a row, on display, as a PNG of at most ``SAVED_TILE``^2 (the render's own
+    pixels at the default scoring, so that ``index.html`` shows the strokes a user sees)."""
     from PIL import Image
 
     from ..io import write_png
     from ..tone import display
 
-    shown = Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8)).resize((TILE, TILE), Image.LANCZOS)
+    shown = Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8))
+    if max(shown.size) > SAVED_TILE:
+        shown = shown.resize((SAVED_TILE, SAVED_TILE), Image.LANCZOS)
     folder.mkdir(parents=True, exist_ok=True)
     write_png(tile_path(folder, row), np.asarray(shown, np.float32) / 255, srgb=False)
+
+
+def _sheet_tile(path: Path) -> np.ndarray:
+    """A saved tile at the sheet's ``TILE``^2 (older folders hold tiles of that size already)."""
+    from PIL import Image
+
+    from ..io import load_style
+
+    tile = load_style(path)
+    if tile.shape[:2] == (TILE, TILE):
+        return tile
+    shown = Image.fromarray((tile * 255 + 0.5).astype(np.uint8)).resize((TILE, TILE), Image.LANCZOS)
+    return np.asarray(shown, np.float32) / 255
 
 
 def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
@@ -482,7 +501,7 @@ def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
         cells = [square_style(load_style(styles[style]["path"]), TILE).permute(1, 2, 0).numpy()]
         for method in methods:
             tile = tiles / f"{density}__{style}__{method}.png"
-            cells.append(load_style(tile) if tile.exists() else np.full((TILE, TILE, 3), 0.5, np.float32))
+            cells.append(_sheet_tile(tile) if tile.exists() else np.full((TILE, TILE, 3), 0.5, np.float32))
         canvas[16 + index * TILE : 16 + (index + 1) * TILE] = np.concatenate(cells, axis=1)
     image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
     draw = ImageDraw.Draw(image)

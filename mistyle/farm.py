@@ -10,8 +10,8 @@ workers need only mistyle, the density frames and the output folder on a shared 
 ``--checkpoint`` there, if the look was not fitted with the bundled network). Each task does what
 ``mistyle-render --look ... --frames A-B`` does (``render_chunk``, through ``job.render_look_chunk``, with
 the settings parsed once here; a worker keeps its network loaded from one chunk to the next): its
-frames are stylized from the look alone and path traced with per-frame seeds, and it merges them into ``--out`` under the folder's lock,
-so the folder equals one process's render bit for bit whatever the chunks and their order
+frames are stylized from the look alone and path traced with per-frame seeds, and it merges them into
+``--out`` under the folder's lock, so the folder equals one process's render bit for bit whatever the chunks and their order
 (``tests/test_look.py``). A failed chunk is reported with its frames; rerun just those with ``--frames``.
 
 Everything a worker would refuse is checked here before the cluster starts: the options after ``--``

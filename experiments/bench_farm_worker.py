@@ -5,11 +5,12 @@
 A worker is one long-lived process, so what a chunk loads or compiles stays for its next chunk: the
 pipeline with its network (``farm.worker_pipeline``), the path tracer's scene and its Dr.Jit kernels
 (``pathtrace.SCENES``), torch's and Dr.Jit's own start-up. This measures it: a look is saved once
-(``mistyle-render --save-look``), then the same chunks are rendered (a) one after another by ``farm.render_chunk`` in one process, as a worker
-does, and (b) each by a fresh ``python -m mistyle.render_final`` process, as a farm that started a
-process per chunk would. Each chunk's seconds from its call to its files; (b) includes the process's
-start. The density is the bundled smoke, moved and scaled each frame (a new grid every frame, as
-``bench_scale.py``'s sequence); ``--res``/``--spp`` as the farm's options.
+(``mistyle-render --save-look``), then the same chunks are rendered (a) one after another by
+``farm.render_chunk`` in one process, as a worker does, and (b) each by a fresh ``python -m
+mistyle.render_final`` process, as a farm that started a process per chunk would. Each chunk's seconds
+from its call to its files; (b) includes the process's start. The density is the bundled smoke, moved
+and scaled each frame (a new grid every frame, as ``bench_scale.py``'s sequence); ``--res``/``--spp`` as
+the farm's options.
 
     .venv/bin/python experiments/bench_farm_worker.py               # results/bench_farm_worker/ (~5 min)
     .venv/bin/python experiments/bench_farm_worker.py --frames 6 --chunk 2 --res 64 --spp 4   # quick

@@ -8,11 +8,12 @@
 The look file is read once here and shipped to every worker with the tasks (``Client.scatter``), so
 workers need only mistyle, the density frames and the output folder on a shared file system (and a
 ``--checkpoint`` there, if the look was not fitted with the bundled network). Each task does what
-``mistyle-render --look ... --frames A-B`` does (``render_chunk``, through ``job.render_look_chunk``, with
-the settings parsed once here; a worker keeps its network loaded from one chunk to the next): its
+``mistyle-render --look ... --frames A-B`` does (``render_chunk``, through ``job.render_look_chunk``,
+with the settings parsed once here; a worker keeps its network loaded from one chunk to the next): its
 frames are stylized from the look alone and path traced with per-frame seeds, and it merges them into
-``--out`` under the folder's lock, so the folder equals one process's render bit for bit whatever the chunks and their order
-(``tests/test_look.py``). A failed chunk is reported with its frames; rerun just those with ``--frames``.
+``--out`` under the folder's lock, so the folder equals one process's render bit for bit whatever the
+chunks and their order (``tests/test_look.py``). A failed chunk is reported with its frames; rerun just
+those with ``--frames``.
 
 Everything a worker would refuse is checked here before the cluster starts: the options after ``--``
 (parsed and checked as ``mistyle-render`` does; ``--out``, ``--frames``, ``--density`` and ``--look``
@@ -136,8 +137,7 @@ def render_on_cluster(
     shipped = client.scatter(Path(look).read_bytes(), broadcast=True)
     density, out = str(Path(density).resolve()), str(Path(out).resolve())
     tasks = [
-        client.submit(render_chunk, shipped, density, out, first, last, *settings, pure=False)
-        for first, last in ranges
+        client.submit(render_chunk, shipped, density, out, first, last, *settings, pure=False) for first, last in ranges
     ]
     # Polled rather than gathered: Ctrl-C then finds no gather of Dask's half way, to be cancelled noisily.
     while not all(task.done() for task in tasks):

@@ -1,0 +1,106 @@
+"""Does a real simulation whose box grows stylize coherently with its own velocities? (#49 part 2-3)
+
+Blender's own Mantaflow cache, ten frames of the ``c42`` smoke by markste-in (the frames
+``tests/data/mantaflow`` cuts down; source, commit and hashes below): 24 grids a file, the density's
+active box growing from 11x9x28 voxels to 51x71x29, a staggered ``velocity`` grid in every frame.
+``load_density_frames`` places the frames in one index box (their union) and reads the velocities in
+the solver's units (``--up z``, as Blender writes them). The default output stylizes the sequence: one
+look fitted on its first, middle and last frame and applied to every frame (``Pipeline.stylize``).
+
+Measured on the albedo (inside the medium of both frames of each step, so the box's empty margins count
+for nothing): the flicker with the file's velocities (each frame against the previous one warped by
+its velocity, ``objective.metrics.temporal_flicker``'s warp), the flicker without warping (the frames as
+they are), for the look's albedo and the feed-forward network's. #49 asks that the first be at most the
+second. Also each frame path traced at 128^2 (64 spp, denoised, one view) for the strip in ``strip.png``.
+
+    .venv/bin/python experiments/mantaflow_flicker.py --cache data/mantaflow_c42     # about 3 min
+
+``--cache``: a folder holding ``fluid_data_0001.vdb`` ... ``fluid_data_0010.vdb`` of
+https://github.com/markste-in/c42 at 6c87b04a9c2738e33c1167801e9d9c164e7b0035 (``cache/data/``; WTFPL-2.0),
+checked against ``SHA256`` below.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+OUT = ROOT / "results" / "mantaflow_flicker"
+STYLE = ROOT / "mistyle" / "data" / "heldout_styles" / "hokusai_great_wave.jpg"
+SHA256 = {
+    "fluid_data_0001.vdb": "323b31cbbb5af6adc2398f36b9cc3f664f8b4bad332a41f0258313888654cc97",
+    "fluid_data_0010.vdb": "dea5d04fcd8bf378a161777e11af275bb43d15853c14f41b64eb4f324f08237e",
+}
+
+
+def flicker(albedos: np.ndarray, densities: np.ndarray, velocities: np.ndarray | None) -> float:
+    """Mean ``|A_t - W(A_{t-1})|`` over the voxels with medium in both frames, ``W`` the warp by frame t-1's
+    velocity (None: no warp)."""
+    import torch
+
+    from mistyle.warp import semi_lagrangian_warp
+
+    previous = albedos[:-1]
+    if velocities is not None:
+        volumes = torch.from_numpy(np.ascontiguousarray(previous)).permute(0, 4, 1, 2, 3)
+        flow = torch.from_numpy(np.ascontiguousarray(velocities[:-1])).permute(0, 4, 1, 2, 3)
+        previous = semi_lagrangian_warp(volumes, flow).permute(0, 2, 3, 4, 1).numpy()
+    inside = (densities[1:] > 0) & (densities[:-1] > 0)
+    return float(np.abs(albedos[1:] - previous)[inside].mean())
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cache", type=Path, required=True, help="the folder of the ten fluid_data_*.vdb files")
+    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--res", type=int, default=128)
+    args = parser.parse_args(argv)
+    for name, digest in SHA256.items():
+        if hashlib.sha256((args.cache / name).read_bytes()).hexdigest() != digest:
+            raise SystemExit(f"{args.cache / name} is not the recorded file (sha256 {digest}).")
+
+    from mistyle.io import load_density_frames, write_png
+    from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
+    from mistyle.tone import display
+
+    notes: list[str] = []
+    loaded = load_density_frames(args.cache, up="z", notes=notes)
+    pipeline = Pipeline(PipelineSettings(render=RenderSettings(res=args.res, spp=64)))
+    started = time.perf_counter()
+    stylized = pipeline.stylize(loaded.densities, STYLE, velocities=loaded.velocities, notes=notes)
+    seconds = time.perf_counter() - started
+    densities, velocities = np.stack(loaded.densities), np.stack(loaded.velocities)
+    record = {
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+        "frames": len(loaded.densities),
+        "shape_zyx": list(loaded.densities[0].shape),
+        "occupied": [float((d > 0).mean()) for d in loaded.densities],
+        "stylize_seconds": seconds,
+        "key_frames": stylized.look.meta["key_frames"] if stylized.look is not None else None,
+        "notes": notes,
+    }
+    for name, albedos in (("look", stylized.albedos), ("network", stylized.network)):
+        stacked = np.stack(albedos)
+        record[f"{name}_flicker_warped"] = flicker(stacked, densities, velocities)
+        record[f"{name}_flicker_unwarped"] = flicker(stacked, densities, None)
+    images, _ = pipeline.path_trace(stylized.frames, stylized.albedos, pipeline.views()[:1])
+    strip = np.concatenate([display(image) for image in images], axis=1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_png(args.out / "strip.png", strip, srgb=False)
+    (args.out / "flicker.json").write_text(json.dumps(record, indent=1) + "\n")
+    print(json.dumps({key: value for key, value in record.items() if "flicker" in key}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

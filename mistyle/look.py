@@ -84,7 +84,9 @@ class LookSettings:
     rgb_weight: float = 1.0
     patch_weight: float = 0.05
     tv_weight: float = 10.0
-    structure_weight: float = 0.0  # > 0: the objective's gradient term (SlicedObjective.structure_weight)
+    # The objective's gradient term (SlicedObjective.structure_weight): the style's strokes, their sizes
+    # and orientations. Chosen on 28 validation pairs (experiments/look_structure_study.py): 0 until then.
+    structure_weight: float = 0.03
     colour_match: str = (
         "after"  # "after": fitted on the tuned network's albedo; "through": first, fitted through; "none"
     )

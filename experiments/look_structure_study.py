@@ -29,10 +29,19 @@ closer than tuned noise's replaces the default if it has at least 3 more such pa
     .venv/bin/python experiments/look_structure_study.py              # about 30 min on 2 cores
     .venv/bin/python experiments/look_structure_study.py --heldout look_gradient03
     .venv/bin/python experiments/look_structure_study.py --report-only
+    .venv/bin/python experiments/look_structure_study.py --compare heldout   # also heldout128, real
+    .venv/bin/python experiments/look_structure_study.py --sheet             # about 5 min
+
+``--sheet``: ``SHEET_PAIRS`` of the held-out split scored again in one run (the new default, the default
+before it, tuned noise, the solid texture) and ``heldout_sheet.jpg`` of their first views at 256 px.
+``--compare SPLIT``: once the chosen arm is the default and its rows have replaced the default's in the
+README's folder of that split, the new default against the old one (``before/``), the look of #48's
+filing and tuned noise, into ``SPLIT_comparison.json``.
 """
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -60,6 +69,8 @@ def register_arms() -> list[str]:
     for name, weight in ARMS.items():
         description = f"the default look with the objective's gradient term weighted {weight}"
         METHODS[name] = Method(name, "ablation", description, arm(weight), True)
+    # Registered for reports (structure_levels.py --arms), not run by the study: the default before it.
+    METHODS["look_before"] = Method("look_before", "ablation", "the look without the gradient term", arm(0.0), True)
     return list(ARMS)
 
 
@@ -69,9 +80,118 @@ def pairs() -> list:
     return split_pairs("validation", ["val_smoke64", "val_pyroclastic64"])
 
 
+def rows_of(path: Path) -> dict:
+    import json
+
+    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    return {(row["method"], row["density"], row["style"]): row for row in rows}
+
+
+def compare(now: Path, before: Path, out: Path) -> dict:
+    """The new default (``now``'s ``default`` rows) against the default before it (``before``'s), the look
+    of #48's filing (``look_zeros``, where ``now`` has it) and tuned noise + colour match, per density
+    and over all pairs; written to ``out``."""
+    import json
+
+    import numpy as np
+
+    ours, old = rows_of(now), rows_of(before)
+    pairs = sorted((d, s) for m, d, s in ours if m == "default" and ("default", d, s) in old)
+    record = {}
+    for name in sorted({d for d, _ in pairs}) + ["all"]:
+        chosen = [(d, s) for d, s in pairs if name in ("all", d)]
+
+        def values(rows, method, key, chosen=chosen):
+            return np.array([rows[(method, d, s)][key] or np.nan for d, s in chosen], dtype=float)
+
+        entry = {"pairs": len(chosen)}
+        tuned = values(ours, "tuned_noise", "structure")
+        for label, rows, method in (("now", ours, "default"), ("before", old, "default")):
+            entry[f"{label}_structure_closer_than_tuned_noise"] = int(np.sum(values(rows, method, "structure") < tuned))
+            for key in ("rgb_swd", "patch_swd", "structure", "hue_coverage"):
+                entry[f"{label}_median_{key}"] = float(np.nanmedian(values(rows, method, key)))
+        entry["now_structure_closer_than_before"] = int(
+            np.sum(values(ours, "default", "structure") < values(old, "default", "structure"))
+        )
+        if all(("look_zeros", d, s) in ours for d, s in chosen):
+            zeros = {key: values(ours, "look_zeros", key) for key in ("rgb_swd", "patch_swd", "structure")}
+            entry["now_structure_closer_than_look_zeros"] = int(
+                np.sum(values(ours, "default", "structure") < zeros["structure"])
+            )
+            for key in ("rgb_swd", "patch_swd"):
+                entry[f"now_median_{key}_over_look_zeros"] = entry[f"now_median_{key}"] / float(np.median(zeros[key]))
+        record[name] = entry
+    out.write_text(json.dumps(record, indent=1) + "\n")
+    return record
+
+
+SHEET_PAIRS = (
+    ("pyroclastic64", "hokusai_great_wave"),
+    ("pyroclastic64", "van_gogh_starry_night"),
+    ("pyroclastic64", "photo_nasa_carina_pillar"),
+    ("pyroclastic64", "texture_rusty_metal"),
+    ("smoke64", "signac_la_calanque"),
+    ("smoke64", "munch_the_scream"),
+)
+SHEET_METHODS = ("default", "look_before", "tuned_noise", "solid_texture")
+
+
+def heldout_sheet() -> Path:
+    """Held-out pairs (``SHEET_PAIRS``) scored again in one run, the new default next to the default before
+    it (``look_before``) and the baselines, into ``OUT/heldout_sheet/``; then ``heldout_sheet.jpg``: per
+    pair the style and each method's first view at 256 px, large enough to see strokes."""
+    import numpy as np
+    from PIL import Image, ImageDraw
+
+    from mistyle.benchmark.runner import SAVED_TILE, run
+    from mistyle.benchmark.splits import split_pairs, split_styles
+    from mistyle.io import load_style
+    from mistyle.model.features import square_style
+
+    register_arms()
+    folder = OUT / "heldout_sheet"
+    chosen = [pair for pair in split_pairs("heldout") if (pair[0].name, pair[1]) in SHEET_PAIRS]
+    run(folder, chosen, list(SHEET_METHODS), split="heldout", res=256, spp=64, denoise="oidn", resume=True)
+    styles, side = split_styles("heldout"), SAVED_TILE
+    rows = []
+    for density, style in SHEET_PAIRS:
+        cells = [square_style(load_style(styles[style]["path"]), side).permute(1, 2, 0).numpy()]
+        cells += [load_style(folder / "tiles" / f"{density}__{style}__{method}.png") for method in SHEET_METHODS]
+        rows.append(np.concatenate(cells, axis=1))
+    canvas = np.concatenate([np.ones((20, rows[0].shape[1], 3), np.float32)] + rows, axis=0)
+    image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
+    draw = ImageDraw.Draw(image)
+    for column, name in enumerate(("style",) + SHEET_METHODS):
+        draw.text((column * side + 4, 4), name, fill="black")
+    path = OUT / "heldout_sheet.jpg"
+    image.save(path, format="JPEG", quality=85)
+    return path
+
+
+COMPARISONS = {
+    "heldout": ROOT / "results" / "solid_texture_study" / "heldout" / "rows.jsonl",
+    "heldout128": ROOT / "results" / "benchmark-heldout128" / "rows.jsonl",
+    "real": ROOT / "results" / "benchmark-real" / "rows.jsonl",
+}
+
+
 def main(argv=None) -> None:
+    import argparse
+
     from study import arm_study
 
+    if argv is None:
+        argv = sys.argv[1:]
+    if argv[:1] == ["--sheet"]:
+        print(f"wrote {heldout_sheet()}")
+        return
+    if argv[:1] == ["--compare"]:  # the new default's rows in the README's folders against the old default's
+        parser = argparse.ArgumentParser(description="compare the default's rows with those before it")
+        parser.add_argument("--compare", required=True, choices=list(COMPARISONS))
+        split = parser.parse_args(argv).compare
+        before = OUT / "before" / f"{split}_rows.jsonl"
+        print(json.dumps(compare(COMPARISONS[split], before, OUT / f"{split}_comparison.json"), indent=1))
+        return
     arm_study(__doc__.splitlines()[0], OUT, register_arms, pairs, argv, baselines=("tuned_noise",))
 
 

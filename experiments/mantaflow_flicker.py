@@ -8,10 +8,12 @@ the solver's units (``--up z``, as Blender writes them). The default output styl
 look fitted on its first, middle and last frame and applied to every frame (``Pipeline.stylize``).
 
 Measured on the albedo (inside the medium of both frames of each step, so the box's empty margins count
-for nothing): the flicker with the file's velocities (each frame against the previous one warped by
-its velocity, ``objective.metrics.temporal_flicker``'s warp), the flicker without warping (the frames as
+for nothing): the flicker with the file's velocities (each frame against the previous one warped by its
+velocity, ``objective.metrics.temporal_flicker``'s warp), the flicker without warping (the frames as
 they are), for the look's albedo and the feed-forward network's. #49 asks that the first be at most the
-second. Also each frame path traced at 128^2 (64 spp, denoised, one view) for the strip in ``strip.png``.
+second. The velocities' units are checked on the density itself (warped by them at 0.25x to 2x, the
+frames differ least at the scale that is right). Also each frame path traced at 128^2 (64 spp, denoised,
+one view) for the strip in ``strip.png``.
 
     .venv/bin/python experiments/mantaflow_flicker.py --cache data/mantaflow_c42     # about 3 min
 
@@ -90,6 +92,11 @@ def main(argv=None) -> None:
         "key_frames": stylized.look.meta["key_frames"] if stylized.look is not None else None,
         "notes": notes,
     }
+    # The velocities' units checked on the density itself, which the flow carries: warped by them the
+    # frames should differ less than as they are, and most at the units read (scale 1).
+    for scale in (0.25, 0.5, 1.0, 2.0):
+        record[f"density_flicker_warped_x{scale:g}"] = flicker(densities[..., None], densities, velocities * scale)
+    record["density_flicker_unwarped"] = flicker(densities[..., None], densities, None)
     for name, albedos in (("look", stylized.albedos), ("network", stylized.network)):
         stacked = np.stack(albedos)
         record[f"{name}_flicker_warped"] = flicker(stacked, densities, velocities)

@@ -7,6 +7,8 @@ weights them) and the ratio of the render's mean luminance-gradient magnitude to
 
     .venv/bin/python experiments/structure_levels.py --density pyroclastic64 \
         --styles hokusai_great_wave,van_gogh_starry_night --methods default,solid_texture,tuned_noise
+    .venv/bin/python experiments/structure_levels.py --density pyroclastic64 --styles hokusai_great_wave \
+        --arms look_structure_study --methods default,look_before,tuned_noise     # a study's arms too
 """
 
 from __future__ import annotations
@@ -50,7 +52,13 @@ def main(argv=None) -> None:
     parser.add_argument("--density", required=True)
     parser.add_argument("--styles", required=True, help="comma-separated style names of the split")
     parser.add_argument("--methods", default="default,solid_texture,tuned_noise")
+    parser.add_argument("--arms", default="", help="a study in experiments/ whose register_arms() adds methods")
     args = parser.parse_args(argv)
+    if args.arms:
+        import importlib
+
+        sys.path.insert(0, str(ROOT / "experiments"))
+        importlib.import_module(args.arms).register_arms()
     from mistyle.benchmark.methods import METHODS, Context, timed
     from mistyle.benchmark.runner import metric_views, score
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles

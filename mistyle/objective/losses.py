@@ -190,7 +190,9 @@ def scaled_patches(images: torch.Tensor, mask: torch.Tensor | None, scale: int, 
 
 
 OPPONENT = ((1 / 3, 1 / 3, 1 / 3), (1 / 2, -1 / 2, 0.0), (1 / 4, 1 / 4, -1 / 2))
-"""Display RGB -> luminance and two colour-opponent channels, as ``objective.structure`` measures them."""
+"""Display RGB -> luminance ``(R + G + B) / 3`` and the colour-opponent channels ``(R - G) / 2`` and
+``(R + G - 2B) / 4``: what the structure metric (``objective.structure``) and the look's gradient term
+compare."""
 
 
 def gradient_points(images: torch.Tensor, mask: torch.Tensor | None, scale: int) -> torch.Tensor:

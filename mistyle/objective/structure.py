@@ -22,6 +22,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from .losses import OPPONENT
+
 LEVELS = 4
 QUANTILES = np.linspace(0.05, 0.95, 19)
 ORIENTATION_BINS = 8
@@ -40,8 +42,7 @@ def opponent_channels(image: np.ndarray) -> torch.Tensor:
     """Display RGB ``(H, W, 3)`` -> ``(3, 1, H, W)``: luminance ``(R + G + B) / 3``, ``(R - G) / 2`` and
     ``(R + G - 2B) / 4``."""
     rgb = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)
-    r, g, b = rgb
-    return torch.stack([(r + g + b) / 3, (r - g) / 2, (r + g - 2 * b) / 4])[:, None]
+    return torch.einsum("oc,chw->ohw", torch.tensor(OPPONENT), rgb)[:, None]
 
 
 def _blur(x: torch.Tensor) -> torch.Tensor:

@@ -87,16 +87,17 @@ SLICED_STYLE_SIZE = 128
 class SlicedObjective:
     """Sliced-Wasserstein style objective on display pixels and multi-scale pixel patches.
 
-    ``loss = rgb_weight * SW(pixel colours) + patch_weight * mean over scales SW(5x5 patches)
-    + structure_weight * mean over scales SW(gradients)``, each a squared sliced 2-Wasserstein distance
+    ``loss = rgb_weight * SW(pixel colours) + patch_weight * mean over scales SW(5x5 patches) +
+    structure_weight * mean over scales SW(gradients)``, each a squared sliced 2-Wasserstein distance
     (``losses.sliced_wasserstein_loss``) between the render's masked values and the style's. The
-    gradients are the luminance and colour-opponent channels' ``(d/dx, d/dy)`` (``losses.gradient_points``)
-    at each of ``structure_scales``, divided by the style's RMS gradient at that scale so that every
-    scale counts alike; the style's are taken at ``structure_style_pool`` times each scale, for a style
-    shown larger than the renders show the medium. Patches are taken from the display image box-downsampled by each
-    of ``patch_scales`` and must lie wholly inside the (min-pooled) mask, so the medium's silhouette
-    edge is never compared with the style's interior. The same statistics as the benchmark's
-    ``rgb_swd`` and ``patch_swd`` (``metrics.style_fidelity``), in a differentiable form.
+    gradients are the luminance and colour-opponent channels' ``(d/dx, d/dy)``
+    (``losses.gradient_points``) at each of ``structure_scales``, divided by the style's RMS gradient at
+    that scale so that every scale counts alike; the style's are taken at ``structure_style_pool`` times
+    each scale, for a style shown larger than the renders show the medium. Patches are taken from the
+    display image box-downsampled by each of ``patch_scales`` and must lie wholly inside the
+    (min-pooled) mask, so the medium's silhouette edge is never compared with the style's interior. The
+    same statistics as the benchmark's ``rgb_swd`` and ``patch_swd`` (``metrics.style_fidelity``), in a
+    differentiable form.
 
     ``loss(images, targets, masks)`` takes renders ``(B, V, 3, H, W)`` and optionally masks
     ``(B*V, 1, H, W)`` of the pixels to match (default ``masks.render_mask``).

@@ -3,7 +3,7 @@ merge a chunk of a sequence into its folder.
 
 The command line (``mistyle.render_final``) turns options into ``PipelineSettings`` and an ``OutputSpec``
 and loads each output's inputs into a ``Job``; this module makes the files from a ``Job`` (``render_job``,
-``merge_chunk``), so the farm and the preview write outputs as the command does.
+``write_output``, ``render_look_chunk``), so that a farm's workers write outputs as the command does.
 """
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ def log(message: str) -> None:
 
 @dataclass
 class Job:
-    """One output's inputs, loaded and checked before any heavy work (``load``), and where it goes."""
+    """One output's inputs, loaded and checked before any heavy work (``load_job``), and where it goes."""
 
     spec: OutputSpec
     output: object  # outputs.Output: the (density, style) pair and its folder

@@ -22,6 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "experiments"))
 
 OUT = ROOT / "results" / "look_structure_study" / "probe"
 WEIGHTS = {"look_gradient003": 0.003, "look_gradient01": 0.01, "look_gradient03": 0.03, "look_gradient1": 0.1}
@@ -81,6 +82,8 @@ def register_arms() -> list[str]:
 
 
 def main() -> None:
+    from study import USER_SCORING
+
     from mistyle.benchmark.runner import run
     from mistyle.benchmark.splits import split_pairs
 
@@ -88,7 +91,7 @@ def main() -> None:
     styles = ["klimt_the_kiss", "photo_nasa_io_global", "texture_rosewood_veneer"]
     pairs = split_pairs("validation", ["val_pyroclastic64"], styles)
     methods = ["default", "tuned_noise", "solid_texture"] + arms
-    run(OUT, pairs, methods, split="validation", res=256, spp=64, denoise="oidn", resume=True)
+    run(OUT, pairs, methods, split="validation", resume=True, **USER_SCORING)
 
 
 if __name__ == "__main__":

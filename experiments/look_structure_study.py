@@ -140,31 +140,17 @@ def heldout_sheet() -> Path:
     """Held-out pairs (``SHEET_PAIRS``) scored again in one run, the new default next to the default before
     it (``look_before``) and the baselines, into ``OUT/heldout_sheet/``; then ``heldout_sheet.jpg``: per
     pair the style and each method's first view at 256 px, large enough to see strokes."""
-    import numpy as np
-    from PIL import Image, ImageDraw
+    from study import USER_SCORING
 
-    from mistyle.benchmark.runner import SAVED_TILE, run
-    from mistyle.benchmark.splits import split_pairs, split_styles
-    from mistyle.io import load_style
-    from mistyle.model.features import square_style
+    from mistyle.benchmark.runner import ROWS_FILE, SAVED_TILE, read_rows, run, write_sheet
+    from mistyle.benchmark.splits import split_pairs
 
     register_arms()
     folder = OUT / "heldout_sheet"
     chosen = [pair for pair in split_pairs("heldout") if (pair[0].name, pair[1]) in SHEET_PAIRS]
-    run(folder, chosen, list(SHEET_METHODS), split="heldout", res=256, spp=64, denoise="oidn", resume=True)
-    styles, side = split_styles("heldout"), SAVED_TILE
-    rows = []
-    for density, style in SHEET_PAIRS:
-        cells = [square_style(load_style(styles[style]["path"]), side).permute(1, 2, 0).numpy()]
-        cells += [load_style(folder / "tiles" / f"{density}__{style}__{method}.png") for method in SHEET_METHODS]
-        rows.append(np.concatenate(cells, axis=1))
-    canvas = np.concatenate([np.ones((20, rows[0].shape[1], 3), np.float32)] + rows, axis=0)
-    image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
-    draw = ImageDraw.Draw(image)
-    for column, name in enumerate(("style",) + SHEET_METHODS):
-        draw.text((column * side + 4, 4), name, fill="black")
+    run(folder, chosen, list(SHEET_METHODS), split="heldout", resume=True, **USER_SCORING)
     path = OUT / "heldout_sheet.jpg"
-    image.save(path, format="JPEG", quality=85)
+    write_sheet(read_rows(folder / ROWS_FILE), folder / "tiles", path, side=SAVED_TILE)
     return path
 
 

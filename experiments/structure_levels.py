@@ -59,8 +59,10 @@ def main(argv=None) -> None:
 
         sys.path.insert(0, str(ROOT / "experiments"))
         importlib.import_module(args.arms).register_arms()
+    from study import score_as_users_see
+
     from mistyle.benchmark.methods import METHODS, Context, timed
-    from mistyle.benchmark.runner import metric_views, score
+    from mistyle.benchmark.runner import metric_views
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles
     from mistyle.io import load_style
     from mistyle.pipeline import Stylizer
@@ -73,17 +75,7 @@ def main(argv=None) -> None:
         print(f"== {spec.name} x {name}")
         for method in args.methods.split(","):
             albedo, _ = timed(METHODS[method], context, density, style)
-            metrics, images = score(
-                density,
-                albedo,
-                style,
-                context.views,
-                res=256,
-                spp=64,
-                density_scale=context.density_scale,
-                radiance=context.radiance,
-                denoise="oidn",
-            )
+            metrics, images = score_as_users_see(context, density, albedo, style)
             levels = " ".join(
                 f"L{i} -" if t is None else f"L{i} mag {t[0]:.2f} ori {t[1]:.2f} lum {t[2]:.2f}"
                 for i, t in enumerate(level_terms(images, style))

@@ -29,20 +29,9 @@ OUT = ROOT / "results" / "structure_seed_spread"
 
 def structure(context, density, albedo, style, seed: int) -> float:
     """The benchmark's structure distance of ``albedo`` path traced with ``seed`` (``runner.score``)."""
-    from mistyle.benchmark.runner import score
+    from study import score_as_users_see
 
-    metrics, _ = score(
-        density,
-        albedo,
-        style,
-        context.views,
-        res=256,
-        spp=64,
-        density_scale=context.density_scale,
-        radiance=context.radiance,
-        denoise="oidn",
-        seed=seed,
-    )
+    metrics, _ = score_as_users_see(context, density, albedo, style, seed)
     return float(metrics["structure"])
 
 

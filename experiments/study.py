@@ -10,7 +10,34 @@ from __future__ import annotations
 from mistyle.benchmark.methods import uniform_baseline
 from mistyle.benchmark.runner import METRIC_VIEWS, metric_views, score
 
-__all__ = ["METRIC_VIEWS", "add_metric_arguments", "arm_study", "metric_views", "score", "uniform_baseline"]
+__all__ = [
+    "METRIC_VIEWS",
+    "USER_SCORING",
+    "add_metric_arguments",
+    "arm_study",
+    "metric_views",
+    "score",
+    "score_as_users_see",
+    "uniform_baseline",
+]
+
+USER_SCORING = dict(res=256, spp=64, denoise="oidn")
+"""How ``mistyle-render`` shows its output, and so how a study scores it."""
+
+
+def score_as_users_see(context, density, albedo, style, seed: int = 0):
+    """``runner.score`` of ``albedo`` with ``context``'s (``methods.Context``) views, density scale and
+    light, at ``USER_SCORING``: ``(metrics, images)``."""
+    return score(
+        density,
+        albedo,
+        style,
+        context.views,
+        density_scale=context.density_scale,
+        radiance=context.radiance,
+        seed=seed,
+        **USER_SCORING,
+    )
 
 
 def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:
@@ -36,7 +63,7 @@ def arm_study(description: str, out, register_arms, validation_pairs, argv=None,
     parser.add_argument("--heldout", default="", help="an arm to score on the held-out split (out/heldout)")
     args = parser.parse_args(argv)
     out, arms = Path(out), register_arms()
-    scoring = dict(res=256, spp=64, denoise="oidn", resume=True)
+    scoring = dict(USER_SCORING, resume=True)
     if args.report_only:
         report(out)
     elif args.heldout:

@@ -468,21 +468,22 @@ def save_tile(folder: Path, row: Row, image: np.ndarray) -> None:
     write_png(tile_path(folder, row), np.asarray(shown, np.float32) / 255, srgb=False)
 
 
-def _sheet_tile(path: Path) -> np.ndarray:
-    """A saved tile at the sheet's ``TILE``^2 (older folders hold tiles of that size already)."""
+def _sheet_tile(path: Path, side: int) -> np.ndarray:
+    """A saved tile at ``side``^2 (older folders hold tiles of ``TILE``^2)."""
     from PIL import Image
 
     from ..io import load_style
 
     tile = load_style(path)
-    if tile.shape[:2] == (TILE, TILE):
+    if tile.shape[:2] == (side, side):
         return tile
-    shown = Image.fromarray((tile * 255 + 0.5).astype(np.uint8)).resize((TILE, TILE), Image.LANCZOS)
+    shown = Image.fromarray((tile * 255 + 0.5).astype(np.uint8)).resize((side, side), Image.LANCZOS)
     return np.asarray(shown, np.float32) / 255
 
 
-def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
-    """Per (density, style): the style, then each method's tile (grey where none was saved)."""
+def write_sheet(rows: list[Row], tiles: Path, path: Path, side: int = TILE) -> None:
+    """Per (density, style): the style, then each method's tile (grey where none was saved), ``side``
+    pixels each (``SAVED_TILE``: large enough to see strokes)."""
     from PIL import Image, ImageDraw
 
     from ..io import atomic_output, load_style
@@ -496,18 +497,18 @@ def write_sheet(rows: list[Row], tiles: Path, path: Path) -> None:
     styles = {}
     for split in dict.fromkeys(row.split or "heldout" for row in rows):
         styles.update(split_styles(split))
-    canvas = np.full((len(pairs) * TILE + 16, (len(methods) + 1) * TILE, 3), 1.0, np.float32)
+    canvas = np.full((len(pairs) * side + 16, (len(methods) + 1) * side, 3), 1.0, np.float32)
     for index, (density, style) in enumerate(pairs):
-        cells = [square_style(load_style(styles[style]["path"]), TILE).permute(1, 2, 0).numpy()]
+        cells = [square_style(load_style(styles[style]["path"]), side).permute(1, 2, 0).numpy()]
         for method in methods:
             tile = tiles / f"{density}__{style}__{method}.png"
-            cells.append(_sheet_tile(tile) if tile.exists() else np.full((TILE, TILE, 3), 0.5, np.float32))
-        canvas[16 + index * TILE : 16 + (index + 1) * TILE] = np.concatenate(cells, axis=1)
+            cells.append(_sheet_tile(tile, side) if tile.exists() else np.full((side, side, 3), 0.5, np.float32))
+        canvas[16 + index * side : 16 + (index + 1) * side] = np.concatenate(cells, axis=1)
     image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
     draw = ImageDraw.Draw(image)
     for column, name in enumerate(["style"] + methods):
-        draw.text((column * TILE + 4, 2), name, fill="black")
+        draw.text((column * side + 4, 2), name, fill="black")
     for index, (density, _) in enumerate(pairs):
-        draw.text((4, 16 + index * TILE + 4), density, fill="white")
+        draw.text((4, 16 + index * side + 4), density, fill="white")
     with atomic_output(path) as temporary:
         image.save(temporary, format="JPEG", quality=80)  # the sheets of results/ are committed: 0.8x the bytes of 88

@@ -46,20 +46,27 @@ SHA256 = {
 }
 
 
-def flicker(albedos: np.ndarray, densities: np.ndarray, velocities: np.ndarray | None) -> float:
-    """Mean ``|A_t - W(A_{t-1})|`` over the voxels with medium in both frames, ``W`` the warp by frame t-1's
-    velocity (None: no warp)."""
+def flicker(albedos: np.ndarray, densities: np.ndarray, velocities: np.ndarray | None) -> dict:
+    """Two measures of ``|A_t - W(A_{t-1})|``, ``W`` the warp by frame t-1's velocity (None: no warp):
+    ``"inside"``, its mean over the voxels with medium in both frames at the same place (the measure of
+    stop 59); ``"medium"``, its mean weighted by ``min(ρ_t, W(ρ_{t-1}))``, the medium both frames have
+    where the comparison reads them. The second is what renders: a voxel counts as much as the matter
+    it holds, and a warped comparison that reads the previous frame outside its medium (where the albedo
+    is the network's value for no density, never seen) counts for nothing."""
     import torch
 
     from mistyle.warp import semi_lagrangian_warp
 
-    previous = albedos[:-1]
+    previous, before = albedos[:-1], densities[:-1]
     if velocities is not None:
         volumes = torch.from_numpy(np.ascontiguousarray(previous)).permute(0, 4, 1, 2, 3)
         flow = torch.from_numpy(np.ascontiguousarray(velocities[:-1])).permute(0, 4, 1, 2, 3)
         previous = semi_lagrangian_warp(volumes, flow).permute(0, 2, 3, 4, 1).numpy()
+        before = semi_lagrangian_warp(torch.from_numpy(np.ascontiguousarray(before))[:, None], flow)[:, 0].numpy()
+    change = np.abs(albedos[1:] - previous).mean(axis=-1)
     inside = (densities[1:] > 0) & (densities[:-1] > 0)
-    return float(np.abs(albedos[1:] - previous)[inside].mean())
+    weight = np.minimum(densities[1:], before)
+    return {"inside": float(change[inside].mean()), "medium": float((change * weight).sum() / weight.sum())}
 
 
 def main(argv=None) -> None:
@@ -72,7 +79,9 @@ def main(argv=None) -> None:
         if hashlib.sha256((args.cache / name).read_bytes()).hexdigest() != digest:
             raise SystemExit(f"{args.cache / name} is not the recorded file (sha256 {digest}).")
 
+    from mistyle.advection import TextureMotion
     from mistyle.io import load_density_frames, write_png
+    from mistyle.objective.metrics import style_fidelity
     from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
     from mistyle.tone import display
 
@@ -83,13 +92,14 @@ def main(argv=None) -> None:
     stylized = pipeline.stylize(loaded.densities, STYLE, velocities=loaded.velocities, notes=notes)
     seconds = time.perf_counter() - started
     densities, velocities = np.stack(loaded.densities), np.stack(loaded.velocities)
+    look = stylized.look
     record = {
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
         "frames": len(loaded.densities),
         "shape_zyx": list(loaded.densities[0].shape),
         "occupied": [float((d > 0).mean()) for d in loaded.densities],
         "stylize_seconds": seconds,
-        "key_frames": stylized.look.meta["key_frames"] if stylized.look is not None else None,
+        "key_frames": look.meta["key_frames"],
         "notes": notes,
     }
     # The velocities' units checked on the density itself, which the flow carries: warped by them the
@@ -97,14 +107,26 @@ def main(argv=None) -> None:
     for scale in (0.25, 0.5, 1.0, 2.0):
         record[f"density_flicker_warped_x{scale:g}"] = flicker(densities[..., None], densities, velocities * scale)
     record["density_flicker_unwarped"] = flicker(densities[..., None], densities, None)
-    for name, albedos in (("look", stylized.albedos), ("network", stylized.network)):
+    # One look, its texture fixed in the box or advected with restarts every `period` frames.
+    arms = {"network": stylized.network, "look_fixed": [look.apply(grid) for grid in loaded.densities]}
+    for period in (4, 8, 16):
+        motion = TextureMotion(list(loaded.velocities), period=period)
+        arms[f"look_advected_{period}"] = [
+            look.apply(grid, motion.phases(i)) for i, grid in enumerate(loaded.densities)
+        ]
+    assert all(np.array_equal(a, b) for a, b in zip(arms["look_advected_8"], stylized.albedos))
+    for name, albedos in arms.items():
         stacked = np.stack(albedos)
         record[f"{name}_flicker_warped"] = flicker(stacked, densities, velocities)
         record[f"{name}_flicker_unwarped"] = flicker(stacked, densities, None)
-    images, _ = pipeline.path_trace(stylized.frames, stylized.albedos, pipeline.views()[:1])
-    strip = np.concatenate([display(image) for image in images], axis=1)
+    strips = []
+    for name in ("look_fixed", "look_advected_8"):
+        images, _ = pipeline.path_trace(stylized.frames, arms[name], pipeline.views()[:1])
+        scores = [style_fidelity([image], look.style) for image in images]
+        record[f"{name}_per_frame"] = scores
+        strips.append(np.concatenate([display(image) for image in images], axis=1))
     args.out.mkdir(parents=True, exist_ok=True)
-    write_png(args.out / "strip.png", strip, srgb=False)
+    write_png(args.out / "strip.png", np.concatenate(strips, axis=0), srgb=False)
     (args.out / "flicker.json").write_text(json.dumps(record, indent=1) + "\n")
     print(json.dumps({key: value for key, value in record.items() if "flicker" in key}, indent=1))
 

@@ -133,17 +133,24 @@ def load_job(spec: OutputSpec, output, pipeline, styles: dict, frame_range: tupl
         up = loaded.up or up
         if transforms is not None:
             sources = density_frame_files(output.density.path)
-    total, first = len(densities), 0
+    total, first, motion = len(densities), 0, None
     if frame_range is not None:
         first, last = frame_range
         if last >= total:
             raise ValueError(f"--frames {first}-{last} lies outside {output.density.path}'s frames 0-{total - 1}.")
         chosen = slice(first, last + 1)
+        if velocities is not None:
+            from .advection import TextureMotion, first_needed
+
+            # The look's texture follows the velocities from before the chunk too, as it does through
+            # the whole sequence, so that the chunks' frames are the whole sequence's.
+            begin = first_needed(first)
+            motion = TextureMotion(velocities[begin : last + 1], begin=begin)
         densities, names = densities[chosen], names[chosen]
         velocities = None if velocities is None else velocities[chosen]
         transforms = None if transforms is None else transforms[chosen]
         sources = None if sources is None else sources[chosen]
-    frames = pipeline.frames(densities, velocities, names)
+    frames = pipeline.frames(densities, velocities, names, motion, first)
     return Job(
         spec=spec,
         output=output,

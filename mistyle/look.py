@@ -23,7 +23,8 @@ What a look holds (``LOOK_VERSION`` 1), chosen by measurement (``experiments/loo
 * **A texture over the medium's box** (``texture_side`` texels along the longest side), added before
   the head's tanh: strokes and grain where the density alone has no structure. It starts as a solid
   texture of the style (``mistyle.solid_texture``: every slice has the style's patches), scaled in the
-  head's logits, and is fixed in box coordinates. Optionally (off by default) smooth-noise fields the
+  head's logits. It lies over the box; in a sequence with velocities it travels with them
+  (``mistyle.advection``). Optionally (off by default) smooth-noise fields the
   head weighs.
 * **The colour match's map** (``colour_match.ColourMatch``), fitted after the fit on the albedo of the
   first key frame the layer sees: a function of colour, shared by every frame like a sequence's.
@@ -32,7 +33,8 @@ What a look holds (``LOOK_VERSION`` 1), chosen by measurement (``experiments/loo
 
 Applied to a frame, the look runs the network on that frame's own density with the fitted head and
 texture (``prepare_frame``, ``frame_albedo``: the fit's own functions), then the colour match; no
-frame is refined and each frame depends on nothing but the look and its density.
+frame is refined and each frame depends on nothing but the look, its density and, where the texture
+follows a sequence's velocities, those of the few frames before it (``advection.first_needed``).
 """
 
 from __future__ import annotations
@@ -229,15 +231,16 @@ class Look:
             self._network = model.eval()
         return self._network
 
-    def network_albedo(self, grid: np.ndarray) -> np.ndarray:
-        """The tuned network's albedo ``(Z, Y, X, 3)`` of ``grid (Z, Y, X)``, before the colour match."""
+    def network_albedo(self, grid: np.ndarray, phases: list | None = None) -> np.ndarray:
+        """The tuned network's albedo ``(Z, Y, X, 3)`` of ``grid (Z, Y, X)``, before the colour match; its
+        texture read through ``phases`` (``advection.TextureMotion.phases``) where given."""
         import torch
 
         with torch.no_grad():
             frame = self._prepared_frames.get(frame_key(grid))
             if frame is None:
                 frame = prepare_frame(self.network, grid, self.meta.get("scale_structures", 1.0), self.noise_spec())
-            albedo = frame_albedo(self.network, frame, self.kernels, self.noise_weight, self.texture)
+            albedo = frame_albedo(self.network, frame, self.kernels, self.noise_weight, self.texture, phases=phases)
         return np.ascontiguousarray(albedo.permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
 
     def noise_spec(self) -> tuple[int, int] | None:
@@ -246,23 +249,29 @@ class Look:
         return (channels, int(self.meta.get("noise_seed", 0))) if channels else None
 
     def stylize(
-        self, density, density_scale: float | None = None, notes: list | None = None
+        self, density, density_scale: float | None = None, notes: list | None = None, velocities=None
     ) -> np.ndarray | list[np.ndarray]:
         """Albedo ``(Z, Y, X, 3)`` of one density frame, or a list of them for a sequence ``(T, Z, Y, X)``
-        or a list of frames: the tuned network, then the look's colour match. ``density_scale`` (the
-        scale the frames will be rendered at) other than the look's adds a note, as does a frame of a
-        very different size from the key frames."""
+        or a list of frames: the tuned network, then the look's colour match. ``velocities`` (one
+        ``(Z, Y, X, 3)`` per frame, voxels per frame, ``warp``'s convention): the texture travels with
+        them (``advection``). ``density_scale`` (the scale the frames will be rendered at) other than
+        the look's adds a note, as does a frame of a very different size from the key frames."""
+        from .advection import TextureMotion
         from .stylizer import checked_frames
 
         grids, sequence = checked_frames(density)
         if notes is not None:
             notes.extend(self.notes_for(grids[0].shape, density_scale))
-        albedos = [self.apply(grid) for grid in grids]
+        if velocities is not None and len(velocities) != len(grids):
+            raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
+        motion = None if velocities is None or not sequence else TextureMotion(list(velocities))
+        albedos = [self.apply(grid, None if motion is None else motion.phases(i)) for i, grid in enumerate(grids)]
         return albedos if sequence else albedos[0]
 
-    def apply(self, grid: np.ndarray) -> np.ndarray:
-        """``stylize`` of one checked ``(Z, Y, X)`` float32 grid."""
-        albedo = self.network_albedo(grid)
+    def apply(self, grid: np.ndarray, phases: list | None = None) -> np.ndarray:
+        """``stylize`` of one checked ``(Z, Y, X)`` float32 grid; its texture read through ``phases``
+        (``advection.TextureMotion.phases``: the frame's advected fields) where given."""
+        albedo = self.network_albedo(grid, phases)
         return albedo if self.colour_match is None else self.colour_match.apply(albedo, grid)
 
     def notes_for(self, shape: tuple, density_scale: float | None) -> list[str]:
@@ -728,12 +737,29 @@ def stretch_texture(texture, frame: dict, padded: tuple):
     return torch.matmul(along_z, values.reshape(channels, texels[0], -1)).reshape(channels, *padded)
 
 
-def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None, whole: bool = True):
+def advected_texture(texture, frame: dict, padded: tuple, phases: list):
+    """``stretch_texture`` of a texture that travels with the flow: ``texture (C, tz, ty, tx)`` read at the
+    frame's advected ``phases`` (``advection.blend_phases``) over its whole grid, cut to its crop window
+    and zero-padded to ``padded``: ``(C, *padded)``."""
+    import torch.nn.functional as F
+
+    from .advection import blend_phases
+
+    values = blend_phases(texture, phases, tuple(frame["size"]))
+    if frame["window"] is not None:
+        values = values[(slice(None), *frame["window"])]
+    return F.pad(values, [p for n, m in reversed(list(zip(values.shape[1:], padded))) for p in (0, m - n)])
+
+
+def frame_albedo(
+    network, frame: dict, kernels, noise_weight=None, texture=None, whole: bool = True, phases: list | None = None
+):
     """A look's albedo ``(3, Z, Y, X)`` of a ``prepare_frame`` frame (differentiable in ``kernels``, the
     tuned decoder layers, ``noise_weight (3, channels)`` and ``texture (3, tz, ty, tx)``, which is
-    stretched over the box whatever its resolution). ``whole=False``: only over the frame's crop window
-    where it has one and its grid was not resampled (``cropped_fit``), as ``render_views(...,
-    window=frame["window"])`` takes it."""
+    stretched over the box whatever its resolution, or read through the frame's advected ``phases``,
+    ``advection``; the noise fields stay in the grid's place). ``whole=False``: only over the frame's
+    crop window where it has one and its grid was not resampled (``cropped_fit``), as
+    ``render_views(..., window=frame["window"])`` takes it."""
     import torch
     import torch.nn.functional as F
 
@@ -757,7 +783,10 @@ def frame_albedo(network, frame: dict, kernels, noise_weight=None, texture=None,
     if noise_weight is not None and frame["noise"] is not None:
         offset = torch.einsum("oc,bcdhw->bodhw", noise_weight, frame["noise"])
     if texture is not None:
-        stretched = stretch_texture(texture, frame, tuple(logits.shape[2:]))[None]
+        padded = tuple(logits.shape[2:])
+        stretched = (
+            stretch_texture(texture, frame, padded) if not phases else advected_texture(texture, frame, padded, phases)
+        )[None]
         offset = stretched if offset is None else offset + stretched
     albedo = head_albedo(logits if offset is None else logits + offset, encoded.size)
     if not whole and cropped_fit(frame):

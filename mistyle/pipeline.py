@@ -228,11 +228,19 @@ class Frames:
     densities: list  # (Z, Y, X) float32 each, all one shape
     velocities: list | None  # (Z, Y, X, 3) each, when every frame has one
     density_scale: float
+    # advection.TextureMotion: the velocities a look's texture follows, from those of the frames before
+    # ``first`` (a chunk's), or None where the frames carry none
+    motion: object = None
+    first: int = 0  # the sequence's index of densities[0]
     _prepared: dict = field(default_factory=dict, repr=False)
 
     @property
     def sequence(self) -> bool:
         return len(self.densities) > 1
+
+    def phases(self, frame: int) -> list | None:
+        """Frame ``frame``'s advected texture fields (``advection.TextureMotion.phases``), or None."""
+        return None if self.motion is None else self.motion.phases(self.first + frame)
 
     def prepared(self, frame: int):
         """The frame's density prepared for the fast layer (its Ls grid), computed once."""
@@ -361,10 +369,13 @@ class Pipeline:
         s = self.settings
         return replace(self.refinement(1), layer_steps=s.refine_steps or 0, path_steps=s.refine_path_steps or 0)
 
-    def frames(self, density, velocities=None, names: list[str] | None = None) -> Frames:
+    def frames(self, density, velocities=None, names: list[str] | None = None, motion=None, first: int = 0) -> Frames:
         """``density`` as ``Frames``: one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
         frames; ``velocities`` ``(Z, Y, X, 3)`` per frame or None; ``names``: the frames' names in
-        messages. ``ValueError`` for a frame that is not a valid density or holds too little medium."""
+        messages; ``motion`` (``advection.TextureMotion``) and ``first``: for frames ``first`` on of a
+        longer sequence, the velocities of the frames before them that a look's texture follows
+        (default: ``velocities``'). ``ValueError`` for a frame that is not a valid density or holds too
+        little medium."""
         if isinstance(density, Frames):
             return density
         grids, _ = checked_frames(density, names)
@@ -374,7 +385,11 @@ class Pipeline:
             )
         if velocities is not None and len(velocities) != len(grids):
             raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
-        return Frames(grids, None if velocities is None else list(velocities), self.density_scale)
+        if velocities is not None and motion is None and len(grids) > 1:
+            from .advection import TextureMotion
+
+            motion = TextureMotion(list(velocities), begin=first)
+        return Frames(grids, None if velocities is None else list(velocities), self.density_scale, motion, first)
 
     # ------------------------------------------------------------------------ stylize
     def stylize(self, density, style, velocities=None, notes: list | None = None) -> Stylization:
@@ -425,7 +440,7 @@ class Pipeline:
             started = time.perf_counter()
             with bar(LookSettings().steps if s.look_steps is None else s.look_steps, "fitting a look") as progress_bar:
                 look = self.default_look(frames, style, notes=notes, progress=fit_progress(progress_bar))
-            albedos = [look.apply(grid) for grid in frames.densities]
+            albedos = [look.apply(grid, frames.phases(i)) for i, grid in enumerate(frames.densities)]
             report["look_seconds"] = time.perf_counter() - started
             report["look_key_frames"] = look.meta["key_frames"]
             report.update(flicker_report(albedos, frames, "_look"))
@@ -492,7 +507,7 @@ class Pipeline:
         notes.extend(look.notes_for(frames.densities[0].shape, frames.density_scale))
         report: dict = {}
         started = time.perf_counter()
-        network = [look.apply(grid) for grid in frames.densities]
+        network = [look.apply(grid, frames.phases(i)) for i, grid in enumerate(frames.densities)]
         report["stylize_seconds"] = time.perf_counter() - started
         check_finite("The look's albedo of frame", network)
         self.log(f"stylized {len(network)} frame(s) from the look in {report['stylize_seconds']:.2f} s")

@@ -10,7 +10,7 @@ ROOT = Path(mistyle.__file__).parent
 LAYERS = [
     {"conventions", "vdb_convert", "version"},
     {"tone", "volume", "warp", "backend", "progress", "stops", "vdb"},
-    {"io", "ownership"},
+    {"io", "ownership", "advection"},
     {"scenes", "pages", "outputs", "style"},
     {"integrators"},
     {"bridge_torch", "reference_torch", "pathtrace", "denoise", "adam"},

@@ -370,6 +370,40 @@ def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpo
     assert files_of(whole) == files_of(chunked)
 
 
+def test_a_looks_texture_travels_with_the_frames_velocities(look, blob_density):
+    # The blob moves four voxels a frame along x through a wider box. The network is shift-equivariant
+    # by four voxels (its crop's corner is rounded to four), so all that would not follow the blob is
+    # the look's texture, fixed over the box unless it is carried by the velocities.
+    wide = np.pad(blob_density, ((0, 0), (0, 0), (8, 28)))
+    frames = [np.roll(wide, 4 * t, axis=2) for t in range(5)]
+    velocities = [np.broadcast_to(np.float32([4, 0, 0]), wide.shape + (3,)) for _ in frames]
+    carried, fixed = look.stylize(frames, velocities=velocities), look.stylize(frames)
+    assert np.array_equal(carried[0], fixed[0])
+
+    def change(albedos):  # each frame against the first moved with the blob, where the blob is
+        inside = [np.roll(wide > 0.05, 4 * t, axis=2) for t in range(5)]
+        return max(np.abs(albedos[t] - np.roll(albedos[0], 4 * t, axis=2))[inside[t]].max() for t in range(1, 5))
+
+    assert change(carried) < 0.01 and change(fixed) > 0.1  # carried: up to rounding in the warps
+    with pytest.raises(ValueError, match="one velocity per frame"):
+        look.stylize(frames, velocities=velocities[:2])
+
+
+def test_chunks_of_a_sequence_with_velocities_merge_into_the_single_run(checkpoint, look, blob_density, tmp_path):
+    """A chunk's texture follows the velocities of the frames before it, as the whole run's does."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    velocity = np.broadcast_to(np.float32([1, 0, 0]), blob_density.shape + (3,))
+    for index, frame in enumerate(moving_frames(blob_density, 10)):
+        np.savez(frames / f"smoke_{index:03d}.npz", density=frame, velocity=velocity)
+    wave = look.save(tmp_path / "wave.look")
+    whole, chunked = tmp_path / "whole", tmp_path / "chunked"
+    assert render(checkpoint, "--density", frames, "--look", wave, "--out", whole) == 0
+    for chunk in ("9", "0-8"):
+        assert render(checkpoint, "--density", frames, "--look", wave, "--out", chunked, "--frames", chunk) == 0
+    assert files_of(whole) == files_of(chunked)
+
+
 @pytest.mark.parametrize(
     "arguments, message",
     [

@@ -94,6 +94,19 @@ def test_the_look_the_page_fits_is_the_final_renders_bit_for_bit(mi, tmp_path, t
     np.testing.assert_array_equal(read_vol(out / "albedo_refined.vol"), shown)
 
 
+def test_the_page_carries_a_looks_texture_with_the_sequences_velocities(session, blob_density):
+    """A frame of a sequence with velocities shows what the final render makes of it: the look's texture
+    carried from the frames before (``advection``), not laid where the box has it."""
+    frames = [np.roll(blob_density, t, axis=2) for t in range(3)]
+    velocities = [np.broadcast_to(np.float32([1, 0, 0]), blob_density.shape + (3,)) for _ in frames]
+    look = session.pipeline.fit_look(frames, session.styles[0].image)
+    page = PreviewSession(session.pipeline, frames, session.styles, look=look, res=32, velocities=velocities)
+    controls = page.checked(replace(page.initial_controls(), frame=2))
+    carried = look.stylize(frames, velocities=velocities)[2]
+    np.testing.assert_array_equal(page.albedo(controls), carried)
+    assert np.abs(carried - look.apply(frames[2])).mean() > 1e-3
+
+
 def test_the_page_switches_to_the_look_and_a_new_style_cancels_a_fit(mi, session, tmp_path):
     """The page gets the network's frame at once, then the fit's progress, then the look's frame; a
     camera move during a fit is shown meanwhile, and a style change ends the fit, keeping nothing."""

@@ -81,7 +81,7 @@ def load(args) -> tuple:
         image = load_style(path)
         styles.append(StyleOption(path.name, image, thumbnail_jpeg(image)))
     look = Look.load(args.look, pipeline.stylizer) if args.look is not None else None
-    session = PreviewSession(pipeline, frames, styles, look=look, res=args.res)
+    session = PreviewSession(pipeline, frames, styles, look=look, res=args.res, velocities=loaded.velocities)
     return session, list(paths), options
 
 

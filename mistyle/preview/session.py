@@ -149,15 +149,26 @@ def decode_upload(name: str, data: bytes) -> StyleOption:
 class PreviewSession:
     """A density's frames, the styles, and the images of ``Controls`` (module docstring)."""
 
-    def __init__(self, pipeline, frames: list[np.ndarray], styles: list[StyleOption], *, look=None, res: int = 256):
+    def __init__(
+        self,
+        pipeline,
+        frames: list[np.ndarray],
+        styles: list[StyleOption],
+        *,
+        look=None,
+        res: int = 256,
+        velocities=None,
+    ):
         """``pipeline``: a ``pipeline.Pipeline`` with the settings of the page's final renders (its network,
         density scale, orbit and look settings are the preview's); ``look``: a loaded ``look.Look`` the
-        page can apply."""
+        page can apply; ``velocities``: the frames' (``(Z, Y, X, 3)`` each, or None), which a look's
+        texture follows as in the final render."""
         if not styles and look is None:
             raise ValueError("The preview needs at least one style picture (--styles) or a look (--look).")
         self.pipeline = pipeline
         self.stylizer = pipeline.stylizer
         self.frames = frames
+        self._motion = pipeline.frames(frames, velocities).motion if velocities is not None else None
         self.styles = list(styles)
         self.look = look
         self.res = int(res)
@@ -252,7 +263,7 @@ class PreviewSession:
         started = time.perf_counter()
         grid = self.frames[controls.frame]
         if look is not None:
-            albedo = look.apply(grid)
+            albedo = look.apply(grid, None if self._motion is None else self._motion.phases(controls.frame))
         else:
             albedo = self.stylizer.network_albedo(grid, self._kernels_for(controls))
             match = self._match_for(controls) if controls.strength > 0 else None

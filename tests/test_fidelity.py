@@ -10,6 +10,7 @@ from mistyle.objective.losses import masked_patches, sliced_wasserstein_loss
 from mistyle.objective.masks import body_mask
 from mistyle.objective.metrics import (
     correlation_length,
+    exposure_matched_fidelity,
     hue_coverage,
     image_patches,
     kmeans,
@@ -89,6 +90,20 @@ def test_style_fidelity_of_the_style_itself_and_of_a_mean_colour_fill():
     assert grey["rgb_swd"] > 0.1 and grey["patch_swd"] > 0.1 and grey["hue_coverage"] <= 0.5
     with pytest.raises(ValueError, match="no render sees the medium"):
         style_fidelity([np.zeros((8, 8, 3), np.float32)], style)
+
+
+def test_the_matched_exposure_shows_a_dim_render_of_the_style_as_the_style():
+    style = two_colour_style(48)
+    dim = linear_from_display(style) * 0.2  # the style's own picture, five times too dark
+    as_rendered = style_fidelity([dim], style)
+    matched, exposure = exposure_matched_fidelity([dim], style)
+    assert exposure == pytest.approx(5.0, rel=0.02)
+    assert as_rendered["rgb_swd"] > 0.1 and matched["rgb_swd"] < 5e-3 and matched["patch_swd"] < 5e-3
+    # A grey of the right brightness stays as far from the style's two colours as it was.
+    grey = linear_from_display(np.broadcast_to(style.reshape(-1, 3).mean(0), style.shape))
+    assert exposure_matched_fidelity([grey], style)[0]["hue_coverage"] <= 0.5
+    with pytest.raises(ValueError, match="no render sees the medium"):
+        exposure_matched_fidelity([np.zeros((8, 8, 3), np.float32)], style)
 
 
 def test_sliced_wasserstein_loss_is_zero_on_equal_sets_and_pulls_points_to_the_target():

@@ -258,15 +258,16 @@ def hue_coverage(pixels: np.ndarray, style: np.ndarray, clusters: int = HUE_CLUS
     return float(np.minimum(shares(style_ab), shares(ours_ab)).sum())
 
 
-def style_fidelity(renders: list[np.ndarray], style: np.ndarray) -> dict:
+def style_fidelity(renders: list[np.ndarray], style: np.ndarray, masks: list[np.ndarray] | None = None) -> dict:
     """The benchmark's metrics of linear ``renders`` (views of one volume, ``(H, W, 3)`` each) against a
     display-space ``style (H, W, 3)``: ``rgb_swd`` (sliced W1 of foreground pixel colours),
     ``patch_swd`` (sliced W1 of 5x5 foreground patches at scales 1, 1/2, 1/4, averaged),
     ``hue_coverage`` and ``structure`` (oriented multi-scale gradient statistics inside the foreground,
-    ``objective.structure``; lower is closer). Pixels of all views are pooled."""
+    ``objective.structure``; lower is closer). Pixels of all views are pooled. ``masks``: the
+    foreground of each render, where not its own (``foreground_mask``)."""
     from .structure import structure_distance
 
-    masks = [foreground_mask(render) for render in renders]
+    masks = [foreground_mask(render) for render in renders] if masks is None else masks
     if not any(mask.any() for mask in masks):
         raise ValueError("style_fidelity: no render sees the medium (every pixel is background).")
     shown = [display(render) for render in renders]
@@ -278,6 +279,39 @@ def style_fidelity(renders: list[np.ndarray], style: np.ndarray) -> dict:
         "hue_coverage": hue_coverage(pixels, style),
         "structure": structure_distance(shown, masks, style),
     }
+
+
+EXPOSURE_RANGE = (1.0 / 256.0, 256.0)
+
+
+def matched_exposure(renders: list[np.ndarray], style: np.ndarray) -> float:
+    """The one factor ``k`` (in ``EXPOSURE_RANGE``) by which linear ``renders`` (views of one volume) are
+    scaled so that their foreground's mean display luminance is the style's: the exposure a
+    photographer would pick to show the medium as bright as the picture. A thin smoke under the
+    benchmark's light shows darker than most pictures whatever its albedo; at this exposure the
+    colour and patch distances compare colours and patterns, not how much light the medium can
+    scatter (``experiments/exposure_study.py``)."""
+    masks = [foreground_mask(render) for render in renders]
+    pixels = np.concatenate([np.asarray(render)[mask] for render, mask in zip(renders, masks)])
+    if not len(pixels):
+        raise ValueError("matched_exposure: no render sees the medium (every pixel is background).")
+    wanted = float(np.asarray(style, np.float32).mean())
+    low, high = (float(np.log2(bound)) for bound in EXPOSURE_RANGE)
+    for _ in range(40):  # the mean display luminance rises with the exposure: bisect its log
+        middle = 0.5 * (low + high)
+        if float(display(pixels * 2.0**middle).mean()) < wanted:
+            low = middle
+        else:
+            high = middle
+    return float(2.0 ** (0.5 * (low + high)))
+
+
+def exposure_matched_fidelity(renders: list[np.ndarray], style: np.ndarray) -> tuple[dict, float]:
+    """``style_fidelity`` of ``renders`` at their ``matched_exposure``, over their foreground as rendered:
+    ``(metrics, exposure)``."""
+    exposure = matched_exposure(renders, style)
+    masks = [foreground_mask(render) for render in renders]
+    return style_fidelity([np.asarray(render) * exposure for render in renders], style, masks), exposure
 
 
 def correlation_length(field: np.ndarray, mask: np.ndarray) -> float:

@@ -1082,6 +1082,8 @@ def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, 
     render = dict(steps=settings.layer_steps_per_ray, radiance=scene.radiance)
     optimizer, losses = fit.optimizer, []
     base_rates = [group["lr"] for group in optimizer.groups]
+    parameters = [parameter for group in optimizer.groups for parameter in group["params"]]
+    best_loss, best_values = math.inf, None
     total = coarse_steps + settings.steps
     for step in range(total):
         raise_if_requested()
@@ -1111,11 +1113,38 @@ def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, 
         loss = objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * smoothness
         optimizer.zero_grad()
         loss.backward()
-        optimizer.step()
         losses.append(float(loss.detach()))
+        if losses[-1] < best_loss:  # the values this step's loss was computed with, before the step
+            best_loss, best_values = losses[-1], [parameter.detach().clone() for parameter in parameters]
+        optimizer.step()
         if progress is not None:
             progress(step + 1, total, losses[-1])
+    if diverged(losses):
+        with torch.no_grad():
+            for parameter, value in zip(parameters, best_values):
+                parameter.copy_(value)
+        if notes is not None:
+            notes.append(
+                f"the look's fit diverged (its last steps' loss above its first steps'): it keeps the values of "
+                f"its lowest loss, {best_loss:.4g}, at step {losses.index(best_loss) + 1} of {len(losses)}"
+            )
     return losses
+
+
+DIVERGENCE_WINDOW = 10
+"""Steps whose mean loss a fit's start and end are compared by (``diverged``)."""
+
+
+def diverged(losses: Sequence[float]) -> bool:
+    """Whether a fit's ``losses`` (one a step) end higher than they started: the mean of the last
+    ``DIVERGENCE_WINDOW`` steps (of the last half, for a short fit) above the first step's, the loss
+    of the start. A fit that converges ends far below its start (about 20x at the defaults); one that
+    diverged, as the gradient term did on a few styles of fine, high-contrast texture by pinning the
+    head's colours at its bounds within a few steps (a flat colour whose only gradients are the
+    silhouette's), ends above it. Each step's loss is measured on other random views, so the end is
+    a mean over steps."""
+    window = min(DIVERGENCE_WINDOW, len(losses) // 2)
+    return window > 0 and float(np.mean(losses[-window:])) > losses[0]
 
 
 def is_look_file(path) -> bool:

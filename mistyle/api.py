@@ -24,6 +24,7 @@ key frames:
 
     look = mistyle.fit_look(frames, "wave.png")       # frames (T, Z, Y, X), a list, or a folder's path
     albedos = look.stylize(frames)                     # one albedo per frame, each from its own density
+    albedos = look.stylize(frames, velocities=vel)     # its texture carried by the frames' (T, Z, Y, X, 3) velocities
 
 For every setting and the results of each stage (timings, the feed-forward and the refined albedo,
 the final images), use ``mistyle.Pipeline`` with ``mistyle.PipelineSettings``.

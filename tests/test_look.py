@@ -12,7 +12,7 @@ from PIL import Image
 from mistyle.farm import frame_chunks
 from mistyle.farm import main as farm_main
 from mistyle.io import write_vol
-from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, fit_look, parse_key_frames
+from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, diverged, fit_look, parse_key_frames
 from mistyle.ownership import MANIFEST_FILE
 from mistyle.pipeline import Stylizer
 from mistyle.render_final import main
@@ -312,6 +312,23 @@ def test_looks_with_nan_huge_or_misshapen_tensors_are_refused_when_loaded(look, 
             ValueError, match=f"{change.__name__}.look is a damaged mistyle look .*{re.escape(message)}"
         ):
             Look.load(bad, stylizer=stylizer)
+
+
+def test_a_fit_that_ends_above_its_start_keeps_its_lowest_loss_values(stylizer, blob_density, style):
+    assert not diverged([2.0, 1.5, 1.2, 1.1]) and diverged([2.0, 2.8, 2.4, 2.5]) and not diverged([1.0])
+    notes, losses = [], []
+    wild = LookSettings(steps=12, lr=5.0, texture_lr=5.0)  # steps this large throw the head to its bounds
+    look = fit_look(
+        stylizer, [blob_density], style, settings=wild, notes=notes, progress=lambda *a: losses.append(a[2])
+    )
+    assert min(losses) == losses[0] and np.mean(losses[-6:]) > losses[0]
+    assert any("diverged" in note and "at step 1 of 12" in note for note in notes)
+    # Its lowest loss was at the start: the look is the look of no step at all.
+    start = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=0))
+    assert np.array_equal(look.apply(blob_density), start.apply(blob_density))
+    notes.clear()
+    fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=12), notes=notes)
+    assert not any("diverged" in note for note in notes)
 
 
 # ---------------------------------------------------------------------------- the command line

@@ -1138,7 +1138,7 @@ DIVERGENCE_WINDOW = 10
 def diverged(losses: Sequence[float]) -> bool:
     """Whether a fit's ``losses`` (one a step) end higher than they started: the mean of the last
     ``DIVERGENCE_WINDOW`` steps (of the last half, for a short fit) above the first step's, the loss
-    of the start. A fit that converges ends below its start (0.09-0.97 of it on 56 of the benchmark's
+    of the start. A fit that converges ends below its start (0.09-0.99 of it on 56 of the benchmark's
     63 pairs, ``results/look_divergence/``); one that diverged, as the gradient term did on
     a few styles of fine, high-contrast texture by pinning the head's colours at its bounds within a
     few steps (a flat colour whose only gradients are the silhouette's), ends above it. Each step's

@@ -7,7 +7,7 @@ whatever its hue. This study scores, on the real split's pairs, the default outp
 fill, a white medium (albedo 1 everywhere: no style at all) and tuned noise + colour match, each path
 traced as users see it (``study.USER_SCORING``: 256^2, 64 spp, OIDN) and scored twice: as rendered
 (the benchmark's scoring) and at the exposure that gives the foreground the style's mean display
-luminance (``objective.metrics.exposure_matched_fidelity``: one factor on the linear renders of a
+value (``objective.metrics.exposure_matched_fidelity``: one factor on the linear renders of a
 pair's three views, the foreground as rendered).
 
 The rule, written before the rows: the as-rendered distances measure brightness rather than style on

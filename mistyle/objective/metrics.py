@@ -286,9 +286,9 @@ EXPOSURE_RANGE = (1.0 / 256.0, 256.0)
 
 def matched_exposure(renders: list[np.ndarray], style: np.ndarray) -> float:
     """The one factor ``k`` (in ``EXPOSURE_RANGE``) by which linear ``renders`` (views of one volume) are
-    scaled so that their foreground's mean display luminance is the style's: the exposure a
-    photographer would pick to show the medium as bright as the picture. A thin smoke under the
-    benchmark's light shows darker than most pictures whatever its albedo; at this exposure the
+    scaled so that their foreground's mean display value (over the three channels) is the style's: the
+    exposure a photographer would pick to show the medium as bright as the picture. A thin smoke under
+    the benchmark's light shows darker than most pictures whatever its albedo; at this exposure the
     colour and patch distances compare colours and patterns, not how much light the medium can
     scatter (``experiments/exposure_study.py``)."""
     masks = [foreground_mask(render) for render in renders]
@@ -297,7 +297,7 @@ def matched_exposure(renders: list[np.ndarray], style: np.ndarray) -> float:
         raise ValueError("matched_exposure: no render sees the medium (every pixel is background).")
     wanted = float(np.asarray(style, np.float32).mean())
     low, high = (float(np.log2(bound)) for bound in EXPOSURE_RANGE)
-    for _ in range(40):  # the mean display luminance rises with the exposure: bisect its log
+    for _ in range(40):  # the mean display value rises with the exposure: bisect its log
         middle = 0.5 * (low + high)
         if float(display(pixels * 2.0**middle).mean()) < wanted:
             low = middle

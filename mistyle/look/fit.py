@@ -1,0 +1,339 @@
+"""Fitting a look: the tuned parts, the fit's steps through the fast layer, the colour match after."""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .fitted import Look, checkpoint_digest
+from .frames import (
+    coarse_frame,
+    cropped_fit,
+    frame_albedo,
+    frame_key,
+    prepare_frame,
+    solid_texture_start,
+    thumbnail_of,
+)
+from .settings import LookSettings, default_key_frames
+
+
+def fit_look(
+    stylizer,
+    densities: Sequence[np.ndarray],
+    style,
+    *,
+    key_frames: Sequence[int] | None = None,
+    density_scale: float | None = None,
+    camera_distance: float | None = None,
+    scale_structures: float = 1.0,
+    settings: LookSettings | None = None,
+    notes: list | None = None,
+    progress: Callable[[int, int, float], None] | None = None,
+    style_names: list[str] | None = None,
+    prepared: Callable[[int], object] | None = None,
+) -> Look:
+    """Fit a ``Look`` of ``style`` (an image or path, a mix ``[(style, weight)]`` or a ``style.Style``) on the
+    ``key_frames`` (default ``default_key_frames``) of ``densities`` (checked ``(Z, Y, X)`` frames of one
+    shape) with ``stylizer``'s network (``stylizer.Stylizer``). ``progress(step, steps, loss)`` after
+    each step. ``style_names``: what the look calls its style (default: the image files' names).
+    ``prepared(index)``: frame ``index`` prepared for the fast layer at ``density_scale``, when the
+    caller keeps them (``pipeline.Frames.prepared``); else each key frame is prepared here."""
+    import torch
+
+    from ..integrators import prepare_density
+    from ..model.skpn import StylizingKernels
+    from ..stops import raise_if_requested
+    from ..style import Style
+
+    settings = LookSettings() if settings is None else settings
+    started = time.perf_counter()
+    densities = [np.asarray(d, dtype=np.float32) for d in densities]
+    keys = default_key_frames(len(densities)) if key_frames is None else sorted(set(int(k) for k in key_frames))
+    if not keys or not all(0 <= k < len(densities) for k in keys):
+        raise ValueError(f"Key frames {keys} must lie within the sequence's frames 0-{len(densities) - 1}.")
+    density_scale = stylizer.density_scale if density_scale is None else float(density_scale)
+    config = stylizer.config
+    camera_distance = config.render.camera_distance if camera_distance is None else float(camera_distance)
+    scene = _FitScene(density_scale, camera_distance, config.render.radiance)
+    style = Style.of(style, notes, style_names)
+    target = style.target
+    fit = _tuned_parameters(stylizer, style, target, densities[keys[0]].shape, settings)
+
+    # Per key frame, what does not change during the fit: the encoder's features (and the decoder as far
+    # as nothing in it is tuned, LookSettings.fixed_stage), the crop, the noise and the layer's Ls grid.
+    fixed_kernels = StylizingKernels(fit.free) if settings.fixed_stage is not None else None
+    frames = []
+    for key in keys:
+        raise_if_requested()
+        frames.append(
+            prepare_frame(fit.network, densities[key], scale_structures, fit.noise, fixed_kernels, settings.fixed_stage)
+        )
+    prepared_densities = []
+    for key in keys:
+        raise_if_requested()
+        prepared_densities.append(prepare_density(densities[key], density_scale) if prepared is None else prepared(key))
+
+    def fit_match(key_albedo):
+        return _key_frame_match(key_albedo, [densities[key] for key in keys], target, scene, settings.seed, notes)
+
+    match = None
+    if settings.colour_match == "through":
+        with torch.no_grad():
+            match = fit_match(lambda index: fit.albedo(frames[index]).permute(1, 2, 3, 0).cpu().numpy())
+    losses = _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, notes, progress)
+
+    kernels = StylizingKernels(
+        {site: {key: value.detach() for key, value in kernel.items()} for site, kernel in fit.free.items()}
+    )
+    decoder = {
+        f"{index}.{name}": value.detach().clone()
+        for index in settings.tune_decoder
+        for name, value in fit.network.decoder[index].named_parameters()
+    }
+    meta = {
+        "checkpoint_sha256": checkpoint_digest(stylizer.path),
+        "checkpoint_name": stylizer.path.name,
+        "style": style.describe(),
+        "density_scale": density_scale,
+        "camera_distance": camera_distance,
+        "scale_structures": float(scale_structures),
+        "key_frames": keys,
+        "key_frame_shape": list(densities[keys[0]].shape),
+        "frames_seen": len(densities),
+        "settings": {
+            key: list(value) if isinstance(value, tuple) else value for key, value in asdict(settings).items()
+        },
+        "final_loss": losses[-1] if losses else None,
+    }
+    noise_weight, texture = fit.noise_weight, fit.texture
+    if fit.noise is not None:
+        meta.update(noise_channels=settings.noise_channels, noise_seed=settings.seed)
+        noise_weight = noise_weight.detach().clone()
+    if texture is not None:
+        texture = texture.detach().half().float()  # as the file keeps it
+    look = Look(kernels, decoder, match, thumbnail_of(target), meta, noise_weight, texture, stylizer=stylizer)
+    if settings.fixed_stage is not None:
+        # What the fit computed once per key frame (encoder features, the decoder up to its fixed stage)
+        # is what applying the look computes first, as nothing tuned enters it: kept, applying the look to
+        # a key frame (a single frame's default output) computes only the rest, by the plain path.
+        for key, frame in zip(keys, frames):
+            look._prepared_frames[frame_key(densities[key])] = {**frame, "folded": None}
+    if settings.colour_match == "after":
+        raise_if_requested()
+        look.colour_match = fit_match(lambda index: look.network_albedo(densities[keys[index]]))
+    look.meta["fit_seconds"] = time.perf_counter() - started
+    return look
+
+
+@dataclass(frozen=True)
+class _FitScene:
+    """What a look's fit renders its key frames with: the density scale, the orbit's radius, the light."""
+
+    density_scale: float
+    camera_distance: float
+    radiance: float
+
+
+@dataclass
+class _TunedParameters:
+    """What a look's fit changes (the network's copy with its tuned decoder convolutions, the free kernels,
+    the noise weights, the texture) and its optimizer."""
+
+    network: object
+    device: object  # torch.device
+    free: dict
+    noise: tuple | None  # (channels, seed) of the noise fields, or None
+    noise_weight: object
+    texture: object
+    optimizer: object
+
+    def albedo(self, frame: dict, whole: bool = True):
+        from ..model.skpn import StylizingKernels
+
+        return frame_albedo(self.network, frame, StylizingKernels(self.free), self.noise_weight, self.texture, whole)
+
+
+def _tuned_parameters(stylizer, style, target: np.ndarray, shape: tuple, settings: LookSettings):
+    """The network's copy and the parameters a look's fit tunes on key frames of ``shape``
+    (``_TunedParameters``), started as ``settings`` say."""
+    import torch
+
+    from ..adam import Adam
+
+    device = stylizer.device
+    # A look's own texture does what the network's noise site does, fitted to the style: started with the
+    # site's noise, looks came out worse (docs/decisions/2026-12-02-noise-site.md), so a look starts without it.
+    initial = stylizer.kernels(style).without_noise()
+    network = copy.deepcopy(stylizer.trained.model).float().eval()
+    for parameter in network.parameters():
+        parameter.requires_grad_(False)
+    tuned = []
+    for index in settings.tune_decoder:
+        for parameter in network.decoder[index].parameters():
+            parameter.requires_grad_(True)
+            tuned.append(parameter)
+    free = {
+        site: {
+            key: value.detach().clone().float().requires_grad_(key != "bias" and site in settings.tune_sites)
+            for key, value in kernel.items()
+        }
+        for site, kernel in initial.sites.items()
+    }
+    parameters = [value for kernel in free.values() for value in kernel.values() if value.requires_grad] + tuned
+    noise = (settings.noise_channels, settings.seed) if settings.noise_channels else None
+    noise_weight = None
+    if noise is not None:
+        noise_weight = torch.zeros((3, settings.noise_channels), device=device, requires_grad=True)
+        parameters.append(noise_weight)
+    groups = [{"params": parameters, "lr": settings.lr}]
+    texture = None
+    if settings.texture_side:
+        longest = max(shape)
+        texels = tuple(max(1, round(n * settings.texture_side / longest)) for n in shape)
+        generator = torch.Generator().manual_seed(settings.seed)
+        start = settings.texture_init * torch.randn((3,) + texels, generator=generator)
+        if settings.texture_start == "solid":
+            start = start + solid_texture_start(target, texels, settings.texture_start_strength, settings.seed)
+        texture = start.to(device).requires_grad_(True)
+        groups.append({"params": [texture], "lr": settings.texture_lr})
+    return _TunedParameters(network, device, free, noise, noise_weight, texture, Adam(groups))
+
+
+def _key_frame_match(key_albedo, key_densities: list, target, scene: _FitScene, seed: int, notes: list | None):
+    """The colour match fitted on the first key frame the layer sees (``key_albedo(index)``: the albedo
+    of key frame ``index``); a simulation's first frame can be a wisp too thin to see."""
+    from ..colour_match import InvisibleMedium, fit_colour_match
+
+    for index, density in enumerate(key_densities):
+        try:
+            return fit_colour_match(
+                key_albedo(index),
+                density,
+                target,
+                density_scale=scene.density_scale,
+                radiance=scene.radiance,
+                camera_distance=scene.camera_distance,
+                seed=seed,
+            )
+        except InvisibleMedium:
+            continue
+    if notes is not None:
+        notes.append("the look has no colour match: its key frames are too thin to be seen at this density scale")
+    return None
+
+
+def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, notes, progress) -> list[float]:
+    """The fit's Adam steps on ``frames`` (``prepare_frame``'s, in turn) through the fast layer against the
+    sliced objective with the body mask, plus the smoothness term; returns each step's loss."""
+    import torch
+
+    from ..bridge_torch import render_views
+    from ..integrators import prepare_density
+    from ..model.features import square_style
+    from ..model.skpn import inference_precision
+    from ..objective.losses import tv_loss
+    from ..objective.masks import body_mask
+    from ..objective.style import SLICED_STYLE_SIZE, SlicedObjective
+    from ..scenes import CameraPath
+    from ..stops import raise_if_requested
+
+    device = fit.device
+    # Coarse steps first, on the key frames at a lower resolution (coarse_frame), where each frame allows it.
+    coarse = [coarse_frame(frame, settings.coarse_factor) for frame in frames] if settings.coarse_steps else []
+    coarse_steps = settings.coarse_steps if coarse and all(frame is not None for frame in coarse) else 0
+    if settings.coarse_steps and not coarse_steps and notes is not None:
+        notes.append("the look's coarse steps were skipped: they need the head folded (LookSettings' defaults)")
+    if coarse_steps:
+        coarse_densities = [prepare_density(frame["grid"], scene.density_scale) for frame in coarse]
+    insides = [
+        torch.from_numpy((frame["grid"][frame["window"]] if cropped_fit(frame) else frame["grid"]) > 0).to(device)
+        for frame in frames
+    ]
+    coarse_insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in coarse] if coarse_steps else []
+    if inference_precision(device) == "bf16":
+        # The fit's one convolution in bfloat16 where the hardware computes it natively, as the network
+        # runs at inference: 2-4x faster on this project's CPU. The look is applied in float32.
+        frames = [{**f, "folded": f["folded"].in_bfloat16()} if f["folded"] is not None else f for f in frames]
+    objective = SlicedObjective(
+        rgb_weight=settings.rgb_weight,
+        patch_weight=settings.patch_weight,
+        seed=settings.seed,
+        direction_pool=settings.direction_pool,
+        structure_weight=settings.structure_weight,
+        # The style's gradients at the scale a final render shows it: its side over the views' side.
+        structure_style_pool=max(1, round(SLICED_STYLE_SIZE / settings.layer_res)),
+    )
+    targets = objective.targets(square_style(target, SLICED_STYLE_SIZE).to(device)[None])
+    orbit, rng = CameraPath(distance=scene.camera_distance), np.random.default_rng(settings.seed)
+    render = dict(steps=settings.layer_steps_per_ray, radiance=scene.radiance)
+    optimizer, losses = fit.optimizer, []
+    base_rates = [group["lr"] for group in optimizer.groups]
+    parameters = [parameter for group in optimizer.groups for parameter in group["params"]]
+    best_loss, best_values = math.inf, None
+    total = coarse_steps + settings.steps
+    for step in range(total):
+        raise_if_requested()
+        if settings.lr_schedule == "cosine":
+            for group, rate in zip(optimizer.groups, base_rates):
+                group["lr"] = rate * 0.5 * (1.0 + math.cos(math.pi * step / total))
+        key = step % len(frames)
+        if step < coarse_steps:
+            frame, prepared, inside = coarse[key], coarse_densities[key], coarse_insides[key]
+            layer_res = max(8, settings.layer_res // settings.coarse_factor)
+        else:
+            frame, prepared, inside = frames[key], prepared_densities[key], insides[key]
+            layer_res = settings.layer_res
+        if settings.view_sampling == "stratified":
+            views = orbit.sample_stratified(settings.views_per_step, rng)
+        else:
+            views = orbit.sample(settings.views_per_step, rng)
+        # On the crop window where the frame has one: the albedo outside it repeats its faces, which the
+        # render takes as the padded grid (render_views' window); the smoothness term is the crop's
+        # part of the grid's mean.
+        window = frame["window"] if cropped_fit(frame) else None
+        albedo = fit.albedo(frame, whole=window is None)
+        if match is not None:
+            albedo = match.apply_torch(albedo, inside)
+        images, white = render_views(albedo, prepared, views, layer_res, white=True, window=window, **render)
+        smoothness = tv_loss(albedo[None]) * (albedo[0].numel() / frame["grid"].size)
+        loss = objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * smoothness
+        optimizer.zero_grad()
+        loss.backward()
+        losses.append(float(loss.detach()))
+        if losses[-1] < best_loss:  # the values this step's loss was computed with, before the step
+            best_loss, best_values = losses[-1], [parameter.detach().clone() for parameter in parameters]
+        optimizer.step()
+        if progress is not None:
+            progress(step + 1, total, losses[-1])
+    if diverged(losses):
+        with torch.no_grad():
+            for parameter, value in zip(parameters, best_values):
+                parameter.copy_(value)
+        if notes is not None:
+            notes.append(
+                f"the look's fit diverged (its last steps' loss above its start's): it keeps the values of "
+                f"its lowest loss, {best_loss:.4g}, at step {losses.index(best_loss) + 1} of {len(losses)}"
+            )
+    return losses
+
+
+DIVERGENCE_WINDOW = 10
+"""Steps whose mean loss a fit's start and end are compared by (``diverged``)."""
+
+
+def diverged(losses: Sequence[float]) -> bool:
+    """Whether a fit's ``losses`` (one a step) end higher than they started: the mean of the last
+    ``DIVERGENCE_WINDOW`` steps (of the last half, for a short fit) above the first step's, the loss
+    of the start. A fit that converges ends below its start (0.09-0.99 of it on 56 of the benchmark's
+    63 pairs, ``results/look_divergence/``); one that diverged, as the gradient term did on
+    a few styles of fine, high-contrast texture by pinning the head's colours at its bounds within a
+    few steps (a flat colour whose only gradients are the silhouette's), ends above it. Each step's
+    loss is measured on other random views, so the end is a mean over steps."""
+    window = min(DIVERGENCE_WINDOW, len(losses) // 2)
+    return window > 0 and float(np.mean(losses[-window:])) > losses[0]

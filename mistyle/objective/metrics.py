@@ -284,14 +284,14 @@ def style_fidelity(renders: list[np.ndarray], style: np.ndarray, masks: list[np.
 EXPOSURE_RANGE = (1.0 / 256.0, 256.0)
 
 
-def matched_exposure(renders: list[np.ndarray], style: np.ndarray) -> float:
+def matched_exposure(renders: list[np.ndarray], style: np.ndarray, masks: list[np.ndarray] | None = None) -> float:
     """The one factor ``k`` (in ``EXPOSURE_RANGE``) by which linear ``renders`` (views of one volume) are
     scaled so that their foreground's mean display value (over the three channels) is the style's: the
     exposure a photographer would pick to show the medium as bright as the picture. A thin smoke under
     the benchmark's light shows darker than most pictures whatever its albedo; at this exposure the
     colour and patch distances compare colours and patterns, not how much light the medium can
-    scatter (``experiments/exposure_study.py``)."""
-    masks = [foreground_mask(render) for render in renders]
+    scatter (``experiments/exposure_study.py``). ``masks``: the renders' foregrounds, where known."""
+    masks = [foreground_mask(render) for render in renders] if masks is None else masks
     pixels = np.concatenate([np.asarray(render)[mask] for render, mask in zip(renders, masks)])
     if not len(pixels):
         raise ValueError("matched_exposure: no render sees the medium (every pixel is background).")
@@ -309,8 +309,8 @@ def matched_exposure(renders: list[np.ndarray], style: np.ndarray) -> float:
 def exposure_matched_fidelity(renders: list[np.ndarray], style: np.ndarray) -> tuple[dict, float]:
     """``style_fidelity`` of ``renders`` at their ``matched_exposure``, over their foreground as rendered:
     ``(metrics, exposure)``."""
-    exposure = matched_exposure(renders, style)
     masks = [foreground_mask(render) for render in renders]
+    exposure = matched_exposure(renders, style, masks)
     return style_fidelity([np.asarray(render) * exposure for render in renders], style, masks), exposure
 
 

@@ -229,7 +229,7 @@ def score_run(checkpoint: Path, claim: Claim, args) -> list[dict]:
         held_out_density,
         held_out_styles,
     )
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.objective.metrics import multiview_spread, style_fidelity
 
     stylizer = Stylizer(checkpoint)
@@ -309,7 +309,7 @@ def contact_sheet(number: int, seed: int, args) -> None:
         held_out_density,
         held_out_styles,
     )
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.model.features import square_style
     from mistyle.pages import write_grid
 
@@ -470,7 +470,7 @@ def sequence_flicker(checkpoint: Path, args) -> dict:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import held_out_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.objective.metrics import temporal_flicker
 
     densities, velocities = held_out_sequence(args.cache)

@@ -40,7 +40,7 @@ def write_sequence(folder: Path, frames: int) -> Path:
     """``frames`` .vol files of the bundled smoke, each moved and scaled (``bench_scale``'s sequence)."""
     from bench_scale import density
 
-    from mistyle.io import write_vol
+    from mistyle.files import write_vol
 
     folder.mkdir(parents=True, exist_ok=True)
     for index in range(frames):

@@ -31,7 +31,7 @@ def main() -> None:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density
-    from mistyle.io import load_density, load_style
+    from mistyle.files import load_density, load_style
 
     stylizer = Stylizer()
     style = load_style(STYLE)

@@ -118,8 +118,8 @@ def machine() -> dict:
 def run(quick: bool = False, sweep: bool = False) -> list[dict]:
     """The benchmark's records (``bench_all`` calls this)."""
     from mistyle.backend import use_variant
+    from mistyle.files import load_density
     from mistyle.integrators.inscatter import resample_trilinear
-    from mistyle.io import load_density
     from mistyle.scenes.bricks import DEFAULT_BRICK, DEFAULT_LEVELS
 
     use_variant("cpu")

@@ -63,7 +63,7 @@ def density(side: int, frame: int = 0, fill: float = 1.0):
     import torch
     import torch.nn.functional as F
 
-    from mistyle.io import read_vol
+    from mistyle.files import read_vol
 
     grid = read_vol(ROOT / "examples" / "smoke_64.vol")
     inner = round(side * fill ** (1 / 3))

@@ -35,7 +35,7 @@ def main() -> None:
     from PIL import Image
 
     from mistyle.conventions import DEFAULT_ENV_RADIANCE
-    from mistyle.vdb import vdb_info
+    from mistyle.files.vdb import vdb_info
 
     args.out.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="mistyle-blender-")) / "out"

@@ -48,7 +48,7 @@ def main() -> None:
     from mistyle.api import Stylizer
     from mistyle.colour_match import fit_colour_match
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.objective.metrics import style_fidelity
     from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
     from mistyle.tone import display

@@ -38,8 +38,8 @@ def main() -> None:
     )
     from mistyle.data.smoke import FireConfig, PlumeConfig, simulate
     from mistyle.data.styles import offline_style_set
+    from mistyle.files import write_png
     from mistyle.integrators import layer_scene, prepare_density
-    from mistyle.io import write_png
     from mistyle.scenes import View, split_views
 
     mi = use_variant("cpu")

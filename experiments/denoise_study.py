@@ -49,7 +49,7 @@ def main() -> None:
     from mistyle.benchmark.runner import metric_views
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_sequence, held_out_styles
     from mistyle.denoise import denoise
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.objective.metrics import foreground_mask
     from mistyle.pathtrace import path_trace
     from mistyle.pipeline import Pipeline, PipelineSettings

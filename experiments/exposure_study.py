@@ -55,7 +55,7 @@ def albedo_of(method: str, context, density, style) -> np.ndarray:
 
 
 def tile_of(image: np.ndarray, path: Path) -> None:
-    from mistyle.io import write_png
+    from mistyle.files import write_png
     from mistyle.tone import display
 
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -68,7 +68,7 @@ def run(out: Path, densities: list[str] | None) -> None:
     from mistyle.benchmark.methods import Context
     from mistyle.benchmark.runner import metric_views
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.objective.metrics import exposure_matched_fidelity
     from mistyle.pipeline import Stylizer
 
@@ -158,7 +158,7 @@ def sheet(rows: list[dict], out: Path) -> None:
     from PIL import Image, ImageDraw
 
     from mistyle.benchmark.splits import split_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.model.features import square_style
 
     styles = split_styles("real")

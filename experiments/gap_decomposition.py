@@ -95,9 +95,9 @@ def main() -> None:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
+    from mistyle.files import load_style
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
-    from mistyle.io import load_style
     from mistyle.objective.metrics import style_fidelity
     from mistyle.pipeline import default_refinement
     from mistyle.train.dataset import validation_paintings
@@ -184,7 +184,7 @@ def report(rows: list[dict], out: Path, args) -> None:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.pages import EXPERIMENTS_TITLE, write_grid, write_index
     from mistyle.tone import display
     from mistyle.train.dataset import validation_paintings

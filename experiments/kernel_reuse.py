@@ -54,7 +54,7 @@ def frames(count: int, first: int = 0):
     import numpy as np
 
     from mistyle.data.procedural import colour_noise_albedo
-    from mistyle.io import read_vol
+    from mistyle.files import read_vol
 
     smoke = read_vol(REPO / "examples" / "smoke_64.vol").astype(np.float32)
     return [

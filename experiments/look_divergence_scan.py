@@ -38,7 +38,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
 
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.pipeline import Pipeline, PipelineSettings
 
     pipeline = Pipeline(PipelineSettings())

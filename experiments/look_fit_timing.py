@@ -45,7 +45,7 @@ def main() -> None:
     import mistyle.objective.style as style_module
     from mistyle.benchmark.splits import split_density, split_pairs
     from mistyle.data.heldout import VALIDATION_STYLE_DIR
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.look import LookSettings, fit_look
     from mistyle.solid_texture import _cached
     from mistyle.stylizer import Stylizer

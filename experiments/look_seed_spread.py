@@ -108,7 +108,7 @@ def setting(args):
 
     from mistyle.benchmark.splits import split_pairs
     from mistyle.data.heldout import held_out_density, held_out_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.pipeline import Stylizer
 
     wanted = args.pairs.split(",")

@@ -58,7 +58,7 @@ def run(args) -> None:
 
     from mistyle.benchmark.methods import Context, colour_matched, density_ramp, smooth_noise, uniform_albedo
     from mistyle.data.heldout import held_out_sequence, held_out_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.look import LookSettings
     from mistyle.objective.metrics import temporal_flicker
     from mistyle.pipeline import Pipeline, PipelineSettings

@@ -203,7 +203,7 @@ def main() -> None:
     from mistyle.benchmark.runner import ROWS_FILE, code_commit
     from mistyle.benchmark.splits import split_pairs
     from mistyle.data.heldout import held_out_density, held_out_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.look import LookSettings, fit_look
     from mistyle.pipeline import Stylizer
 

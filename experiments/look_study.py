@@ -68,7 +68,7 @@ def main() -> None:
 
     from mistyle.benchmark.runner import code_commit
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.look import LookSettings, fit_look
     from mistyle.pipeline import Stylizer
 

@@ -80,7 +80,7 @@ def main(argv=None) -> None:
             raise SystemExit(f"{args.cache / name} is not the recorded file (sha256 {digest}).")
 
     from mistyle.advection import TextureMotion
-    from mistyle.io import load_density_frames, write_png
+    from mistyle.files import load_density_frames, write_png
     from mistyle.objective.metrics import style_fidelity
     from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
     from mistyle.tone import display

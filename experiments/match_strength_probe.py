@@ -35,7 +35,7 @@ def main() -> None:
     from mistyle.benchmark.runner import metric_views, score
     from mistyle.benchmark.splits import split_pairs, split_styles
     from mistyle.data.heldout import held_out_density
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.pipeline import Stylizer
 
     stylizer = Stylizer(None)

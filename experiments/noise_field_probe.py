@@ -88,7 +88,7 @@ def main(argv=None) -> None:
     from mistyle.benchmark.methods import smooth_noise, tuned_noise
     from mistyle.benchmark.runner import metric_views, score
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.pipeline import Pipeline, PipelineSettings
     from mistyle.train.dataset import validation_paintings
     from mistyle.train.recipes import VALIDATION_RES, VALIDATION_SPP

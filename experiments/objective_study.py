@@ -71,9 +71,9 @@ def main() -> None:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
+    from mistyle.files import load_style
     from mistyle.fit import FitSettings, LayerViews, fit_albedo
     from mistyle.integrators import prepare_density
-    from mistyle.io import load_style
     from mistyle.model.features import square_style
     from mistyle.objective.style import SLICED_STYLE_SIZE, SlicedObjective, StyleObjective
 

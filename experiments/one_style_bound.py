@@ -74,7 +74,7 @@ def main() -> None:
     from mistyle.benchmark.methods import METHODS, Context, timed
     from mistyle.benchmark.runner import metric_views, score
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.pipeline import Stylizer
 
     styles = args.styles.split(",")

@@ -44,9 +44,9 @@ def main() -> None:
     from mistyle.bridge_torch import render_views
     from mistyle.conventions import DEFAULT_ENV_RADIANCE
     from mistyle.data.styles import material_texture, offline_style_set
+    from mistyle.files import load_density
     from mistyle.fit import FitSettings, fit_albedo
     from mistyle.integrators import PreparedDensity, prepare_density
-    from mistyle.io import load_density
     from mistyle.model.features import make_extractor
     from mistyle.objective.metrics import sliced_wasserstein, style_distance
     from mistyle.objective.style import StyleObjective

@@ -56,7 +56,7 @@ def main() -> None:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.tone import display
     from mistyle.train.dataset import validation_paintings
 

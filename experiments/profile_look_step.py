@@ -49,7 +49,7 @@ def profile(steps: int) -> dict:
     import mistyle.objective.losses as losses
     import mistyle.objective.masks as masks
     import mistyle.objective.style as style
-    from mistyle.io import read_vol
+    from mistyle.files import read_vol
     from mistyle.stylizer import Stylizer
 
     seconds: dict[str, float] = defaultdict(float)

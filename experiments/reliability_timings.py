@@ -34,7 +34,7 @@ STYLE = REPO / "examples" / "style_marble.png"
 
 def small_density(folder: Path) -> Path:
     """The bundled smoke, halved to 32^3: the network's part stays short, the path trace is what is timed."""
-    from mistyle.io import read_vol, write_vol
+    from mistyle.files import read_vol, write_vol
 
     density = read_vol(REPO / "examples" / "smoke_64.vol")
     half = density.reshape(32, 2, 32, 2, 32, 2).mean(axis=(1, 3, 5))
@@ -78,7 +78,7 @@ def signal_during_path_trace(folder: Path, density: Path, name: str) -> dict:
 
 
 def farm_inputs(folder: Path, density: Path) -> tuple[Path, Path]:
-    from mistyle.io import read_vol, write_vol
+    from mistyle.files import read_vol, write_vol
 
     frames = folder / "frames"
     frames.mkdir()

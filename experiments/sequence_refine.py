@@ -46,8 +46,8 @@ def main() -> None:
     from mistyle.api import Stylizer
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_styles
     from mistyle.data.smoke import PlumeConfig, simulate
+    from mistyle.files import load_style
     from mistyle.fit import refine_albedo
-    from mistyle.io import load_style
     from mistyle.objective.metrics import temporal_flicker
     from mistyle.pipeline import Pipeline, PipelineSettings, default_refinement
 

@@ -81,9 +81,9 @@ def main() -> None:
         VALIDATION_DENSITIES,
         held_out_density,
     )
+    from mistyle.files import load_style
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
-    from mistyle.io import load_style
     from mistyle.pipeline import default_refinement
     from mistyle.train.dataset import validation_paintings
 

@@ -42,7 +42,7 @@ def main() -> None:
     from PIL import Image
 
     from mistyle.benchmark.methods import tuned_noise
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.objective.structure import structure_distance
     from mistyle.solid_texture import SolidTextureSettings, exemplar_pyramid, synthesise_solid_texture
 

@@ -32,7 +32,7 @@ def main() -> None:
 
     from mistyle.api import Stylizer, display, path_trace
     from mistyle.data.heldout import held_out_styles
-    from mistyle.io import load_density, load_style
+    from mistyle.files import load_density, load_style
     from mistyle.model.features import square_style
     from mistyle.objective.metrics import style_fidelity
     from mistyle.scenes import CameraPath

@@ -64,7 +64,7 @@ def main(argv=None) -> None:
     from mistyle.benchmark.methods import METHODS, Context, timed
     from mistyle.benchmark.runner import metric_views
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.pipeline import Stylizer
 
     stylizer = Stylizer(None)

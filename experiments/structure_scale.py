@@ -50,7 +50,7 @@ def main() -> None:
         held_out_density,
         held_out_styles,
     )
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.model.features import square_style
     from mistyle.objective.metrics import correlation_length
     from mistyle.scenes import CameraPath
@@ -102,7 +102,7 @@ def main() -> None:
 def middle_slice(albedo: np.ndarray, density: np.ndarray) -> np.ndarray:
     """The albedo on the grid's middle plane across its first axis, ``(Y, X, 3)`` in display space,
     black where the density is zero, the grid's last rows at the top."""
-    from mistyle.io import linear_to_srgb
+    from mistyle.files import linear_to_srgb
 
     middle = albedo.shape[0] // 2
     plane = np.where(density[middle, ..., None] > 0, albedo[middle], 0.0)

@@ -43,7 +43,7 @@ def main(argv=None) -> None:
     from mistyle.benchmark.methods import Context, tuned_noise
     from mistyle.benchmark.runner import metric_views
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.look import LookSettings
     from mistyle.pipeline import Stylizer
 

@@ -93,9 +93,9 @@ def main() -> None:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
+    from mistyle.files import load_style
     from mistyle.fit import refine_albedo
     from mistyle.integrators import prepare_density
-    from mistyle.io import load_style
     from mistyle.objective.metrics import foreground_pixels
     from mistyle.pipeline import default_refinement
     from mistyle.train.dataset import validation_paintings

@@ -31,8 +31,8 @@ def main() -> None:
 
     from mistyle.api import Stylizer, display, path_trace
     from mistyle.bridge_torch import render_views
+    from mistyle.files import load_density, write_png
     from mistyle.integrators import prepare_density
-    from mistyle.io import load_density, write_png
     from mistyle.model.features import square_style
     from mistyle.scenes import CameraPath
     from mistyle.train.dataset import StyleSet

@@ -58,7 +58,7 @@ def main() -> None:
 
     from mistyle.api import Stylizer
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.model.checkpoint import load_checkpoint
     from mistyle.train.dataset import training_paintings, validation_paintings
 

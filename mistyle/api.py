@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import io as _io
+from . import files as _files
 from . import tone as _tone
 from .backend import check_device
 from .conventions import DEFAULT_DENSITY_SCALE, HELD_OUT_VIEW, ORBIT_DISTANCE
@@ -143,7 +143,7 @@ def load_density(path, grid: str | None = None) -> np.ndarray:
         raise TypeError(f"path must be a density file's path (a str or Path), got {described(path)}.")
     if grid is not None and not isinstance(grid, str):
         raise TypeError(f"grid must be a .vdb grid's name (a str) or None, got {described(grid)}.")
-    return _io.load_density(path, grid)
+    return _files.load_density(path, grid)
 
 
 def load_style(style, notes: list | None = None) -> np.ndarray:
@@ -152,7 +152,7 @@ def load_style(style, notes: list | None = None) -> np.ndarray:
     _style(style, "style", mixes=False)
     if notes is not None and not isinstance(notes, list):
         raise TypeError(f"notes must be a list (the conversions are appended) or None, got {described(notes)}.")
-    return _io.load_style(style, notes)
+    return _files.load_style(style, notes)
 
 
 def display(image) -> np.ndarray:
@@ -253,7 +253,7 @@ def fit_look(
     )
     _style(style_image)
     if isinstance(density, (str, os.PathLike)):
-        density = _io.load_density_frames(density).densities
+        density = _files.load_density_frames(density).densities
     key_frames = _key_frames(key_frames, _frame_count(density))
     pipeline = Pipeline(pipeline_settings, stylizer=_stylizer(key, device, None))
     return pipeline.fit_look(density, style_image, key_frames=key_frames, look_settings=settings)

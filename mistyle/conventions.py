@@ -45,7 +45,7 @@ time, grow in proportion to it: the colour match of a 16^3 blob takes 2 s at 20 
 path is a ten-thousandth of the box (a voxel of a 1024^3 grid is ten free paths deep): denser looks the same."""
 MAX_GRID_VOXELS = 2**30
 """Largest grid mistyle reads into memory (4 GiB as float32); file readers refuse larger declared sizes
-before allocating (``mistyle.io``; ``vdb_convert.MAX_DENSE_VOXELS`` is the same bound)."""
+before allocating (``mistyle.files``; ``vdb_convert.MAX_DENSE_VOXELS`` is the same bound)."""
 HELD_OUT_VIEW = 0.0625
 REFINE_LAYER_STEPS, REFINE_PATH_STEPS = 120, 16  # fit.RefineSettings' steps (here: --help needs no torch)
 FOREGROUND_THRESHOLD = 1e-3

@@ -129,7 +129,7 @@ def render_on_cluster(
     ``RuntimeError`` naming the failed chunks once every chunk has ended."""
     import time
 
-    from .io import density_frame_files
+    from .files import density_frame_files
     from .stops import raise_if_requested
 
     ranges = frame_chunks(len(density_frame_files(density)), chunk, frames)
@@ -239,7 +239,7 @@ def _farm(args) -> int:
     frames = None if args.frames is None else parse_frame_range(args.frames)
     check_out(args.out, args.density, args.look)
     parsed = check_render_options(args, options)
-    from .io import density_frame_files
+    from .files import density_frame_files
 
     frame_chunks(len(density_frame_files(args.density)), args.chunk, frames)
     Look.load(args.look, checkpoint=parsed.checkpoint)  # a damaged look or another network: one line here

@@ -103,7 +103,7 @@ def load_job(spec: OutputSpec, output, pipeline, styles: dict, frame_range: tupl
     """Check and load one output's inputs (``output``: an ``outputs.Output``; ``styles``: path -> (decoded
     image, conversion notes); ``frame_range``: the 0-based, inclusive frames of a chunk); nothing heavy
     runs before this returns."""
-    from .io import density_frame_files, load_density_frames
+    from .files import density_frame_files, load_density_frames
     from .style import Style
 
     notes = [note for path, _ in output.style.parts for note in styles[path][1]]
@@ -195,7 +195,7 @@ def render_look_chunk(pipeline, spec: OutputSpec, density, look_path, out, frame
     from .outputs import plan_outputs
 
     if spec.vdb or Path(density).suffix.lower() == ".vdb":
-        from .vdb import vdb_interpreter
+        from .files.vdb import vdb_interpreter
 
         vdb_interpreter()  # no OpenVDB binding: say so before any work
     look = Look.load(look_path, stylizer=pipeline.stylizer)
@@ -290,7 +290,7 @@ def _frame_suffix(job: Job, index: int) -> str:
 def stylize_frames(job: Job, report: dict):
     """The pipeline's albedos for every frame (``pipeline.Stylization``); the feed-forward albedo is
     written as ``albedo*.npy`` (the grids by ``write_assets``)."""
-    from .io import write_npy
+    from .files import write_npy
 
     if job.look is not None:
         stylized = job.pipeline.look_stylization(job.frames, job.look, notes=job.notes)
@@ -306,7 +306,7 @@ def stylize_frames(job: Job, report: dict):
 def render_frames(job: Job, stylized, report: dict):
     """Path-trace the pipeline's albedos and write EXR/PNG (and video); also the layer's images of
     the feed-forward albedos. Returns ``(images, layer_images)``, linear ``(H, W, 3)`` each."""
-    from .io import write_exr, write_gif, write_mp4, write_png
+    from .files import write_exr, write_gif, write_mp4, write_png
     from .progress import bar
     from .tone import display
 
@@ -381,15 +381,9 @@ def write_assets(job: Job, stylized) -> list[str]:
         )
         written += [path.name for path in paths.values()]
         if job.transforms is not None or job.spec.vdb:
-            from .vdb import (
-                ALBEDO_GRID,
-                DENSITY_GRID,
-                VdbTransform,
-                mistyle_metadata,
-                passenger_grids,
-                passengers_at,
-                write_vdb,
-            )
+            from .files.vdb import write_vdb
+            from .files.vdb_frames import passenger_grids, passengers_at
+            from .files.vdb_layout import ALBEDO_GRID, DENSITY_GRID, VdbTransform, mistyle_metadata
 
             transform = (
                 job.transforms[frame]
@@ -443,7 +437,7 @@ def write_report(job: Job, stylized, images, layer_images, report: dict) -> None
     A metric that cannot be computed is ``null`` in the report, with a note, also shown on the console:
     the style metrics of images that see no medium (the pipeline refuses a render where none does, and
     names why each image does not: ``Pipeline.check_images``), ``patch_swd`` when no 5x5 patch lies inside it."""
-    from .io import atomic_write_bytes
+    from .files import atomic_write_bytes
     from .objective.metrics import foreground_mask, style_distance, style_fidelity
     from .outputs import REPORT_FILE
     from .pages import SHEET_FILE, write_sheet
@@ -567,7 +561,7 @@ def merge_chunk(job: Job, folder: Path) -> None:
 
 
 def _merge_chunk_files(job: Job, folder: Path) -> None:
-    from .io import atomic_write_bytes, read_png, write_gif, write_mp4
+    from .files import atomic_write_bytes, read_png, write_gif, write_mp4
     from .outputs import REPORT_FILE
     from .ownership import merge_files
     from .pages import SHEET_FILE, write_index, write_sheet

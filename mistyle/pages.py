@@ -47,7 +47,7 @@ def write_sheet(path, panels: list[tuple[str, np.ndarray]], lines: list[str], si
     """``panels = [(label, display image in [0, 1])]`` side by side, labels above and ``lines`` under."""
     from PIL import Image, ImageDraw
 
-    from .io import atomic_output
+    from .files import atomic_output
 
     line_height, top = 14, 18
     sheet = Image.new("RGB", (size * len(panels), top + size + 6 + line_height * len(lines)), "white")
@@ -67,7 +67,7 @@ def write_grid(path, rows: list[list[tuple[np.ndarray, str]]], size: int = 128) 
     label above it; PNG, or JPEG (quality 88) when ``path`` ends in ``.jpg``."""
     from PIL import Image, ImageDraw
 
-    from .io import atomic_output
+    from .files import atomic_output
 
     label = 14
     columns = max(len(row) for row in rows)
@@ -89,7 +89,7 @@ def _metrics_line(report: dict) -> str:
 
 def write_index(folder, title: str, notes: list[str] | None = None) -> Path:
     """``folder/index.html`` linking everything in ``folder`` a person would open (see module doc)."""
-    from .io import atomic_write_bytes
+    from .files import atomic_write_bytes
 
     folder = Path(folder)
     parts = [

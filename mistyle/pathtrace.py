@@ -342,7 +342,7 @@ def _environment_values(path: str, modified: int, size: int) -> tuple[int, tuple
     at ``path``, read as Mitsuba's ``envmap`` reads it; cached by the file's time and size. An OpenEXR
     file is read by ``io.load_envmap``, which refuses a truncated file and NaN, infinite or negative
     pixels in one line; other formats as Mitsuba reads them."""
-    from .io import load_envmap
+    from .files import load_envmap
 
     if Path(path).suffix.lower() == ".exr":
         values = load_envmap(path)

@@ -347,7 +347,7 @@ def output_spec(args):
 
 def run(args) -> int:
     from .backend import use_variant
-    from .io import load_style
+    from .files import load_style
     from .job import check_same_settings, load_job, settings_record, write_batch_index, write_output
     from .outputs import is_mistyle_output, plan_outputs
     from .pipeline import Pipeline
@@ -392,7 +392,7 @@ def run(args) -> int:
             for note in notes:
                 log(f"note: {note}")
     if args.vdb or any(output.density.path.suffix.lower() == ".vdb" for output in outputs):
-        from .vdb import vdb_interpreter
+        from .files.vdb import vdb_interpreter
 
         vdb_interpreter()  # no OpenVDB binding: say so before any work
     use_variant(args.device)
@@ -436,7 +436,7 @@ def _look_style_parts(args) -> list[tuple[Path, float]]:
 
 def save_look(args, pipeline, styles: dict):
     """Fit the look of ``--save-look`` on the key frames of the one density, and write it."""
-    from .io import load_density_frames
+    from .files import load_density_frames
     from .look import LookSettings, parse_key_frames
     from .progress import bar, fit_progress
     from .style import Style
@@ -483,7 +483,7 @@ def check_options(args) -> None:
     """Every option's range, before anything is read or written; one message names the option.
 
     Options that a library function also takes are checked by that function's own validator."""
-    from .io import check_link
+    from .files import check_link
     from .pipeline import validate_scale_structures, validate_strength
     from .scenes import validate_density_scale
     from .scenes.cameras import validate_camera_distance, validate_orbit_position

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import load_style
+from .files import load_style
 
 
 def style_parts(style) -> list[tuple[object, float]]:

@@ -2,7 +2,7 @@
 
 Every volume that enters mistyle passes through ``validate_density`` or ``validate_albedo``, which
 return float32 C-contiguous arrays in the grid convention of ``mistyle.scenes.box`` or raise a
-``ValueError`` that names the problem. Files are read and written by ``mistyle.io``.
+``ValueError`` that names the problem. Files are read and written by ``mistyle.files``.
 """
 
 from __future__ import annotations

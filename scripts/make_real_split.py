@@ -16,7 +16,7 @@ script never downloads anything. Give it the source files one of two ways:
 Every source is checked against its recorded SHA-256 before it is used. The conversion, the same for
 every volume:
 
-1. read the density (``mistyle.io``: ``.vdb`` by grid name, turned so the recorded world up axis is the
+1. read the density (``mistyle.files``: ``.vdb`` by grid name, turned so the recorded world up axis is the
    array's Y; Mitsuba ``.vol`` as stored, then ``turn``: ``x180`` rotates it 180 degrees about x, for a
    file whose world is -y up), negatives set to 0;
 2. crop to the bounding box of the voxels above ``1e-3`` x the 99.9th percentile of the non-zero voxels;
@@ -165,7 +165,7 @@ def source_bytes(entry: dict, sources: Path | None, mirror: Path | None) -> byte
 # ----------------------------------------------------------------------------- the conversion
 def read_source(data: bytes, entry: dict) -> np.ndarray:
     """The source density ``(Z, Y, X)`` float32, turned so that its world up is the array's Y."""
-    from mistyle.io import load_density_frames, read_vol
+    from mistyle.files import load_density_frames, read_vol
 
     suffix = {"vdb": ".vdb", "vol": ".vol"}[entry["format"]]
     with tempfile.TemporaryDirectory() as folder:

@@ -19,7 +19,7 @@ if ! have_recent_llvm; then
 fi
 
 have_openvdb_python() {
-    # .vdb input and output (mistyle/vdb.py) run Debian's OpenVDB module under the system Python:
+    # .vdb input and output (mistyle/files/vdb.py) run Debian's OpenVDB module under the system Python:
     # it is built for that interpreter and its numpy 1.x, so it cannot live in the venv.
     if [ -n "${MISTYLE_VDB_PYTHON:-}" ]; then return 0; fi
     /usr/bin/python3 -c "import pyopenvdb" >/dev/null 2>&1 || /usr/bin/python3 -c "import openvdb" >/dev/null 2>&1

@@ -75,7 +75,7 @@ def agreement(mistyle_exr, blender_exr) -> dict:
     """Luminance correlation over either image's foreground, foreground IoU and the mean foreground
     colour of each, in mistyle's display space."""
     from mistyle.conventions import FOREGROUND_THRESHOLD
-    from mistyle.io import read_exr
+    from mistyle.files import read_exr
     from mistyle.tone import display
 
     ours, theirs = read_exr(mistyle_exr)[..., :3], read_blender_exr(blender_exr)
@@ -113,7 +113,7 @@ def render_job(rendered: Path, tmp: Path, image: str) -> dict:
 
 
 def test_readme_recipe_renders_like_mistyle(rendered, tmp_path):
-    from mistyle.vdb import vdb_info
+    from mistyle.files.vdb import vdb_info
 
     metadata = vdb_info(rendered / "volume.vdb")["file_metadata"]
     assert metadata["mistyle_up_axis"] == "z"
@@ -133,7 +133,7 @@ def test_readme_recipe_renders_like_mistyle(rendered, tmp_path):
 
 def test_plume_is_upright_in_blender(rendered, tmp_path):
     """Mass along Blender's world z is mistyle's along its up axis (y), and differs from the other axes'."""
-    from mistyle.io import load_density
+    from mistyle.files import load_density
 
     answer = in_blender("profile", {"vdb": str(rendered / "volume.vdb")}, tmp_path)
     assert answer["openvdb"][0] == 13
@@ -164,7 +164,7 @@ def addon_job(tmp: Path) -> dict:
 
 
 def test_addon_adds_a_wired_upright_volume(rendered, tmp_path):
-    from mistyle.vdb import read_vdb
+    from mistyle.files.vdb import read_vdb
 
     job = dict(
         render_job(rendered, tmp_path, "addon.exr"),
@@ -241,7 +241,7 @@ DEBIAN_PYTHON = "/usr/bin/python3"
 
 @pytest.mark.parametrize(("writer", "reader"), [("debian", "blender"), ("blender", "debian")])
 def test_vdb_round_trips_between_openvdb_10_and_13(writer, reader, tmp_path, monkeypatch):
-    from mistyle import vdb
+    from mistyle.files import vdb, vdb_layout
 
     interpreters = {"debian": DEBIAN_PYTHON, "blender": BLENDER_PYTHON}
     versions = {}
@@ -255,20 +255,20 @@ def test_vdb_round_trips_between_openvdb_10_and_13(writer, reader, tmp_path, mon
     density = rng.random((9, 11, 13)).astype(np.float32) * (rng.random((9, 11, 13)) > 0.3)
     albedo = rng.random((9, 11, 13, 3)).astype(np.float32) * (density > 0)[..., None]
     transform = vdb.VdbTransform.for_medium_box(density.shape, "z")
-    metadata = vdb.mistyle_metadata(
+    metadata = vdb_layout.mistyle_metadata(
         transform, density.shape, density_scale=20.0, up="z", style="a style", checkpoint="skpn_cpu.pt"
     )
     monkeypatch.setenv(vdb.INTERPRETER_ENV, interpreters[writer])
     vdb.write_vdb(
         tmp_path / "v.vdb",
         transform,
-        {vdb.DENSITY_GRID: density, vdb.ALBEDO_GRID: albedo},
+        {vdb.DENSITY_GRID: density, vdb_layout.ALBEDO_GRID: albedo},
         metadata=metadata,
         grid_metadata=metadata,
     )
     monkeypatch.setenv(vdb.INTERPRETER_ENV, interpreters[reader])
     read = vdb.read_vdb_grid(tmp_path / "v.vdb")
-    colour = vdb.read_vdb_grid(tmp_path / "v.vdb", vdb.ALBEDO_GRID)
+    colour = vdb.read_vdb_grid(tmp_path / "v.vdb", vdb_layout.ALBEDO_GRID)
     np.testing.assert_array_equal(read.array, density)
     np.testing.assert_array_equal(colour.array, albedo)
     assert read.transform == transform

@@ -137,7 +137,7 @@ def test_stylize_matches_colours_by_default_and_it_brings_the_render_closer_to_t
     import mistyle
     from mistyle.api import Stylizer
     from mistyle.data.heldout import held_out_styles
-    from mistyle.io import load_density, load_style
+    from mistyle.files import load_density, load_style
     from mistyle.objective.metrics import style_fidelity
 
     density = load_density(Path(__file__).parents[1] / "examples" / "smoke_64.vol")[::2, ::2, ::2].copy()

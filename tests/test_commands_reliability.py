@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from mistyle.io import write_vol
+from mistyle.files import write_vol
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = str(REPO / "configs" / "tiny.toml")

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from mistyle.files import read_vol, write_vol
 from mistyle.integrators import layer_scene, prepare_density
-from mistyle.io import read_vol, write_vol
 from mistyle.scenes import (
     CameraPath,
     MediumBox,

@@ -4,7 +4,7 @@ when the inputs decide it; in a sequence, a frame that shows no medium is a warn
 import numpy as np
 import pytest
 
-from mistyle.io import write_exr, write_vol
+from mistyle.files import write_exr, write_vol
 from mistyle.pathtrace import medium_pixels, min_medium_pixels, optical_depth, path_trace
 from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
 from mistyle.render_final import main

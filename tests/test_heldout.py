@@ -17,7 +17,7 @@ from mistyle.data.heldout import (
     validation_styles,
 )
 from mistyle.data.styles import PHOTOS, TEXTURES, ImageFolder, skimage_data_dir
-from mistyle.io import load_style
+from mistyle.files import load_style
 
 
 @pytest.mark.parametrize("styles_of", [held_out_styles, validation_styles])

@@ -15,7 +15,7 @@ from numpy.lib import format as npy_format
 
 import mistyle
 from mistyle.conventions import MAX_EXTINCTION, MAX_GRID_VOXELS
-from mistyle.io import (
+from mistyle.files import (
     check_exr_layout,
     load_density,
     load_density_frames,

@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from mistyle.io import atomic_output, linear_to_srgb, read_exr, write_exr, write_png
+from mistyle.files import atomic_output, linear_to_srgb, read_exr, write_exr, write_png
 
 
 def test_exr_round_trip_is_lossless(tmp_path):
@@ -42,7 +42,7 @@ def test_unwritable_directory_names_the_fix(tmp_path):
 def test_vol_files_with_impossible_headers_name_the_file(tmp_path):
     import struct
 
-    from mistyle.io import read_vol
+    from mistyle.files import read_vol
 
     path = tmp_path / "bad.vol"
     path.write_bytes(struct.pack("<3sBiiiii6f", b"VOL", 3, 1, -4, 4, 4, 1, 0, 0, 0, 1, 1, 1) + bytes(64))
@@ -68,7 +68,7 @@ def test_foreign_checkpoints_never_get_the_advice_to_unpickle_them(tmp_path):
 def test_a_transparent_style_is_refused_and_an_animated_one_is_named(tmp_path):
     from PIL import Image
 
-    from mistyle.io import load_style
+    from mistyle.files import load_style
 
     Image.fromarray(np.zeros((16, 16, 4), np.uint8), "RGBA").save(tmp_path / "clear.png")
     with pytest.raises(ValueError, match="fully transparent"):

@@ -8,9 +8,9 @@ import mistyle
 ROOT = Path(mistyle.__file__).parent
 # A unit may import units of a lower layer only (or itself). Same as the map in README.md.
 LAYERS = [
-    {"conventions", "vdb_convert", "version"},
-    {"tone", "volume", "warp", "backend", "progress", "stops", "vdb"},
-    {"io", "ownership", "advection"},
+    {"conventions", "version"},
+    {"tone", "volume", "warp", "backend", "progress", "stops"},
+    {"files", "ownership", "advection"},
     {"scenes", "pages", "outputs", "style"},
     {"integrators"},
     {"bridge_torch", "reference_torch", "pathtrace", "denoise", "adam"},

@@ -11,7 +11,7 @@ from PIL import Image
 
 from mistyle.farm import frame_chunks
 from mistyle.farm import main as farm_main
-from mistyle.io import write_vol
+from mistyle.files import write_vol
 from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, diverged, fit_look, parse_key_frames
 from mistyle.ownership import MANIFEST_FILE
 from mistyle.pipeline import Stylizer

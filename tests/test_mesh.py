@@ -61,7 +61,7 @@ def test_unreadable_mesh_files_give_clear_errors(mi, tmp_path):
 
 def test_mesh_cli_writes_a_vol_file(mi, tmp_path, sphere_ply):
     from mistyle.data.__main__ import main as data_cli
-    from mistyle.io import load_density
+    from mistyle.files import load_density
 
     assert data_cli(["mesh", "--mesh", str(sphere_ply), "--res", "16", "--out", str(tmp_path / "ball.vol")]) == 0
     assert load_density(tmp_path / "ball.vol").shape == (16, 16, 16)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from mistyle.io import write_vol
+from mistyle.files import write_vol
 from mistyle.ownership import MANIFEST_FILE, foreign_files, is_owned, staged_directory, write_manifest
 from mistyle.render_final import main
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mistyle
-from mistyle.io import read_vol, write_vol
+from mistyle.files import read_vol, write_vol
 from mistyle.pipeline import Pipeline, PipelineSettings
 from mistyle.render_final import main, parser, settings_from
 

@@ -64,7 +64,7 @@ def test_the_look_the_page_fits_is_the_final_renders_bit_for_bit(mi, tmp_path, t
     """At full strength the page fits, in its worker's thread, the look that *Render final output* fits
     with the page's render options; the albedo it then shows is what ``mistyle-render`` writes."""
     from mistyle import render_final
-    from mistyle.io import load_style, read_vol
+    from mistyle.files import load_style, read_vol
     from mistyle.preview import job_settings
 
     checkpoint = tiny_checkpoint_factory(tmp_path / "tiny.pt")

@@ -43,7 +43,7 @@ playwright = pytest.importorskip("playwright.sync_api", reason="make test-browse
 def start_server(folder: Path, render_options: str):
     """A mistyle-preview process on a free port over two frames of the bundled smoke and ``STYLES``:
     the process and its URL."""
-    from mistyle.io import load_density
+    from mistyle.files import load_density
 
     styles, frames = folder / "styles", folder / "frames"
     styles.mkdir()

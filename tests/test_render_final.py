@@ -9,7 +9,7 @@ from PIL import Image
 
 import mistyle
 import mistyle.stops
-from mistyle.io import read_vol, write_vol
+from mistyle.files import read_vol, write_vol
 from mistyle.render_final import main
 
 
@@ -71,7 +71,7 @@ def test_render_api_lights(mi, blob_density, light):
 
 
 def test_environment_map_lights_the_side_it_is_bright_on(mi, blob_density, tmp_path):
-    from mistyle.io import write_exr
+    from mistyle.files import write_exr
 
     albedo = np.full(blob_density.shape + (3,), 0.8, np.float32)
 
@@ -690,7 +690,7 @@ def test_the_written_scene_reproduces_the_final_render(mi, checkpoint, inputs, t
         )
         == 0
     )  # scene.xml holds one medium (see scenes.export)
-    from mistyle.io import read_exr
+    from mistyle.files import read_exr
 
     scene = mi.load_file(str(out / "scene.xml"))
     np.testing.assert_allclose(np.array(mi.render(scene, sensor=0)), read_exr(out / "final.exr"), rtol=1e-4, atol=1e-5)
@@ -750,7 +750,7 @@ def test_quiet_keeps_only_the_results_on_stdout(mi, checkpoint, inputs, tmp_path
 
 
 def test_vdb_in_and_out_keeps_the_transform_and_the_grids(mi, checkpoint, inputs, tmp_path, blob_density):
-    vdb = pytest.importorskip("mistyle.vdb")
+    from mistyle.files import vdb, vdb_layout
     try:
         vdb.vdb_interpreter()
     except vdb.VdbUnavailable as error:
@@ -784,13 +784,13 @@ def test_vdb_in_and_out_keeps_the_transform_and_the_grids(mi, checkpoint, inputs
     np.testing.assert_array_equal(density, blob_density)
     np.testing.assert_array_equal(written.matrix, transform.matrix)
     assert written.index_min == transform.index_min
-    albedo, _, _ = vdb.read_vdb(out / "volume.vdb", grid=vdb.ALBEDO_GRID)
+    albedo, _, _ = vdb.read_vdb(out / "volume.vdb", grid=vdb_layout.ALBEDO_GRID)
     expected = np.load(out / "albedo.npy") * (blob_density > 0)[..., None]
     np.testing.assert_array_equal(albedo, expected)
 
 
 def test_vdb_with_two_float_grids_needs_grid(mi, checkpoint, inputs, tmp_path, blob_density, capsys):
-    vdb = pytest.importorskip("mistyle.vdb")
+    from mistyle.files import vdb
     try:
         vdb.vdb_interpreter()
     except vdb.VdbUnavailable as error:
@@ -1072,7 +1072,7 @@ def test_a_huge_style_is_reduced_at_decode_and_runs_in_little_memory(inputs, tmp
     import subprocess
     import sys
 
-    from mistyle.io import MAX_STYLE_SIDE, load_style
+    from mistyle.files import MAX_STYLE_SIDE, load_style
 
     rng = np.random.default_rng(0)
     tile = Image.fromarray((rng.random((64, 64, 3)) * 255).astype(np.uint8))
@@ -1103,7 +1103,7 @@ def test_a_huge_style_is_reduced_at_decode_and_runs_in_little_memory(inputs, tmp
 
 
 def test_a_style_with_nan_says_so():
-    from mistyle.io import load_style
+    from mistyle.files import load_style
 
     style = np.full((16, 16, 3), 0.5, np.float32)
     style[3, 4, 1] = np.nan
@@ -1166,7 +1166,7 @@ def test_a_batch_that_fails_late_keeps_an_index_and_resumes(mi, checkpoint, inpu
 
 
 def test_messages_say_what_is_wrong(checkpoint, inputs, tmp_path, blob_density):
-    from mistyle.io import load_density
+    from mistyle.files import load_density
     from mistyle.outputs import parse_mix_item
 
     with pytest.raises(ValueError, match="is a folder; a folder of frames is a sequence"):
@@ -1228,7 +1228,7 @@ def test_vdb_for_blender_is_z_up_and_says_what_it_holds(mi, checkpoint, inputs, 
     """--up z writes the medium box turned so that mistyle's up is world +z, with the metadata a DCC needs
     (Houdini's view: a fog-volume float 'density' and a vec3 'Cd'); reading it back turns nothing, and
     the same file read as Y-up is turned back upright for mistyle's renders."""
-    vdb = pytest.importorskip("mistyle.vdb")
+    from mistyle.files import vdb
     try:
         vdb.vdb_interpreter()
     except vdb.VdbUnavailable as error:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mistyle.io import read_vol, write_exr
+from mistyle.files import read_vol, write_exr
 from mistyle.scenes import CameraPath, LightSpec, MediumBox
 from mistyle.scenes.export import scene_xml, write_scene_files
 from mistyle.scenes.pathtraced import pathtraced_scene

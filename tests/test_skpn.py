@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from mistyle.io import load_density
+from mistyle.files import load_density
 from mistyle.model.skpn import SKPN, SKPNConfig, parameter_count
 
 GEN = torch.Generator().manual_seed(0)

@@ -109,7 +109,7 @@ def test_sigterm_during_a_long_path_trace_ends_the_render_within_two_seconds(tmp
     import select
     from pathlib import Path
 
-    from mistyle.io import write_vol
+    from mistyle.files import write_vol
 
     density = tmp_path / "in" / "blob.vol"
     density.parent.mkdir()

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from mistyle.data.heldout import held_out_styles
-from mistyle.io import load_style
+from mistyle.files import load_style
 from mistyle.model.skpn import SKPN, SKPNConfig, StylizingKernels
 from mistyle.style import style_parts
 from mistyle.stylizer import LUMA_WEIGHTS, Stylizer, validate_strength

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from mistyle.io import load_style
+from mistyle.files import load_style
 from mistyle.objective.structure import statistics_distance, structure_distance, structure_statistics
 
 STYLES = sorted((Path(__file__).resolve().parents[1] / "mistyle" / "data" / "heldout_styles").glob("*.jpg"))

@@ -43,7 +43,7 @@ def test_colour_part_ignores_where_pixels_are_and_the_pattern_part_does_not():
 def test_held_out_styles_get_clearly_different_codes():
     """Code distances between any two held-out styles far exceed those between two crops of one style."""
     from mistyle.data.heldout import held_out_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
     from mistyle.model.features import square_style
 
     images = [load_style(record["path"]) for record in held_out_styles().values()]
@@ -140,7 +140,7 @@ def test_the_shipped_network_gives_held_out_styles_different_kernels_and_albedos
     stylizing kernels and albedos for each (no style collapses onto another)."""
     from mistyle.api import Stylizer
     from mistyle.data.heldout import held_out_styles
-    from mistyle.io import load_style
+    from mistyle.files import load_style
 
     stylizer = Stylizer()
     records = held_out_styles()

@@ -12,7 +12,7 @@ from mistyle.data.styles import (
     random_crop,
     style_set_diversity,
 )
-from mistyle.io import load_style
+from mistyle.files import load_style
 
 
 def save(path, array, mode=None):
@@ -175,7 +175,7 @@ def test_embedded_colour_profiles_are_applied_and_broken_ones_noted(tmp_path):
 
 
 def test_exr_styles_are_read_with_the_display_curve(tmp_path):
-    from mistyle.io import write_exr
+    from mistyle.files import write_exr
     from mistyle.tone import display
 
     radiance = np.random.default_rng(2).random((12, 12, 3)).astype(np.float32) * 4

@@ -1,6 +1,6 @@
 """OpenVDB files: exact round trips, grid choice, sparsity, axis order and transforms, and the errors.
 
-The binding runs under another interpreter (``mistyle.vdb``); tests that need it are skipped, with the
+The binding runs under another interpreter (``mistyle.files.vdb``); tests that need it are skipped, with the
 reason, on machines where none has it. References that do not go through mistyle's own code: a grid
 written by the binding directly, and ``MediumBox`` for the medium-box transform.
 """
@@ -14,18 +14,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mistyle import vdb
-from mistyle.scenes.box import MediumBox
-from mistyle.vdb import (
-    ALBEDO_GRID,
-    DENSITY_GRID,
-    VdbTransform,
+from mistyle.files import vdb, vdb_frames, vdb_layout
+from mistyle.files.vdb import (
     VdbUnavailable,
     read_vdb,
     read_vdb_grid,
     vdb_info,
     write_vdb,
 )
+from mistyle.files.vdb_layout import ALBEDO_GRID, DENSITY_GRID, VdbTransform
+from mistyle.scenes.box import MediumBox
 
 try:
     VDB_PYTHON = vdb.vdb_interpreter()
@@ -120,7 +118,7 @@ def test_in_process_route_writes_what_the_helper_reads(tmp_path, subprocess_rout
     """Where the binding loads in-process (the system Python here), the converter runs without a subprocess."""
     script = (
         "import sys, numpy as np\n"
-        "from mistyle import vdb\n"
+        "from mistyle.files import vdb\n"
         "assert vdb._find_route(None).in_process\n"
         "d = np.arange(4 * 5 * 6, dtype=np.float32).reshape(4, 5, 6) / 7\n"
         "vdb.write_vdb(sys.argv[1], vdb.VdbTransform.for_medium_box(d.shape), {'density': d})\n"
@@ -372,8 +370,8 @@ def test_upright_keeps_every_voxel_in_place_and_turns_up_to_y(up, vector, rng):
     flipped = np.diag([0.1, 0.2, -0.3, 1.0])
     flipped[:3, 3] = [1.0, 2.0, 3.0]
     for transform in (VdbTransform(flipped, (2, 3, 4)), _rotated_transform((1, -2, 3))):
-        turned, moved = vdb.upright(array, transform, up)
-        world_up = vdb.up_axis_matrix(up)[:3, 1]
+        turned, moved = vdb_layout.upright(array, transform, up)
+        world_up = vdb_layout.up_axis_matrix(up)[:3, 1]
         axes = moved.matrix[:3, :3] / np.linalg.norm(moved.matrix[:3, :3], axis=0)
         assert np.argmax(np.abs(world_up @ moved.matrix[:3, :3])) == 1 and world_up @ axes[:, 1] > 0
         assert np.linalg.det(moved.matrix[:3, :3]) * np.linalg.det(transform.matrix[:3, :3]) > 0
@@ -391,21 +389,23 @@ def test_upright_keeps_every_voxel_in_place_and_turns_up_to_y(up, vector, rng):
 def test_upright_leaves_a_y_up_grid_alone_and_the_medium_box_turns_for_blender():
     array = np.ones((2, 3, 4), np.float32)
     transform = VdbTransform.for_medium_box(array.shape)
-    assert vdb.upright(array, transform, "y") == (array, transform)
+    assert vdb_layout.upright(array, transform, "y") == (array, transform)
     blender = VdbTransform.for_medium_box(array.shape, "z")
-    np.testing.assert_array_equal(blender.matrix, vdb.up_axis_matrix("z") @ transform.matrix)
-    assert vdb.upright(array, blender, "z")[1] is blender
+    np.testing.assert_array_equal(blender.matrix, vdb_layout.up_axis_matrix("z") @ transform.matrix)
+    assert vdb_layout.upright(array, blender, "z")[1] is blender
     with pytest.raises(ValueError, match="up axis is one of y, z"):
-        vdb.up_axis_matrix("x")
+        vdb_layout.up_axis_matrix("x")
 
 
 def test_world_density_scale_is_per_world_unit():
     """A medium 10 world units across at mistyle's scale 20 has extinction 2 per world unit."""
     transform = VdbTransform(np.diag([10 / 64, 10 / 64, 10 / 64, 1.0]))
-    metadata = vdb.mistyle_metadata(transform, (32, 64, 16), density_scale=20.0, up="y", style="s", checkpoint="c")
+    metadata = vdb_layout.mistyle_metadata(
+        transform, (32, 64, 16), density_scale=20.0, up="y", style="s", checkpoint="c"
+    )
     assert metadata["mistyle_world_density_scale"] == pytest.approx(2.0)
-    assert vdb.recorded_up_axis(metadata) == "y" and vdb.recorded_up_axis({}) == "y"
-    assert vdb.recorded_up_axis({"mistyle_up_axis": "Z"}) == "z"
+    assert vdb_layout.recorded_up_axis(metadata) == "y" and vdb_layout.recorded_up_axis({}) == "y"
+    assert vdb_layout.recorded_up_axis({"mistyle_up_axis": "Z"}) == "z"
 
 
 def test_the_converter_names_its_binding(subprocess_route):
@@ -536,7 +536,7 @@ def _write_sphere_frames(folder: Path, frames=SPHERES, voxel=VOXEL) -> None:
 
 @needs_vdb
 def test_a_sequence_whose_box_grows_and_moves_shares_one_world_aligned_box(tmp_path, subprocess_route):
-    from mistyle.io import load_density_frames
+    from mistyle.files import load_density_frames
 
     _write_sphere_frames(tmp_path / "seq")
     # The union of the frames' active boxes, in the first frame's index space (spheres and the mark).
@@ -574,7 +574,7 @@ def test_a_sequence_whose_box_grows_and_moves_shares_one_world_aligned_box(tmp_p
 
 @needs_vdb
 def test_frames_on_different_lattices_are_refused(tmp_path, subprocess_route):
-    from mistyle.io import load_density_frames
+    from mistyle.files import load_density_frames
 
     frames = [((5, 5, 5), 1.0, (0, 0, 0))] * 2
     _write_sphere_frames(tmp_path / "sizes", frames, voxel=[0.1, 0.2])
@@ -585,7 +585,7 @@ def test_frames_on_different_lattices_are_refused(tmp_path, subprocess_route):
 @needs_vdb
 def test_a_real_mantaflow_sequence_loads_as_one_box(subprocess_route):
     """Frames 1 and 10 of the cache: the density's active box grows from 11x9x28 to 51x71x29."""
-    from mistyle.io import load_density_frames
+    from mistyle.files import load_density_frames
 
     first, _, _ = read_vdb(MANTAFLOW / "fluid_data_0001.vdb")
     notes = []
@@ -639,7 +639,7 @@ def test_a_mantaflow_cache_renders_end_to_end_and_its_temperature_travels(mi, tm
 def test_frames_are_lined_up_by_whole_voxels_only():
     """``vdb_frames_in_one_box`` on its own: a frame whose origin is whole voxels away is padded into the
     union; a fraction of a voxel or a turned grid would need resampling, and is refused by name."""
-    from mistyle.io import vdb_frames_in_one_box
+    from mistyle.files import vdb_frames_in_one_box
 
     def frame(matrix, index_min, shape=(2, 3, 4)):
         return {"density": np.ones(shape, np.float32), "transform": VdbTransform(matrix, index_min), "up": "y"}
@@ -660,7 +660,7 @@ def test_frames_are_lined_up_by_whole_voxels_only():
     shifted[0, 3] = 0.2
     with pytest.raises(ValueError, match=r"b.vdb's voxels are offset by a fraction of a voxel from a.vdb's"):
         vdb_frames_in_one_box(files, [frame(base, (0, 0, 0)), frame(shifted, (0, 0, 0))])
-    turned = base @ vdb.up_axis_matrix("z")
+    turned = base @ vdb_layout.up_axis_matrix("z")
     with pytest.raises(ValueError, match="a.vdb and b.vdb are rotated against each other"):
         vdb_frames_in_one_box(files, [frame(base, (0, 0, 0)), frame(turned, (0, 0, 0))])
 
@@ -712,12 +712,12 @@ def test_vdb_velocities_are_voxels_per_frame_along_the_axes_mistyle_renders(tmp_
     """A file's velocity in world units per second reads as the voxels per frame of ``mistyle.warp``,
     components along the array's (x, y, z); with Blender's up axis the components turn with the voxels;
     and warping frame 0 by its velocity gives frame 1, which is what the temporal terms rely on."""
-    from mistyle.io import load_density_frames
+    from mistyle.files import load_density_frames
     from mistyle.warp import warp_grid
 
     _write_moving_block(tmp_path / "seq")
     # up y: the file's (i, j, k) are the array's (x, y, z). up z: the file's k (world up) becomes the
-    # array's y and its j the array's -z (vdb.upright), so (0, 2, 1) along (i, j, k) reads as (0, 1, -2).
+    # array's y and its j the array's -z (vdb_layout.upright), so (0, 2, 1) along (i, j, k) reads as (0, 1, -2).
     for up, expected in ((None, (0.0, 2.0, 1.0)), ("z", (0.0, 1.0, -2.0))):
         notes = []
         loaded = load_density_frames(tmp_path / "seq", up=up, notes=notes)
@@ -736,16 +736,17 @@ def test_vdb_velocities_are_voxels_per_frame_along_the_axes_mistyle_renders(tmp_
         assert np.abs(first - second).sum() > 1.0  # they do differ unwarped
 
     # The frame rate given wins over the file's: at 24 fps each frame lasts 30/24 times as long.
-    frame = vdb.read_vdb_frame(tmp_path / "seq" / "block0000.vdb", velocity_grid="vel", fps=24)
+    frame = vdb_frames.read_vdb_frame(tmp_path / "seq" / "block0000.vdb", velocity_grid="vel", fps=24)
     assert (frame.velocity.source.fps, frame.velocity.source.fps_from) == (24.0, "given")
-    steps = vdb.world_to_index(frame.velocity.at(frame.density.transform, (3, 3, 3)), frame.density.transform)
+    steps = vdb_frames.world_to_index(frame.velocity.at(frame.density.transform, (3, 3, 3)), frame.density.transform)
     np.testing.assert_allclose(steps.reshape(-1, 3), np.tile(MOTION_VOXELS, (27, 1)) * 30 / 24, rtol=1e-6)
 
 
 def test_velocities_are_sampled_at_the_density_voxels_through_both_transforms():
     """No binding: a staggered grid is averaged to cell centres, a grid on a coarser, shifted lattice is
     sampled trilinearly (exact for a linear field), and the units follow what the grid says."""
-    from mistyle.vdb import VdbGrid, VelocitySource, _velocity_per_frame
+    from mistyle.files.vdb import VdbGrid
+    from mistyle.files.vdb_frames import VelocitySource, _velocity_per_frame
 
     density = VdbTransform(np.diag([0.5, 0.5, 0.5, 1.0]), (4, 5, 6))
     shape = (6, 5, 4)  # (Z, Y, X): index box (4..7, 5..9, 6..11)
@@ -782,7 +783,7 @@ def test_velocities_are_sampled_at_the_density_voxels_through_both_transforms():
 
 def test_the_velocity_grid_is_found_by_name_and_its_units_by_its_metadata():
     """No binding: ``find_velocity`` on scans like Blender's, Houdini's and others' files."""
-    from mistyle.vdb import find_velocity
+    from mistyle.files.vdb_frames import find_velocity
 
     def scan(*grids, **file_metadata):
         return {
@@ -819,7 +820,7 @@ def test_the_velocity_grid_is_found_by_name_and_its_units_by_its_metadata():
 def test_a_real_mantaflow_velocity_reads_at_the_density_voxels(tmp_path, subprocess_route):
     """Frame 1 of the cache, twice: its staggered 'velocity' in Mantaflow's units, averaged to the cell
     centres of the density's box and scaled to voxels per frame (2.5 / 24 at the assumed 24 fps)."""
-    from mistyle.io import load_density_frames
+    from mistyle.files import load_density_frames
 
     path = MANTAFLOW / "fluid_data_0001.vdb"
     (tmp_path / "seq").mkdir()

@@ -172,7 +172,7 @@ def read_rows(path: Path) -> list[Row]:
 
 
 def write_rows(path: Path, rows: list[Row]) -> None:
-    from ..io import atomic_write_bytes
+    from ..files import atomic_write_bytes
 
     atomic_write_bytes(path, "".join(json.dumps(asdict(row)) + "\n" for row in rows).encode())
 
@@ -196,7 +196,7 @@ def run(
     """Score ``method_names`` on ``pairs`` (``splits.split_pairs``), writing rows as they come, then the
     report. Returns every row in ``<out>/rows.jsonl``. ``denoise``: ``"oidn"`` scores the images as
     ``mistyle-render`` shows them (its rows' settings say so; rows made before it have no such key)."""
-    from ..io import load_style
+    from ..files import load_style
     from ..pipeline import Stylizer
     from ..stops import raise_if_requested
     from .methods import METHODS, Context, timed
@@ -409,7 +409,7 @@ def table(rows: list[Row]) -> str:
 def report(out) -> str:
     """Rewrite ``table.md`` (all pairs, then each density's; one table per settings when the rows hold
     several), ``sheet.jpg`` and ``index.html`` in ``out`` from its rows; returns the table."""
-    from ..io import atomic_write_bytes
+    from ..files import atomic_write_bytes
     from ..pages import write_index
 
     out = Path(out)
@@ -458,7 +458,7 @@ def save_tile(folder: Path, row: Row, image: np.ndarray) -> None:
     pixels at the default scoring, so that ``index.html`` shows the strokes a user sees)."""
     from PIL import Image
 
-    from ..io import write_png
+    from ..files import write_png
     from ..tone import display
 
     shown = Image.fromarray((display(image) * 255 + 0.5).astype(np.uint8))
@@ -472,7 +472,7 @@ def _sheet_tile(path: Path, side: int) -> np.ndarray:
     """A saved tile at ``side``^2 (older folders hold tiles of ``TILE``^2)."""
     from PIL import Image
 
-    from ..io import load_style
+    from ..files import load_style
 
     tile = load_style(path)
     if tile.shape[:2] == (side, side):
@@ -486,7 +486,7 @@ def write_sheet(rows: list[Row], tiles: Path, path: Path, side: int = TILE) -> N
     pixels each (``SAVED_TILE``: large enough to see strokes)."""
     from PIL import Image, ImageDraw
 
-    from ..io import atomic_output, load_style
+    from ..files import atomic_output, load_style
     from ..model.features import square_style
     from .splits import split_styles
 

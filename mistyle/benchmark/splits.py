@@ -73,8 +73,8 @@ class RealDensity:
         return Path(root) / self.file
 
     def load(self, root: Path = REAL_DIR) -> np.ndarray:
-        """The density ``(Z, Y, X)`` float32, checked (``mistyle.io.load_density``)."""
-        from ..io import load_density
+        """The density ``(Z, Y, X)`` float32, checked (``mistyle.files.load_density``)."""
+        from ..files import load_density
 
         return load_density(self.path(root))
 

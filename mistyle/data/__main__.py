@@ -232,7 +232,7 @@ def _command(args) -> int:
     if args.command == "styles":
         import json
 
-        from ..io import atomic_write_bytes, write_png
+        from ..files import atomic_write_bytes, write_png
         from .styles import offline_style_set, style_set_diversity
 
         styles = offline_style_set(size=args.size, seed=args.seed)
@@ -304,7 +304,7 @@ def _command(args) -> int:
 
 
 def _mesh_command(args) -> int:
-    from ..io import write_npy, write_vol
+    from ..files import write_npy, write_vol
     from ..scenes.box import MediumBox
     from .mesh import icosphere, load_mesh, voxelize
 

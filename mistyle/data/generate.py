@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import DEFAULT_DENSITY_SCALE, LS_DIRECTIONS
-from ..io import atomic_write_bytes, write_npz
+from ..files import atomic_write_bytes, write_npz
 from ..progress import bar, status
 from ..version import __version__
 

@@ -77,7 +77,7 @@ density of a kind to the next (docs/decisions/2026-12-03-validation-split.md).""
 
 def held_out_density(spec: HeldOutDensity, cache: Path | None = None) -> np.ndarray:
     """The density ``(Z, Y, X)`` float32 of ``spec``; cached as ``<cache>/<name>.npy`` when ``cache`` is given."""
-    from ..io import write_npy
+    from ..files import write_npy
 
     path = None if cache is None else Path(cache) / f"{spec.name}.npy"
     if path is not None and path.exists():

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write_bytes
+from ..files import atomic_write_bytes
 
 _DIRECTIONS = np.array([[1.0, 0.0123, 0.0271], [0.0191, 1.0, -0.0137], [-0.0229, 0.0167, 1.0]])
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import STYLE_SUFFIXES
-from ..io import load_style
+from ..files import load_style
 from .heldout import check_training_styles
 
 PHOTOS = {

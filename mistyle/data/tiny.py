@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..io import write_png
+from ..files import write_png
 from .generate import SmokeDatasetSpec, generate_smoke
 from .styles import offline_style_set
 

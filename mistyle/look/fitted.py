@@ -177,7 +177,7 @@ class Look:
 
     def save(self, path) -> Path:
         """Write the look to ``path`` (any file name), atomically."""
-        from ..io import atomic_write_bytes
+        from ..files import atomic_write_bytes
 
         path = Path(path)
         if path.is_dir():

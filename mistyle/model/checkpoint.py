@@ -23,7 +23,7 @@ import torch
 import torch.nn as nn
 
 from ..conventions import DEFAULT_DENSITY_SCALE
-from ..io import atomic_output
+from ..files import atomic_output
 from ..scenes.medium import validate_density_scale
 from .config import TrainConfig, apply_overrides, config_from_dict, config_to_dict
 from .features import extractor_from_name

@@ -60,7 +60,7 @@ def default_styles_folder() -> Path:
 def load(args) -> tuple:
     """The session, the style files and the options of the page's ``mistyle-render`` runs, from the
     command line; ``ValueError`` for bad input."""
-    from ..io import load_density_frames, load_style
+    from ..files import load_density_frames, load_style
     from ..look import Look
     from ..outputs import style_files
     from ..pipeline import Pipeline

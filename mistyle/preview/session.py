@@ -131,7 +131,7 @@ def decode_upload(name: str, data: bytes) -> StyleOption:
 
     Raises:
         ValueError: too large, or not a picture the decoder takes (its message says why)."""
-    from ..io import load_style
+    from ..files import load_style
 
     if len(data) > MAX_UPLOAD_BYTES:
         raise ValueError(f"{name} is {len(data) / 2**20:.0f} MB; uploads are limited to {MAX_UPLOAD_BYTES >> 20} MB.")

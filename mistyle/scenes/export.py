@@ -104,7 +104,7 @@ def scene_xml(scene: dict) -> str:
 
 def write_medium_grid(path, grid: np.ndarray) -> Path:
     """A ``(Z, Y, X[, C])`` grid as a ``.vol`` whose bounding box is the medium box it fills."""
-    from ..io import write_vol
+    from ..files import write_vol
 
     box = MediumBox(grid.shape[:3])
     return write_vol(path, grid, box.bbox_min, box.bbox_max)
@@ -135,7 +135,7 @@ def write_scene_files(
         coat_mesh: the coat's ``.ply``; copied into ``folder`` if it is not there already.
         suffix: tells a sequence's frames apart (``_frame0003``).
     """
-    from ..io import atomic_write_bytes
+    from ..files import atomic_write_bytes
     from .pathtraced import pathtraced_scene
 
     folder = Path(folder)

@@ -17,9 +17,9 @@ import numpy as np
 import torch
 
 from ..bridge_torch import render_views
+from ..files import atomic_write_bytes
 from ..fit import FitSettings, fit_albedo
 from ..integrators import prepare_density
-from ..io import atomic_write_bytes
 from ..model.checkpoint import load_checkpoint, model_from_checkpoint
 from ..model.config import TrainConfig
 from ..model.features import make_extractor

@@ -163,7 +163,7 @@ def restore_from_history(root: Path, commit: str, relative: str, path: Path) -> 
     working tree leaves out (to keep the checkout small) is recovered from the history, not downloaded."""
     import subprocess
 
-    from ..io import atomic_write_bytes
+    from ..files import atomic_write_bytes
 
     try:
         blob = subprocess.run(
@@ -199,7 +199,7 @@ def run_recipe(chosen: Recipe, out: Path, overrides: list[str] | None = None, lo
 
     A stage whose ``chosen.pt`` exists is kept as it is; one with a ``last.pt`` resumes. ``overrides``
     (``--set``) apply to every stage, after the stage's own (e.g. ``run.device="cuda"``)."""
-    from ..io import atomic_write_bytes
+    from ..files import atomic_write_bytes
     from ..model.config import load_config
     from ..ownership import write_manifest
     from .trainer import Trainer, record_files
@@ -319,7 +319,7 @@ def validation_scores(
     from ..benchmark.runner import metric_views, score
     from ..benchmark.splits import split_pairs, split_styles
     from ..data.heldout import held_out_density
-    from ..io import load_style
+    from ..files import load_style
     from ..pipeline import Pipeline, PipelineSettings
 
     pairs = split_pairs("validation")

@@ -35,8 +35,8 @@ import numpy as np
 import torch
 import torch.distributed as dist
 
+from ..files import atomic_write_bytes, check_writable_dir, write_png
 from ..integrators import prepare_density
-from ..io import atomic_write_bytes, check_writable_dir, write_png
 from ..model.checkpoint import (
     CHECKPOINT_FORMAT,
     build_model,

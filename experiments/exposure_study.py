@@ -70,7 +70,7 @@ def run(out: Path, densities: list[str] | None) -> None:
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles
     from mistyle.files import load_style
     from mistyle.objective.metrics import exposure_matched_fidelity
-    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import Stylizer
 
     stylizer = Stylizer(None)
     context = Context(stylizer, metric_views(stylizer.config.render.camera_distance))

@@ -109,7 +109,7 @@ def setting(args):
     from mistyle.benchmark.splits import split_pairs
     from mistyle.data.heldout import held_out_density, held_out_styles
     from mistyle.files import load_style
-    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import Stylizer
 
     wanted = args.pairs.split(",")
     chosen = [(spec, name) for spec, name in split_pairs("heldout") if f"{spec.name}:{name}" in wanted]

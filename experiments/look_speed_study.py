@@ -205,7 +205,7 @@ def main() -> None:
     from mistyle.data.heldout import held_out_density, held_out_styles
     from mistyle.files import load_style
     from mistyle.look import LookSettings, fit_look
-    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import Stylizer
 
     unknown = [arm for arm in args.arms.split(",") if arm not in ARMS]
     if unknown:

@@ -70,7 +70,7 @@ def main() -> None:
     from mistyle.data.heldout import HELD_OUT_DENSITIES, held_out_density, held_out_styles
     from mistyle.files import load_style
     from mistyle.look import LookSettings, fit_look
-    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import Stylizer
 
     stylizer = Stylizer()
     radiance = stylizer.config.render.radiance

@@ -36,7 +36,7 @@ def main() -> None:
     from mistyle.benchmark.splits import split_pairs, split_styles
     from mistyle.data.heldout import held_out_density
     from mistyle.files import load_style
-    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import Stylizer
 
     stylizer = Stylizer(None)
     context = Context(stylizer, metric_views(stylizer.config.render.camera_distance))

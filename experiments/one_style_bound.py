@@ -75,7 +75,7 @@ def main() -> None:
     from mistyle.benchmark.runner import metric_views, score
     from mistyle.data.heldout import VALIDATION_DENSITIES, held_out_density
     from mistyle.files import load_style
-    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import Stylizer
 
     styles = args.styles.split(",")
     missing = [name for name in styles if not (PAINTINGS / f"{name}.jpg").exists()]

@@ -65,7 +65,7 @@ def main(argv=None) -> None:
     from mistyle.benchmark.runner import metric_views
     from mistyle.benchmark.splits import split_density, split_pairs, split_styles
     from mistyle.files import load_style
-    from mistyle.pipeline import Stylizer
+    from mistyle.stylizer import Stylizer
 
     stylizer = Stylizer(None)
     context = Context(stylizer, metric_views(stylizer.config.render.camera_distance))

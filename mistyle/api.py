@@ -51,19 +51,10 @@ from .backend import check_device
 from .conventions import DEFAULT_DENSITY_SCALE, HELD_OUT_VIEW, ORBIT_DISTANCE
 from .look import Look, LookSettings
 from .pathtrace import path_trace
-from .pipeline import (
-    Pipeline,
-    PipelineSettings,
-    RenderSettings,
-    Stylizer,
-    checked_frames,
-    described,
-    style_parts,
-    validate_flag,
-    validate_int,
-    validate_path,
-    validate_real,
-)
+from .pipeline import Pipeline, PipelineSettings, RenderSettings
+from .pipeline.settings import described, validate_flag, validate_int, validate_path, validate_real
+from .style import style_parts
+from .stylizer import Stylizer, checked_frames
 
 __all__ = [
     "Look",

@@ -484,10 +484,10 @@ def check_options(args) -> None:
 
     Options that a library function also takes are checked by that function's own validator."""
     from .files import check_link
-    from .pipeline import validate_scale_structures, validate_strength
     from .scenes import validate_density_scale
     from .scenes.cameras import validate_camera_distance, validate_orbit_position
     from .scenes.pathtraced import validate_coat_ior, validate_max_depth
+    from .stylizer import validate_scale_structures, validate_strength
 
     for path in args.density or []:  # a loop would end in Path.resolve's RuntimeError while planning outputs
         check_link(Path(path), "Density", "point --density at a density file or a folder of frames")

@@ -9,7 +9,8 @@ import pytest
 
 import mistyle
 from mistyle import api
-from mistyle.pipeline import PipelineSettings, RenderSettings, Stylizer
+from mistyle.pipeline import PipelineSettings, RenderSettings
+from mistyle.stylizer import Stylizer
 
 STYLE = Path(__file__).resolve().parents[1] / "examples" / "style_marble.png"
 

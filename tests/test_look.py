@@ -14,8 +14,8 @@ from mistyle.farm import main as farm_main
 from mistyle.files import write_vol
 from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, diverged, fit_look, parse_key_frames
 from mistyle.ownership import MANIFEST_FILE
-from mistyle.pipeline import Stylizer
 from mistyle.render_final import main
+from mistyle.stylizer import Stylizer
 
 STEPS = 3
 

@@ -467,7 +467,7 @@ def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint,
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(job, "write_report", interrupted)
+    monkeypatch.setattr(job.run, "write_report", interrupted)
     assert main(arguments + ["--view", "0.5", "--overwrite"]) == 130
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder or lock left
@@ -751,6 +751,7 @@ def test_quiet_keeps_only_the_results_on_stdout(mi, checkpoint, inputs, tmp_path
 
 def test_vdb_in_and_out_keeps_the_transform_and_the_grids(mi, checkpoint, inputs, tmp_path, blob_density):
     from mistyle.files import vdb, vdb_layout
+
     try:
         vdb.vdb_interpreter()
     except vdb.VdbUnavailable as error:
@@ -791,6 +792,7 @@ def test_vdb_in_and_out_keeps_the_transform_and_the_grids(mi, checkpoint, inputs
 
 def test_vdb_with_two_float_grids_needs_grid(mi, checkpoint, inputs, tmp_path, blob_density, capsys):
     from mistyle.files import vdb
+
     try:
         vdb.vdb_interpreter()
     except vdb.VdbUnavailable as error:
@@ -1229,6 +1231,7 @@ def test_vdb_for_blender_is_z_up_and_says_what_it_holds(mi, checkpoint, inputs, 
     (Houdini's view: a fog-volume float 'density' and a vec3 'Cd'); reading it back turns nothing, and
     the same file read as Y-up is turned back upright for mistyle's renders."""
     from mistyle.files import vdb
+
     try:
         vdb.vdb_interpreter()
     except vdb.VdbUnavailable as error:

@@ -197,8 +197,8 @@ def run(
     report. Returns every row in ``<out>/rows.jsonl``. ``denoise``: ``"oidn"`` scores the images as
     ``mistyle-render`` shows them (its rows' settings say so; rows made before it have no such key)."""
     from ..files import load_style
-    from ..pipeline import Stylizer
     from ..stops import raise_if_requested
+    from ..stylizer import Stylizer
     from .methods import METHODS, Context, timed
     from .splits import split_density, split_styles
 

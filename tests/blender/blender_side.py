@@ -23,9 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-Y_UP_TO_Z_UP = Matrix(
-    ((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1))
-)  # vdb_layout.up_axis_matrix("z")
+Y_UP_TO_Z_UP = Matrix(((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1)))  # vdb_layout.up_axis_matrix("z")
 
 
 def mistyle_camera(scene_xml: str) -> tuple[Matrix, float]:

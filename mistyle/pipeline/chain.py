@@ -31,244 +31,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 
-from .conventions import DEVICES, HELD_OUT_VIEW, IMAGE_SIDES, LIGHT_KINDS, MAX_FIT_STEPS
-from .denoise import DENOISERS
-from .style import Style, style_parts, style_target  # noqa: F401 - also the pipeline's names
-from .stylizer import (  # noqa: F401 - also the pipeline's names: callers import them from here
-    DEFAULT_CHECKPOINT,
-    MIN_MEDIUM_VOXELS,
-    Stylizer,
-    check_enough_medium,
-    check_finite,
-    checked_frames,
-    validate_scale_structures,
-    validate_strength,
-)
-
-
-def default_refinement(config, camera_distance: float | None = None):
-    """``mistyle-render``'s refinement schedule (``fit.RefineSettings``) for a checkpoint's ``config``:
-    the schedule's defaults with the checkpoint's TV weight and orbit radius."""
-    from .fit import RefineSettings
-
-    distance = config.render.camera_distance if camera_distance is None else camera_distance
-    return RefineSettings(tv_weight=config.loss.tv_weight, camera_distance=distance)
-
-
-def flicker_report(albedos: list, frames, suffix: str = "") -> dict:
-    """How much a sequence's ``albedos`` flicker, for ``report.json``: ``temporal_flicker{suffix}``
-    (``objective.metrics.temporal_flicker``, each frame against the previous one warped by its
-    velocity), or ``temporal_flicker{suffix}_unwarped`` (mean absolute change) when the frames carry
-    no velocity; nothing for a single frame."""
-    from .objective.metrics import temporal_flicker
-
-    if not frames.sequence:
-        return {}
-    stacked = np.stack(albedos)
-    if frames.velocities is not None:
-        return {f"temporal_flicker{suffix}": temporal_flicker(stacked, np.stack(frames.velocities))}
-    return {f"temporal_flicker{suffix}_unwarped": float(np.mean(np.abs(np.diff(stacked, axis=0))))}
-
-
-def described(value) -> str:
-    """``value`` as an error message shows it: short, with its type."""
-    if isinstance(value, np.ndarray):
-        return f"an array of shape {value.shape}"
-    text = repr(value)
-    return f"{text if len(text) <= 60 else text[:57] + '...'} ({type(value).__name__})"
-
-
-def validate_int(value, name: str, low: int | None = None, high: int | None = None) -> int:
-    """``value`` as an int in ``[low, high]`` (a ``None`` bound: none); ``TypeError`` for anything but an
-    integer (a bool, a float or a string too), ``ValueError`` out of range, both naming ``name``."""
-    bounds = f" in [{low}, {high}]" if None not in (low, high) else f" >= {low}" if low is not None else ""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer{bounds}, got {described(value)}.")
-    if (low is not None and value < low) or (high is not None and value > high):
-        raise ValueError(f"{name} must be{bounds}, got {value}.")
-    return int(value)
-
-
-def validate_real(value, name: str, accepted: str = "a number") -> float:
-    """``value`` as a float; ``TypeError`` naming ``name`` for a string, a bool or anything else that is
-    not a real number. Ranges are the caller's (``validate_strength``, ...), which also refuse NaN."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be {accepted}, got {described(value)}.")
-    return float(value)
-
-
-def validate_flag(value, name: str) -> bool:
-    """``value`` as a bool; ``TypeError`` naming ``name`` for anything but True or False (a truthy string
-    such as ``"no"`` would otherwise switch the option on)."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {described(value)}.")
-    return bool(value)
-
-
-def validate_path(value, name: str, accepted: str = "a file's path") -> None:
-    """``None`` or a path (``str`` or ``os.PathLike``); ``TypeError`` naming ``name`` otherwise."""
-    import os
-
-    if value is not None and not isinstance(value, (str, os.PathLike)):
-        raise TypeError(f"{name} must be {accepted} (a str or Path) or None, got {described(value)}.")
-
-
-@dataclass
-class RenderSettings:
-    """How the final images are path traced (``mistyle-render``'s ``--res``, ``--spp``, ...)."""
-
-    res: int = 256
-    spp: int = 64
-    max_depth: int = -1  # -1: full multiple scattering; 2: single scattering
-    light: str = LIGHT_KINDS[0]  # constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]
-    coat_ior: float | None = None  # a smooth dielectric boundary of this index of refraction
-    bricks: int | None = None  # voxels per majorant brick; None: scenes.bricks.DEFAULT_BRICK (0 under a coat)
-    view: float = HELD_OUT_VIEW  # the camera's position on the orbit, in [0, 1)
-    turntable: int = 0  # > 0: this many views evenly around the orbit from ``view``
-    denoise: str = "oidn"  # mistyle.denoise.DENOISERS: Intel Open Image Denoise on the path-traced images, or "none"
-
-    def __post_init__(self):
-        # mistyle-render's bounds (render_final.check_options), for settings made in Python.
-        from .scenes.cameras import validate_orbit_position
-        from .scenes.pathtraced import validate_coat_ior, validate_max_depth
-
-        validate_int(self.res, "res", *IMAGE_SIDES)
-        validate_int(self.spp, "spp", 1, 1 << 16)
-        validate_max_depth(validate_int(self.max_depth, "max_depth"), "max_depth")
-        forms = "constant[:Le], envmap:<file.exr>[:scale], point:x,y,z[:intensity] or area[:radiance]"
-        if not isinstance(self.light, str):
-            raise TypeError(f"light must be a string: {forms}; got {described(self.light)}.")
-        if self.light.partition(":")[0] not in LIGHT_KINDS:
-            raise ValueError(f"light {self.light!r} is not a known light; give one of {forms}.")
-        if self.coat_ior is not None:
-            validate_coat_ior(validate_real(self.coat_ior, "coat_ior", "an index of refraction or None"), "coat_ior")
-        if self.bricks is not None:
-            validate_int(self.bricks, "bricks", 0, 4096)
-            if self.bricks and self.coat_ior is not None:
-                raise ValueError("bricks needs one medium under a coat (coat_ior set); leave bricks at None or 0.")
-        validate_orbit_position(validate_real(self.view, "view", "an orbit position in [0, 1)"), "view")
-        validate_int(self.turntable, "turntable", 0, 3600)
-        if self.denoise not in DENOISERS:
-            raise ValueError(f"denoise must be one of {', '.join(DENOISERS)}, got {self.denoise!r}.")
-
-
-@dataclass
-class PipelineSettings:
-    """Everything that decides the pipeline's output, with ``mistyle-render``'s defaults.
-
-    ``None`` fields take the checkpoint's value (``density_scale``, ``camera_distance``) or the
-    pipeline's rule (``refine_steps``, ``refine_path_steps``: see ``Pipeline.refinement``)."""
-
-    checkpoint: str | Path | None = None  # a ``mistyle-train`` checkpoint; None: the bundled one
-    device: str = "cpu"
-    vgg_weights: str | Path | None = None
-    strength: float = 1.0
-    scale_structures: float = 1.0
-    colour_match: bool = True
-    refine_steps: int | None = None
-    refine_path_steps: int | None = None
-    density_scale: float | None = None
-    camera_distance: float | None = None
-    look_steps: int | None = None  # steps of a look's fit (None: look.LookSettings'); see Pipeline.fits_look
-    key_frames: str | None = None  # "0,40,80": the frames the default look is fitted on (None: look.default_key_frames)
-    render: RenderSettings = field(default_factory=RenderSettings)
-
-    @property
-    def fits_look(self) -> bool:
-        """Whether the frames are stylized by a look fitted on them (``look.fit_look`` on a single
-        frame, or on a sequence's key frames, ``key_frames`` or ``look.default_key_frames``; then applied
-        to every frame) instead of refined or left feed-forward: the default at full strength with the
-        colour match, when no refinement steps are named.
-
-        On the held-out split a look has the lowest medians of every metric the benchmark has, and
-        matches or beats the refinement it replaced at about the same time (``results/benchmark/``:
-        ``look`` against ``default``). Over a sequence, a look fitted on three key frames flickers
-        0.4-0.65x as much as the network's frames, and the frames it was not fitted on score within
-        1.05x of the key frames (``results/look_sequence/``)."""
-        named = self.refine_steps is not None or self.refine_path_steps is not None
-        return self.strength == 1.0 and self.colour_match and not named
-
-    def __post_init__(self):
-        from .scenes import validate_density_scale
-        from .scenes.cameras import validate_camera_distance
-
-        validate_path(self.checkpoint, "checkpoint", "a mistyle-train checkpoint's path")
-        validate_path(self.vgg_weights, "vgg_weights", "the VGG weights' path")
-        if self.device not in DEVICES:
-            raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {described(self.device)}.")
-        validate_strength(validate_real(self.strength, "strength", "a number in [0, 1]"))
-        validate_scale_structures(validate_real(self.scale_structures, "scale_structures"))
-        validate_flag(self.colour_match, "colour_match")
-        for name in ("refine_steps", "refine_path_steps", "look_steps"):
-            if getattr(self, name) is not None:
-                validate_int(getattr(self, name), name, 0, MAX_FIT_STEPS)
-        if self.density_scale is not None:
-            validate_density_scale(validate_real(self.density_scale, "density_scale"))
-        if self.camera_distance is not None:
-            validate_camera_distance(validate_real(self.camera_distance, "camera_distance"), "camera_distance")
-        if self.key_frames is not None and not isinstance(self.key_frames, str):
-            raise TypeError(
-                f'key_frames must be a string of frame indices such as "0,40,80", got {described(self.key_frames)}.'
-            )
-        if not isinstance(self.render, RenderSettings):
-            raise TypeError(
-                f"render must be a RenderSettings (e.g. RenderSettings(res=128)), got {described(self.render)}."
-            )
-
-
-@dataclass
-class Frames:
-    """The density frames one output stylizes, and what is computed once per frame."""
-
-    densities: list  # (Z, Y, X) float32 each, all one shape
-    velocities: list | None  # (Z, Y, X, 3) each, when every frame has one
-    density_scale: float
-    # advection.TextureMotion: the velocities a look's texture follows, from those of the frames before
-    # ``first`` (a chunk's), or None where the frames carry none
-    motion: object = None
-    first: int = 0  # the sequence's index of densities[0]
-    _prepared: dict = field(default_factory=dict, repr=False)
-
-    @property
-    def sequence(self) -> bool:
-        return len(self.densities) > 1
-
-    def phases(self, frame: int) -> list | None:
-        """Frame ``frame``'s advected texture fields (``advection.TextureMotion.phases``), or None."""
-        return None if self.motion is None else self.motion.phases(self.first + frame)
-
-    def prepared(self, frame: int):
-        """The frame's density prepared for the fast layer (its Ls grid), computed once."""
-        from .integrators import prepare_density
-
-        if frame not in self._prepared:
-            self._prepared[frame] = prepare_density(self.densities[frame], self.density_scale)
-        return self._prepared[frame]
-
-
-@dataclass
-class Stylization:
-    """What ``Pipeline.stylize`` made for one (density, style) pair."""
-
-    frames: Frames
-    network: list  # (Z, Y, X, 3) per frame: the feed-forward albedo (network, then the colour match)
-    albedos: list  # (Z, Y, X, 3) per frame: what is path traced (refined, else ``network``)
-    target: np.ndarray  # (H, W, 3) display RGB: the picture the result is refined and measured against
-    refinement: object  # the fit.RefineSettings that ran (0 steps: none)
-    report: dict  # seconds per stage, temporal flicker of sequences
-    notes: list
-    look: object = None  # the look.Look fitted on the frame(s) and applied (Pipeline.fits_look), or None
-
-    @property
-    def refined(self) -> bool:
-        """Whether ``albedos`` were refined from the feed-forward ``network`` albedos (by refinement steps,
-        or by a look fitted on the frame)."""
-        return self.albedos is not self.network
+from ..style import Style
+from ..stylizer import Stylizer, check_finite, checked_frames
+from .frames import Frames, Stylization, flicker_report
+from .settings import PipelineSettings, default_refinement, described
 
 
 class Pipeline:
@@ -322,8 +92,8 @@ class Pipeline:
     def light(self):
         """The final render's ``scenes.LightSpec``; ``ValueError`` for an environment map holding NaN/inf
         pixels (``pathtrace.check_light``), before anything is read or rendered."""
-        from .pathtrace import check_light
-        from .scenes import LightSpec
+        from ..pathtrace import check_light
+        from ..scenes import LightSpec
 
         light = LightSpec.parse(self.settings.render.light, default_radiance=self.radiance)
         check_light(light)
@@ -331,7 +101,7 @@ class Pipeline:
 
     def views(self) -> list:
         """The final render's ``scenes.View``s: one at ``render.view``, or a turntable from it."""
-        from .scenes import CameraPath
+        from ..scenes import CameraPath
 
         render = self.settings.render
         orbit = CameraPath(distance=self.camera_distance)
@@ -386,7 +156,7 @@ class Pipeline:
         if velocities is not None and len(velocities) != len(grids):
             raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
         if velocities is not None and motion is None and len(grids) > 1:
-            from .advection import TextureMotion
+            from ..advection import TextureMotion
 
             motion = TextureMotion(list(velocities), begin=first)
         return Frames(grids, None if velocities is None else list(velocities), self.density_scale, motion, first)
@@ -434,8 +204,8 @@ class Pipeline:
 
         albedos, look = network, None
         if self.fits_look():
-            from .look import LookSettings
-            from .progress import bar, fit_progress
+            from ..look import LookSettings
+            from ..progress import bar, fit_progress
 
             started = time.perf_counter()
             with bar(LookSettings().steps if s.look_steps is None else s.look_steps, "fitting a look") as progress_bar:
@@ -457,7 +227,7 @@ class Pipeline:
         """The look the default output fits (``fits_look``) on ``density``'s frames: on the frame, or on a
         sequence's key frames (the settings' ``key_frames``, else ``look.default_key_frames``). The live
         preview fits this same look, so that what it shows is what ``mistyle-render`` writes."""
-        from .look import parse_key_frames
+        from ..look import parse_key_frames
 
         frames = self.frames(density)
         keys = self.settings.key_frames
@@ -477,7 +247,7 @@ class Pipeline:
         """``look.fit_look`` on ``density``'s frames (a frame, a sequence or a list) with this pipeline's
         network, density scale, orbit and structure scale; ``key_frames`` default to the first, middle
         and last frame."""
-        from .look import LookSettings, fit_look
+        from ..look import LookSettings, fit_look
 
         if look_settings is None and self.settings.look_steps is not None:
             look_settings = LookSettings(steps=self.settings.look_steps)
@@ -533,9 +303,9 @@ class Pipeline:
         warped by its velocity (unwarped when the frames carry none) and is held near it by the
         temporal term (``RefineSettings.temporal_weight``; experiments/sequence_refine.py measures
         the flicker)."""
-        from .fit import refine_albedo
-        from .progress import bar
-        from .warp import warp_grid
+        from ..fit import refine_albedo
+        from ..progress import bar
+        from ..warp import warp_grid
 
         refined, seconds = [], 0.0
         for index, (grid, albedo) in enumerate(zip(frames.densities, albedos)):
@@ -595,8 +365,8 @@ class Pipeline:
         an image that shows no medium while others do is a warning, logged and added to ``notes``; in a
         ``chunk`` of a sequence (``first`` > 0, or ``chunk``: rendered in parts, ``--frames``) even when
         none of its images does, since the other chunks may."""
-        from .denoise import denoise
-        from .pathtrace import path_trace
+        from ..denoise import denoise
+        from ..pathtrace import path_trace
 
         render = self.settings.render
         plan = self.render_plan(frames, views, first)
@@ -650,8 +420,8 @@ class Pipeline:
         a turntable only when no image can show it: a simulation may start as a wisp, which
         ``check_images`` reports after the render. Also a medium so dense that the path tracer's time is
         out of bounds (``volume.validate_extinction``)."""
-        from .pathtrace import check_max_depth, unseen_medium
-        from .volume import validate_extinction
+        from ..pathtrace import check_max_depth, unseen_medium
+        from ..volume import validate_extinction
 
         render = self.settings.render
         check_max_depth(render.max_depth)
@@ -694,7 +464,7 @@ class Pipeline:
         its albedo black, the camera too far, the light) when no image shows the medium in enough pixels
         and ``refuse``. Otherwise (a sequence that starts as a wisp, a turntable, a chunk) each image that
         does not is a warning on the console (``log``) and in ``notes``."""
-        from .pathtrace import dark_render
+        from ..pathtrace import dark_render
 
         render = self.settings.render
         light = self.light()
@@ -749,7 +519,7 @@ class Pipeline:
         """The fast layer's images ``(res, res, 3)`` of ``albedo`` on ``frame`` under the training light."""
         import torch
 
-        from .bridge_torch import render_views
+        from ..bridge_torch import render_views
 
         grid = torch.from_numpy(albedo).permute(3, 0, 1, 2).to(self.settings.device)
         with torch.no_grad():

@@ -1,0 +1,73 @@
+"""What a pipeline works on and returns: ``Frames`` (the densities of one output and what is computed
+once per frame) and ``Stylization``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def flicker_report(albedos: list, frames, suffix: str = "") -> dict:
+    """How much a sequence's ``albedos`` flicker, for ``report.json``: ``temporal_flicker{suffix}``
+    (``objective.metrics.temporal_flicker``, each frame against the previous one warped by its
+    velocity), or ``temporal_flicker{suffix}_unwarped`` (mean absolute change) when the frames carry
+    no velocity; nothing for a single frame."""
+    from ..objective.metrics import temporal_flicker
+
+    if not frames.sequence:
+        return {}
+    stacked = np.stack(albedos)
+    if frames.velocities is not None:
+        return {f"temporal_flicker{suffix}": temporal_flicker(stacked, np.stack(frames.velocities))}
+    return {f"temporal_flicker{suffix}_unwarped": float(np.mean(np.abs(np.diff(stacked, axis=0))))}
+
+
+@dataclass
+class Frames:
+    """The density frames one output stylizes, and what is computed once per frame."""
+
+    densities: list  # (Z, Y, X) float32 each, all one shape
+    velocities: list | None  # (Z, Y, X, 3) each, when every frame has one
+    density_scale: float
+    # advection.TextureMotion: the velocities a look's texture follows, from those of the frames before
+    # ``first`` (a chunk's), or None where the frames carry none
+    motion: object = None
+    first: int = 0  # the sequence's index of densities[0]
+    _prepared: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def sequence(self) -> bool:
+        return len(self.densities) > 1
+
+    def phases(self, frame: int) -> list | None:
+        """Frame ``frame``'s advected texture fields (``advection.TextureMotion.phases``), or None."""
+        return None if self.motion is None else self.motion.phases(self.first + frame)
+
+    def prepared(self, frame: int):
+        """The frame's density prepared for the fast layer (its Ls grid), computed once."""
+        from ..integrators import prepare_density
+
+        if frame not in self._prepared:
+            self._prepared[frame] = prepare_density(self.densities[frame], self.density_scale)
+        return self._prepared[frame]
+
+
+@dataclass
+class Stylization:
+    """What ``Pipeline.stylize`` made for one (density, style) pair."""
+
+    frames: Frames
+    network: list  # (Z, Y, X, 3) per frame: the feed-forward albedo (network, then the colour match)
+    albedos: list  # (Z, Y, X, 3) per frame: what is path traced (refined, else ``network``)
+    target: np.ndarray  # (H, W, 3) display RGB: the picture the result is refined and measured against
+    refinement: object  # the fit.RefineSettings that ran (0 steps: none)
+    report: dict  # seconds per stage, temporal flicker of sequences
+    notes: list
+    look: object = None  # the look.Look fitted on the frame(s) and applied (Pipeline.fits_look), or None
+
+    @property
+    def refined(self) -> bool:
+        """Whether ``albedos`` were refined from the feed-forward ``network`` albedos (by refinement steps,
+        or by a look fitted on the frame)."""
+        return self.albedos is not self.network

@@ -56,7 +56,7 @@ def main(argv=None) -> None:
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args(argv)
-    from mistyle.farm import chunk_argv, chunk_settings, frame_chunks, render_chunk
+    from mistyle.farm import chunk_settings, frame_chunks, render_chunk
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -82,7 +82,8 @@ def main(argv=None) -> None:
 
         fresh = []
         for first, last in chunks:
-            argv = chunk_argv(density, look, work / "fresh", first, last, options)
+            chunk = ["--density", str(density), "--look", str(look), "--out", str(work / "fresh")]
+            argv = [*chunk, "--frames", f"{first}-{last}", "--quiet", *options]  # the command a farm task runs
             started = time.perf_counter()
             subprocess.run([sys.executable, "-m", "mistyle.render_final", *argv], check=True, cwd=ROOT)
             fresh.append(time.perf_counter() - started)

@@ -81,13 +81,15 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "results" / "preview")
     parser.add_argument("--chromium", default="/usr/bin/chromium")
     args = parser.parse_args()
-    import shlex
 
     from playwright.sync_api import sync_playwright
 
-    from mistyle.preview import job_settings
+    from mistyle.preview import page_settings
+    from mistyle.preview import parser as preview_parser
 
-    fits_look = job_settings(ROOT / "examples" / "smoke_64.vol", shlex.split(args.render_options)).fits_look
+    preview_args = ["--density", str(ROOT / "examples" / "smoke_64.vol"), "--render-options", args.render_options]
+    style = ROOT / "mistyle" / "data" / "heldout_styles" / STYLES[0]
+    fits_look = page_settings(preview_parser().parse_args(preview_args), style)[0].fits_look
     load_before = os.getloadavg()
     folder = Path(tempfile.mkdtemp(prefix="mistyle-bench-preview-"))
     for name in STYLES:

@@ -39,8 +39,6 @@ from pathlib import Path
 
 DEFAULT_CHUNK = 8
 """Frames per task: enough to amortise loading the network (about a second) against a frame's render."""
-OWN_OPTIONS = ("density", "look", "out", "frames")
-"""``mistyle-render`` options the farm sets for every chunk itself: not accepted after ``--``."""
 POLL_SECONDS = 0.2
 
 
@@ -54,19 +52,13 @@ def frame_chunks(count: int, size: int, frames: tuple[int, int] | None = None) -
     return [(start, min(start + size - 1, last)) for start in range(first, last + 1, size)]
 
 
-def chunk_argv(density, look, out, first: int, last: int, options: list[str]) -> list[str]:
-    """The ``mistyle-render`` arguments of one chunk: the farm's own options, then the user's (parsed once,
-    here, by ``check_render_options``)."""
-    argv = ["--density", str(density), "--look", str(look), "--out", str(out), "--frames", f"{first}-{last}"]
-    return [*argv, "--quiet", *options]
-
-
-def chunk_settings(options: list[str]) -> tuple:
+def chunk_settings(options: list[str], density=Path("density"), look=Path("look"), out=Path("out")) -> tuple:
     """``(pipeline.PipelineSettings, job.OutputSpec)`` of every chunk, from the ``mistyle-render`` options
-    after ``--`` (parsed as that command parses them; ``check_render_options`` checks them)."""
-    from .render_final import output_spec, parser, settings_from
+    after ``--``, parsed and checked as that command does (``render_final.shared_options``)."""
+    from .render_final import output_spec, settings_from, shared_options
 
-    parsed = parser().parse_args(chunk_argv("density", "look", "out", 0, 0, options))
+    own = "mistyle-farm's own option: give it before --, not after it (mistyle-farm ... --NAME VALUE -- OTHERS)"
+    parsed = shared_options(options, "after --", own, density=density, out=out, look=look)
     return settings_from(parsed), output_spec(parsed)
 
 
@@ -89,7 +81,7 @@ def worker_pipeline(settings):
 
 def render_chunk(look: bytes, density: str, out: str, first: int, last: int, settings, spec) -> dict:
     """On a worker: frames ``first``-``last`` of ``density`` from the look (its file's bytes), with the
-    ``pipeline.PipelineSettings`` and ``job.OutputSpec`` that ``check_render_options`` made of the options,
+    ``pipeline.PipelineSettings`` and ``job.OutputSpec`` that ``chunk_settings`` made of the options,
     merged into ``out`` (``job.render_look_chunk``, as ``mistyle-render --look ... --frames A-B``).
     Returns ``{"frames": [first, last]}``, with ``"error"`` (one line) if it failed: a task that returns
     its failure keeps Dask from logging it as a crash on the worker."""
@@ -133,7 +125,7 @@ def render_on_cluster(
     from .stops import raise_if_requested
 
     ranges = frame_chunks(len(density_frame_files(density)), chunk, frames)
-    settings = chunk_settings(list(options or []))
+    settings = chunk_settings(list(options or []), density, look, out)
     shipped = client.scatter(Path(look).read_bytes(), broadcast=True)
     density, out = str(Path(density).resolve()), str(Path(out).resolve())
     tasks = [
@@ -192,28 +184,6 @@ def main(argv=None) -> int:
         return 2
 
 
-def check_render_options(args, options: list[str]) -> argparse.Namespace:
-    """The options after ``--`` as every chunk's ``mistyle-render`` will take them, checked by its own
-    parser and ``check_options``: ``ValueError`` (one line) for any it would refuse, and for the farm's own."""
-    from . import render_final
-
-    def refuse(message: str):
-        raise ValueError(f"after --: {message} (options passed to every mistyle-render).")
-
-    render_parser = render_final.parser()
-    render_parser.error = refuse  # argparse's own would print the usage and exit
-    ours = render_parser.parse_args(chunk_argv(args.density, args.look, args.out, 0, 0, []))
-    parsed = render_parser.parse_args(chunk_argv(args.density, args.look, args.out, 0, 0, options))
-    for name in OWN_OPTIONS:  # a pass-through option overrides (or extends) the farm's: compare the results
-        if getattr(parsed, name) != getattr(ours, name):
-            raise ValueError(
-                f"--{name} is mistyle-farm's own option: give it before --, not after it "
-                f"(mistyle-farm ... --{name} VALUE -- OTHER-OPTIONS)."
-            )
-    render_final.check_options(parsed)
-    return parsed
-
-
 def check_out(out: Path, density: Path, look: Path) -> None:
     """``--out`` as every chunk will find it: a folder (or nothing yet) holding only mistyle's files,
     neither an input nor inside one."""
@@ -238,11 +208,11 @@ def _farm(args) -> int:
         raise ValueError(f"--local-workers must lie in [1, 256], got {args.local_workers}.")
     frames = None if args.frames is None else parse_frame_range(args.frames)
     check_out(args.out, args.density, args.look)
-    parsed = check_render_options(args, options)
+    settings, _ = chunk_settings(options, args.density, args.look, args.out)
     from .files import density_frame_files
 
     frame_chunks(len(density_frame_files(args.density)), args.chunk, frames)
-    Look.load(args.look, checkpoint=parsed.checkpoint)  # a damaged look or another network: one line here
+    Look.load(args.look, checkpoint=settings.checkpoint)  # a damaged look or another network: one line here
     with _cluster(args) as client:
         done = render_on_cluster(
             client, args.density, args.look, args.out, chunk=args.chunk, frames=frames, options=options

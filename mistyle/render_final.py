@@ -345,137 +345,59 @@ def output_spec(args):
     return OutputSpec(grid=args.grid, up=args.up, mesh_res=args.mesh_res, fps=args.fps, vdb=args.vdb)
 
 
+INPUTS_AND_OUTPUTS = ("density", "mesh", "style", "mix", "look", "save_look", "out", "frames")
+"""The options that say what to render and where: a caller that passes the rest on (``shared_options``)
+sets these itself."""
+
+
+def shared_options(options: list[str], context: str, own: str, *, density: Path, out: Path, look=None, style=None):
+    """mistyle-render's ``options`` as a caller that names the inputs and outputs itself passes them to
+    every run it starts (mistyle-farm's options after ``--``, mistyle-preview's ``--render-options``):
+    parsed by this command's parser around the caller's ``density``, ``out`` and ``look`` or ``style``, and
+    checked as the command checks them (``check_options``). Returns the parsed options, for
+    ``settings_from`` and ``output_spec``; ``ValueError`` (one line, ``context`` first) for an option the
+    command would refuse, and for one of ``INPUTS_AND_OUTPUTS``, the caller's own (``own`` says so)."""
+
+    def refuse(message: str):
+        raise ValueError(f"{context}: {message}.")
+
+    command = parser()
+    command.error = refuse  # argparse's own would print the usage and exit
+    given = ["--density", str(density), "--out", str(out)]
+    given += ["--look", str(look)] if look is not None else ["--style", str(style)]
+    alone, parsed = command.parse_args(given), command.parse_args(given + list(options))
+    for name in INPUTS_AND_OUTPUTS:  # an option given again overrides (or extends) the caller's: compare
+        if getattr(parsed, name) != getattr(alone, name):
+            refuse(f"--{name.replace('_', '-')} is {own}")
+    check_options(parsed)
+    return parsed
+
+
+def request_from(args):
+    """The ``job.RenderRequest`` that ``args`` ask for: inputs and outputs (``check_options`` first)."""
+    from .job import RenderRequest
+
+    return RenderRequest(
+        density=tuple(args.density or ()),
+        mesh=tuple(args.mesh or ()),
+        style=tuple(args.style or ()),
+        mix=tuple(args.mix or ()),
+        look=args.look,
+        save_look=args.save_look,
+        out=args.out,
+        overwrite=args.overwrite,
+        resume=args.resume,
+        frame_range=args.frame_range,
+        key_frames=args.key_frames,
+    )
+
+
 def run(args) -> int:
-    from .backend import use_variant
-    from .files import load_style
-    from .job import check_same_settings, load_job, settings_record, write_batch_index, write_output
-    from .outputs import is_mistyle_output, plan_outputs
-    from .pipeline import Pipeline
+    from .job import render_outputs
 
     check_options(args)
-    spec = output_spec(args)
-    settings = settings_from(args)
-    look_mode = args.look is not None or args.save_look is not None
-    sources = args.density or args.mesh
-    # A look's sequence, and any --frames chunk, merges frame by frame into its folder.
-    merging = args.frame_range is not None or (look_mode and all(Path(p).is_dir() for p in sources))
-    planned = []
-    if args.out is not None:
-        styles_given = [args.look] if args.look is not None else args.style
-        planned = plan_outputs(
-            args.density, args.mesh, styles_given, args.mix, args.out, args.overwrite or merging, args.resume
-        )
-    keep = args.resume and not args.overwrite and not merging
-    outputs = [output for output in planned if not (keep and is_mistyle_output(output.folder))]
-    for output in planned:
-        if output not in outputs:
-            check_same_settings(
-                settings_record(settings), output.folder, "--resume keeps it", "pass --overwrite to render it again"
-            )
-    batch = len(planned) > 1
-    if len(outputs) < len(planned):
-        log(f"note: --resume: {len(planned) - len(outputs)} of {len(planned)} output(s) already complete, kept")
-    for source in dict.fromkeys(sources):
-        if not Path(source).exists():
-            raise ValueError(f"{'Mesh' if args.mesh else 'Density'} {source} does not exist.")
-    styles = {}
-    if args.look is None:
-        # Every input is looked at before the first output is made, so a bad file late in a batch
-        # does not stop it half way (each density is read in full when its turn comes). Each style is
-        # decoded once, with the notes on its conversion.
-        images = [image for output in outputs for image, _ in output.style.parts]
-        if args.save_look is not None:
-            images = [path for path, _ in _look_style_parts(args)]
-        for path in dict.fromkeys(images):
-            notes: list[str] = []
-            styles[path] = (load_style(path, notes), notes)
-            for note in notes:
-                log(f"note: {note}")
-    if args.vdb or any(output.density.path.suffix.lower() == ".vdb" for output in outputs):
-        from .files.vdb import vdb_interpreter
-
-        vdb_interpreter()  # no OpenVDB binding: say so before any work
-    use_variant(args.device)
-    pipeline = Pipeline(settings, log=log)
-    look = None
-    if args.look is not None:
-        from .look import Look
-
-        look = Look.load(args.look, stylizer=pipeline.stylizer)
-        styles[args.look] = (look.style, [])
-    elif args.save_look is not None:
-        look = save_look(args, pipeline, styles)
-        if not outputs:
-            print(f"wrote the look {args.save_look}")
-            return 0
-        for output in outputs:
-            styles[output.style.parts[0][0]] = (look.style, [])
-    try:
-        for number, output in enumerate(outputs, 1):
-            if batch:
-                log(f"[{number}/{len(outputs)}] {output.name}")
-            job = load_job(spec, output, pipeline, styles, args.frame_range)
-            job.look, job.merged = look, merging
-            write_output(job)
-    finally:
-        if batch:  # also when a pair failed: the index shows the outputs that are complete
-            write_batch_index(args.out, pipeline)
-    where = f"{args.out}/ ({len(planned)} outputs and index.html)" if batch else f"{args.out}/"
-    looked = f"the look {args.save_look}, and " if args.save_look is not None else ""
-    print(f"wrote {looked}{where}: sheet.png, density and albedo grids with scene.xml, EXR + PNG images, report.json")
+    print(render_outputs(settings_from(args), output_spec(args), request_from(args), log))
     return 0
-
-
-def _look_style_parts(args) -> list[tuple[Path, float]]:
-    """The style a look is fitted to: ``--style``'s one image, or ``--mix``'s images and weights."""
-    from .outputs import style_choices
-
-    (choice,) = style_choices(args.style, args.mix)
-    return list(choice.parts)
-
-
-def save_look(args, pipeline, styles: dict):
-    """Fit the look of ``--save-look`` on the key frames of the one density, and write it."""
-    from .files import load_density_frames
-    from .look import LookSettings, parse_key_frames
-    from .progress import bar, fit_progress
-    from .style import Style
-
-    source = (args.density or args.mesh)[0]
-    if args.mesh:
-        from .data.mesh import load_mesh, voxelize
-
-        densities = [voxelize(*load_mesh(source), args.mesh_res, supersample=2)]
-        names = [Path(source).stem]
-    else:
-        loaded = load_density_frames(source, grid=args.grid, up=args.up, velocity_grid="")  # a fit needs none
-        densities, names = loaded.densities, loaded.names
-    frames = pipeline.frames(densities, None, names)
-    keys = None if args.key_frames is None else parse_key_frames(args.key_frames, len(frames.densities))
-    chosen = _look_style_parts(args)
-    style = Style(
-        tuple(styles[path][0] for path, _ in chosen),
-        tuple(weight for _, weight in chosen),
-        tuple(Path(path).name for path, _ in chosen),
-    )
-    notes: list[str] = []
-    steps = LookSettings().steps if args.look_steps is None else args.look_steps
-    with bar(steps, "fitting the look") as progress_bar:
-        look = pipeline.fit_look(
-            frames,
-            style,
-            key_frames=keys,
-            notes=notes,
-            progress=fit_progress(progress_bar),
-        )
-    for note in notes:
-        log(f"note: {note}")
-    look.save(args.save_look)
-    log(
-        f"fitted the look on frame(s) {', '.join(map(str, look.meta['key_frames']))} in "
-        f"{look.meta['fit_seconds']:.1f} s: {args.save_look}"
-    )
-    return look
 
 
 # ---------------------------------------------------------------------------- stage 0: options
@@ -536,6 +458,8 @@ def check_options(args) -> None:
 
 def check_look_options(args) -> None:
     """The options of looks and frame chunks, together (``--save-look``, ``--look``, ``--key-frames``, ``--frames``)."""
+    from .job.batch import check_look_replaceable
+
     if args.out is None and args.save_look is None:
         raise ValueError("--out is required (only --save-look alone, which writes the look file, needs none).")
     sources = (args.density or []) + (args.mesh or [])
@@ -583,21 +507,6 @@ def check_look_options(args) -> None:
             )
     else:
         args.frame_range = None
-
-
-def check_look_replaceable(path: Path, overwrite: bool) -> None:
-    """``ValueError`` unless ``--save-look path`` may be written: a new file, or with ``--overwrite`` a look."""
-    from .look import is_look_file
-
-    if not (path.exists() or path.is_symlink()):
-        return
-    if not is_look_file(path):
-        raise ValueError(
-            f"--save-look {path} already exists and is not a mistyle look; mistyle replaces only its own files. "
-            "Choose another file name."
-        )
-    if not overwrite:
-        raise ValueError(f"The look {path} already exists; pass --overwrite to replace it, or choose another name.")
 
 
 def parse_frame_range(text: str) -> tuple[int, int]:

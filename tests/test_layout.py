@@ -163,3 +163,16 @@ def test_no_function_of_the_package_is_longer_than_a_screenful_or_two():
                 if lines > MAX_FUNCTION_LINES:
                     long.append(f"{path.relative_to(ROOT.parent)}:{node.lineno} {node.name} ({lines} lines)")
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {', '.join(long)}"
+
+
+MAX_MODULE_LINES = 600
+"""A module longer than this holds more than one role: split it by role (issue #50)."""
+
+
+def test_no_module_of_the_package_is_longer_than_one_role():
+    long = [
+        f"{path.relative_to(ROOT.parent)} ({lines} lines)"
+        for path in sorted(ROOT.rglob("*.py"))
+        if (lines := len(path.read_text().splitlines())) > MAX_MODULE_LINES
+    ]
+    assert not long, f"modules over {MAX_MODULE_LINES} lines: {', '.join(long)}"

@@ -9,8 +9,6 @@ import io
 import json
 import re
 import struct
-import subprocess
-import sys
 import threading
 import time
 from dataclasses import replace
@@ -20,7 +18,9 @@ import pytest
 from PIL import Image
 
 from mistyle.pipeline import Pipeline, PipelineSettings
-from mistyle.preview.server import Jobs, build_app, controls_from
+from mistyle.preview.checks import controls_from
+from mistyle.preview.jobs import Jobs
+from mistyle.preview.server import build_app
 from mistyle.preview.session import (
     PASS_SPP,
     Camera,
@@ -65,7 +65,8 @@ def test_the_look_the_page_fits_is_the_final_renders_bit_for_bit(mi, tmp_path, t
     with the page's render options; the albedo it then shows is what ``mistyle-render`` writes."""
     from mistyle import render_final
     from mistyle.files import load_style, read_vol
-    from mistyle.preview import job_settings
+    from mistyle.preview import page_settings
+    from mistyle.preview import parser as preview_parser
 
     checkpoint = tiny_checkpoint_factory(tmp_path / "tiny.pt")
     density, style_path = tmp_path / "blob.npy", tmp_path / "warm.png"
@@ -74,8 +75,10 @@ def test_the_look_the_page_fits_is_the_final_renders_bit_for_bit(mi, tmp_path, t
     Image.fromarray((rng.random((24, 24, 3)) * [255, 160, 60]).astype(np.uint8)).save(style_path)
     image = load_style(style_path)
     options = ["--look-steps", "3", "--checkpoint", str(checkpoint), "--res", "16", "--spp", "2", "--denoise", "none"]
+    preview_options = ["--density", str(density), "--render-options", " ".join(options)]
+    settings, _ = page_settings(preview_parser().parse_args(preview_options), style_path)
     styles = [StyleOption("warm.png", image, thumbnail_jpeg(image))]
-    session = PreviewSession(Pipeline(job_settings(density, options)), [blob_density], styles, res=32)
+    session = PreviewSession(Pipeline(settings), [blob_density], styles, res=32)
     controls = session.checked(session.initial_controls())
     assert session.fits_look(controls) and session.shown_look(controls) is None
     network = session.albedo(controls)
@@ -92,6 +95,34 @@ def test_the_look_the_page_fits_is_the_final_renders_bit_for_bit(mi, tmp_path, t
     arguments = ["--density", str(density), "--style", str(style_path), "--out", str(out), "--quiet", *options]
     assert render_final.main(arguments) == 0
     np.testing.assert_array_equal(read_vol(out / "albedo_refined.vol"), shown)
+
+
+def test_the_pages_runs_write_a_look_and_an_output_in_a_process_of_their_own(mi, session, tmp_path, blob_density):
+    """*Save look* and *Render final output* run ``job.render_outputs`` in a process of their own, with the
+    page's controls and settings (no ``mistyle-render`` command line): the look file, then the output
+    folder; a look saved again under the same name is refused with one line, and the file is kept."""
+    from mistyle.files import write_png, write_vol
+    from mistyle.job import OutputSpec
+    from mistyle.look import is_look_file
+    from mistyle.pipeline import RenderSettings
+    from mistyle.preview.jobs import Jobs
+
+    density = write_vol(tmp_path / "blob.vol", blob_density)
+    paths = [write_png(tmp_path / option.name, option.image, srgb=False) for option in session.styles]
+    settings = replace(session.pipeline.settings, render=RenderSettings(res=16, spp=2, denoise="none"))
+    jobs = Jobs(tmp_path / "out", density, None, settings, OutputSpec())
+    controls = session.checked(session.initial_controls())
+    look = jobs.start("look", controls, session, paths)
+    assert jobs.wait() is None and is_look_file(look)
+    final = jobs.start("final", replace(controls, strength=0.5), session, paths)
+    assert jobs.wait() is None and (final / "report.json").is_file() and (final / "sheet.png").is_file()
+    report = json.loads((final / "report.json").read_text())
+    assert report["inputs"]["strength"] == 0.5 and report["inputs"]["res"] == 16
+    saved = look.read_bytes()
+    jobs.start("look", controls, session, paths)
+    assert "already exists" in jobs.wait() and look.read_bytes() == saved
+    with pytest.raises(ValueError, match="full strength"):
+        jobs.start("look", replace(controls, strength=0.5), session, paths)
 
 
 def test_the_page_carries_a_looks_texture_with_the_sequences_velocities(session, blob_density):
@@ -197,17 +228,15 @@ def picture_form(data: bytes, name: str = "grey.png"):
 
 @pytest.fixture
 def jobs_started(monkeypatch):
-    """``Jobs.start`` records its kind and runs an empty Python instead of ``mistyle-render``."""
+    """``Jobs.start`` records its kind and starts nothing; the run ends at once, well."""
     kinds = []
 
     def start(self, kind, controls, session, style_paths):
         kinds.append(kind)
-        self.process = subprocess.Popen(
-            [sys.executable, "-I", "-c", "pass"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-        )
         return self.out / kind
 
     monkeypatch.setattr(Jobs, "start", start)
+    monkeypatch.setattr(Jobs, "wait", lambda self: None)
     return kinds
 
 

@@ -6,6 +6,7 @@ and loads each output's inputs into a ``Job``; this package makes the files from
 ``write_output``, ``render_look_chunk``), so that a farm's workers write outputs as the command does.
 """
 
+from .batch import RenderRequest, render_outputs
 from .report import merge_chunk, write_report
 from .run import load_job, render_job, render_look_chunk, write_batch_index, write_output
 from .spec import SETTING_OPTIONS, Job, OutputSpec, check_same_settings, settings_record
@@ -14,11 +15,13 @@ __all__ = [
     "SETTING_OPTIONS",
     "Job",
     "OutputSpec",
+    "RenderRequest",
     "check_same_settings",
     "load_job",
     "merge_chunk",
     "render_job",
     "render_look_chunk",
+    "render_outputs",
     "settings_record",
     "write_batch_index",
     "write_output",

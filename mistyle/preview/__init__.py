@@ -58,8 +58,8 @@ def default_styles_folder() -> Path:
 
 
 def load(args) -> tuple:
-    """The session, the style files and the options of the page's ``mistyle-render`` runs, from the
-    command line; ``ValueError`` for bad input."""
+    """The session, the style files and the ``job.OutputSpec`` of the page's runs (their settings are the
+    session pipeline's), from the command line; ``ValueError`` for bad input."""
     from ..files import load_density_frames, load_style
     from ..look import Look
     from ..outputs import style_files
@@ -71,64 +71,43 @@ def load(args) -> tuple:
         raise ValueError(f"--res takes 64 to 1024 pixels, got {args.res}.")
     if not 0 <= args.port <= 65535:
         raise ValueError(f"--port takes 0 to 65535, got {args.port}.")
-    options = job_options(args)
-    pipeline = Pipeline(job_settings(args.density, options))
+    paths = style_files(args.styles if args.styles is not None else default_styles_folder())
+    settings, spec = page_settings(args, paths[0])
+    pipeline = Pipeline(settings)
     loaded = load_density_frames(args.density, grid=args.grid, up=args.up)
     frames, _ = checked_frames(loaded.densities, loaded.names)
-    paths = style_files(args.styles if args.styles is not None else default_styles_folder())
     styles = []
     for path in paths:
         image = load_style(path)
         styles.append(StyleOption(path.name, image, thumbnail_jpeg(image)))
     look = Look.load(args.look, pipeline.stylizer) if args.look is not None else None
     session = PreviewSession(pipeline, frames, styles, look=look, res=args.res, velocities=loaded.velocities)
-    return session, list(paths), options
+    return session, list(paths), spec
 
 
-def job_options(args) -> list[str]:
-    """The options the page's ``mistyle-render`` runs take besides the density and the style:
-    ``--render-options`` split as a shell would and checked against ``mistyle-render``'s parser, and
-    the preview's own ``--checkpoint``, ``--grid`` and ``--up``, so that a run reads the density and
-    the network the page shows."""
+def page_settings(args, style: Path) -> tuple:
+    """``(pipeline.PipelineSettings, job.OutputSpec)`` of the page's final renders and looks: ``--render-options``
+    split as a shell would, parsed and checked as ``mistyle-render`` checks its options (around the preview's
+    density, ``--out`` and ``style``, a style it shows), with the preview's ``--checkpoint``, ``--grid`` and
+    ``--up``, so that a run reads the density and the network the page shows; ``ValueError`` for a bad one."""
     import shlex
 
-    from ..render_final import parser as render_parser
+    from ..render_final import output_spec, settings_from, shared_options
 
     try:
         options = shlex.split(args.render_options)
     except ValueError as error:
         raise ValueError(f"--render-options cannot be split: {error}.") from None
-    known = {string for action in render_parser()._actions for string in action.option_strings}
-    unknown = [option for option in options if option.startswith("-") and option.split("=")[0] not in known]
-    if unknown:
-        raise ValueError(f"--render-options: mistyle-render has no option {unknown[0]}.")
-    for flag, value in (("--checkpoint", args.checkpoint), ("--grid", args.grid), ("--up", args.up)):
+    own = "mistyle-preview's own option or the page's choice: give it to mistyle-preview, not in --render-options"
+    parsed = shared_options(options, "--render-options", own, density=args.density, out=args.out, style=style)
+    for name in ("checkpoint", "grid", "up"):
+        value = getattr(args, name)
         if value is None:
             continue
-        if any(option.split("=")[0] == flag for option in options):
-            raise ValueError(f"{flag} is given to mistyle-preview and in --render-options; give it once.")
-        options += [flag, str(value)]
-    return options
-
-
-def job_settings(density, options: list[str]):
-    """The ``pipeline.PipelineSettings`` of a page's ``mistyle-render`` run with ``options`` (a look the page
-    fits is the look that run fits); ``ValueError`` with ``mistyle-render``'s complaint for a bad value."""
-    import contextlib
-    import io
-
-    from ..render_final import parser as render_parser
-    from ..render_final import settings_from
-
-    complaint = io.StringIO()
-    try:
-        with contextlib.redirect_stderr(complaint):
-            args = render_parser().parse_args(["--density", str(density), "--style", "preview", *options])
-    except SystemExit:
-        lines = [line for line in complaint.getvalue().splitlines() if line.strip()]
-        reason = lines[-1].split("error: ", 1)[-1] if lines else "not options mistyle-render takes"
-        raise ValueError(f"--render-options: {reason}.") from None
-    return settings_from(args)
+        if getattr(parsed, name) is not None:
+            raise ValueError(f"--{name} is given to mistyle-preview and in --render-options; give it once.")
+        setattr(parsed, name, value)
+    return settings_from(parsed), output_spec(parsed)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -138,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
 
         from .server import build_app
 
-        session, style_paths, options = load(args)
+        session, style_paths, spec = load(args)
         listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -153,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
             density=args.density,
             out=args.out,
             look=args.look,
-            render_options=options,
+            spec=spec,
             host=args.host,
         )
         port = listener.getsockname()[1]

@@ -11,9 +11,9 @@ pace, and its widgets are not a page a test can drive by role and label.
 
 Routes: ``/`` (the page), ``/thumb/<n>.jpg`` (the n-th style's thumbnail; styles are addressed by
 index only, so nothing outside what the server was given can be served), ``/upload`` (a picture,
-through ``session.decode_upload``), ``/job/final`` and ``/job/look`` (``mistyle-render`` runs for the
-current controls, written under ``--out``; a saved look becomes the session's), ``/ws`` (controls in,
-frames and status out).
+through ``session.decode_upload``), ``/job/final`` and ``/job/look`` (runs of ``job.render_outputs``, as
+``mistyle-render`` makes them, for the current controls, written under ``--out``; a saved look becomes the
+session's), ``/ws`` (controls in, frames and status out).
 
 Frames: header ``kind (1 byte: 0 fast layer, 1 path traced) | 3 bytes 0 | samples (uint32, little
 endian)`` then the JPEG. Each fast frame is followed by a ``status`` saying what it shows (``shows``:
@@ -45,7 +45,7 @@ a JSON ``error`` naming what was wrong:
   that alone, since the token is what it must carry: a script gets the token by reading ``/`` as the
   page does, which only a client that reaches the server at its own address can.
 
-Uploads are written to a temporary folder (``mistyle-render`` reads them by path) removed when the
+Uploads are written to a temporary folder (the page's runs read them by path) removed when the
 server stops. A run keeps at most ``MAX_UPLOADS`` of them and ``MAX_UPLOADS_BYTES`` in all; an upload
 past either is refused with 413 rather than dropping older ones, since styles are addressed by
 index: dropping one would renumber the styles under every open page and its cached images.
@@ -60,141 +60,26 @@ from __future__ import annotations
 
 import asyncio
 import html
-import ipaddress
 import json
-import math
-import re
 import secrets
-import shutil
 import struct
-import subprocess
-import sys
-import tempfile
 import threading
 import time
 from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 
-from .session import Camera, Controls, PreviewSession, jpeg
+from .checks import MAX_UPLOADS, MAX_UPLOADS_BYTES, Uploads, controls_from, refusal
+from .jobs import Jobs
+from .session import Controls, PreviewSession, jpeg
 
 IDLE_BEFORE_PATH_TRACING_S = 0.35
 FAST, PATH_TRACED = 0, 1
-TOKEN_HEADER = "X-Mistyle-Token"
 TOKEN_PLACEHOLDER = "{{MISTYLE_TOKEN}}"
-MAX_UPLOADS = 20
-"""Uploads one server run keeps (module docstring: more are refused with 413)."""
-MAX_UPLOADS_BYTES = 128 * 1024 * 1024
-"""Bytes of the uploads one server run keeps, in all (each one is limited by ``session.MAX_UPLOAD_BYTES``)."""
-CONTROL_NAMES = ("style", "mix_with", "mix", "strength", "frame", "look", "camera")
-
-
-def safe_name(name: str) -> str:
-    """``name`` with anything but letters, digits, ``_``, ``.`` and ``-`` replaced: a file name of the server's."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
 def frame_message(kind: int, samples: int, image) -> bytes:
     return struct.pack("<B3xI", kind, samples) + jpeg(image)
-
-
-def url_host(address: str) -> str:
-    """``address`` as a URL writes it: an IPv6 address in brackets."""
-    return f"[{address}]" if ":" in address and not address.startswith("[") else address
-
-
-def is_loopback(address: str) -> bool:
-    try:
-        ip = ipaddress.ip_address(address.split("%")[0])
-    except ValueError:
-        return False
-    mapped = getattr(ip, "ipv4_mapped", None)  # ::ffff:127.0.0.1 on a dual-stack socket
-    return ip.is_loopback or (mapped is not None and mapped.is_loopback)
-
-
-def allowed_hosts(local: tuple | None, host: str | None) -> set[str]:
-    """The ``Host`` values of a request that arrived on the socket address ``local`` (``(address, port,
-    ...)``): that address, localhost's names when it is loopback, and ``host`` (``--host``), each with
-    the port (and without it on port 80, as browsers send it)."""
-    if not local:
-        return set()
-    address, port = str(local[0]), int(local[1])
-    names = {url_host(address)}
-    if is_loopback(address):
-        names |= {"127.0.0.1", "localhost", "[::1]"}
-    if host:
-        names.add(url_host(host))
-    allowed = {f"{name}:{port}".lower() for name in names}
-    if port == 80:
-        allowed |= {name.lower() for name in names}
-    return allowed
-
-
-def refusal(*, method: str, path: str, headers, query, local: tuple | None, host: str | None, token: str) -> str | None:
-    """Why a request may not reach the preview (module docstring: Host, Origin, token), or ``None``."""
-    hosts = allowed_hosts(local, host)
-    shown = ", ".join(sorted(hosts)) or "none"
-    sent_host = headers.get("Host")
-    if sent_host is None:
-        return f"The request has no Host header; send the server's address ({shown})."
-    if sent_host.lower() not in hosts:
-        return (
-            f"Host {sent_host[:100]!r} is not this server's address ({shown}); "
-            "open the page at the URL mistyle-preview printed."
-        )
-    origin = headers.get("Origin")
-    if origin is not None and origin.lower() not in {f"http://{name}" for name in hosts}:
-        own = f"http://{sent_host.lower()}"
-        return f"Origin {origin[:100]!r} is not this preview's page ({own}); only the page it serves may drive it."
-    public = method in ("GET", "HEAD") and (path == "/" or path.startswith("/thumb/"))
-    if not public:  # the page and thumbnails only: a route added later needs the token from the start
-        sent = headers.get(TOKEN_HEADER) or query.get("token")
-        if not sent:
-            return (
-                f"{method} {path} needs this server run's token, in the {TOKEN_HEADER} header or a 'token' "
-                'query parameter; the page carries it in <meta name="mistyle-token">.'
-            )
-        if not secrets.compare_digest(sent.encode(), token.encode()):
-            return (
-                f"The token of {method} {path} is not this server run's; reload the page "
-                "(a page from an earlier run of mistyle-preview holds an old one)."
-            )
-    return None
-
-
-class Uploads:
-    """The pictures uploaded in one server run, kept in a temporary folder for ``mistyle-render``'s
-    ``--style``: at most ``max_count`` files and ``max_bytes`` in all (module docstring)."""
-
-    def __init__(self, max_count: int = MAX_UPLOADS, max_bytes: int = MAX_UPLOADS_BYTES):
-        self.max_count, self.max_bytes = int(max_count), int(max_bytes)
-        self.folder: Path | None = None  # made at the first upload
-        self.sizes: list[int] = []
-
-    def refusal(self, size: int = 0, name: str = "the upload") -> str | None:
-        """Why one more upload of ``size`` bytes may not be kept, or ``None``."""
-        used = sum(self.sizes)
-        advice = "restart mistyle-preview to upload more, or put the pictures in a folder given to --styles."
-        if len(self.sizes) >= self.max_count:
-            return f"This preview keeps {self.max_count} uploads at most and has {len(self.sizes)}; {advice}"
-        if used + size > self.max_bytes:
-            return (
-                f"{name} ({size / 2**20:.1f} MB) would take the uploads past {self.max_bytes / 2**20:.0f} MB "
-                f"({used / 2**20:.1f} MB kept); {advice}"
-            )
-        return None
-
-    def keep(self, index: int, name: str, data: bytes) -> Path:
-        if self.folder is None:
-            self.folder = Path(tempfile.mkdtemp(prefix="mistyle-preview-styles-"))
-        path = self.folder / f"{index:03d}_{safe_name(name)}"
-        path.write_bytes(data)
-        self.sizes.append(len(data))
-        return path
-
-    def remove(self) -> None:
-        if self.folder is not None:
-            shutil.rmtree(self.folder, ignore_errors=True)
 
 
 class FitCancelled(Exception):
@@ -318,39 +203,6 @@ class Worker(threading.Thread):
             self.session.fit_look(controls, progress)
 
 
-class Jobs:
-    """``mistyle-render`` runs started from the page (final output, a look), one at a time."""
-
-    def __init__(self, out: Path, density: Path, look: Path | None, options: list[str]):
-        self.out, self.density, self.look, self.options = out, density, look, options
-        self.process: subprocess.Popen | None = None
-
-    def start(self, kind: str, controls: Controls, session: PreviewSession, style_paths: list[Path]) -> Path:
-        if self.process is not None and self.process.poll() is None:
-            raise ValueError("A render started from the preview is still running; wait for it to finish.")
-        command = [sys.executable, "-m", "mistyle.render_final", "--density", str(self.density), "--quiet"]
-        if controls.look:
-            name = f"look_{self.look.stem}"
-            command += ["--look", str(self.look)]
-        else:
-            name = safe_name(Path(style_paths[controls.style].name).stem)
-            command += session.style_arguments(controls, style_paths)
-        if kind == "look":
-            if controls.look:
-                raise ValueError("This is a look already; pick a style to fit a new one.")
-            target = self.out / f"{name}.look"
-            command += ["--save-look", str(target)]
-        else:
-            target = self.out / name
-            command += ["--out", str(target), "--overwrite"]
-        command += self.options
-        self.out.mkdir(parents=True, exist_ok=True)
-        self.process = subprocess.Popen(
-            command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True
-        )
-        return target
-
-
 def build_app(
     session: PreviewSession,
     *,
@@ -358,21 +210,21 @@ def build_app(
     density: Path,
     out: Path,
     look: Path | None,
-    render_options: list[str] = (),
+    spec=None,
     host: str | None = None,
     max_uploads: int = MAX_UPLOADS,
     max_uploads_bytes: int = MAX_UPLOADS_BYTES,
 ):
-    """The aiohttp application of the preview (module docstring). ``render_options``: more
-    ``mistyle-render`` options for the page's jobs; ``host``: the address it was told to listen on
-    (``--host``), a ``Host`` it answers besides the socket's own address; ``max_uploads`` and
-    ``max_uploads_bytes``: what a run keeps of uploads."""
+    """The aiohttp application of the preview (module docstring). ``spec``: the ``job.OutputSpec`` of the
+    page's runs (None: the default one), whose settings are the session pipeline's; ``host``: the address it
+    was told to listen on (``--host``), a ``Host`` it answers besides the socket's own address;
+    ``max_uploads`` and ``max_uploads_bytes``: what a run keeps of uploads."""
     from aiohttp import web
 
     preview = PreviewApp(
         session,
         style_paths,
-        Jobs(out, density, look, list(render_options)),
+        Jobs(out, density, look, session.pipeline.settings, spec),
         host,
         Uploads(max_uploads, max_uploads_bytes),
     )
@@ -522,10 +374,8 @@ class PreviewApp:
 
     async def watch(self, kind: str, target: Path) -> None:
         """Until the page's job ends, then tell every page how it went; a saved look becomes the session's."""
-        process = self.jobs.process
-        output = await asyncio.get_running_loop().run_in_executor(None, process.communicate)
-        lines = [line for line in (output[0] or "").splitlines() if line.strip()]
-        if process.returncode == 0:
+        error = await asyncio.get_running_loop().run_in_executor(None, self.jobs.wait)
+        if error is None:
             message = {"type": "job", "kind": kind, "done": True, "path": str(target)}
             if kind == "look":  # the page can apply the look it just saved
                 from ..look import Look
@@ -534,7 +384,7 @@ class PreviewApp:
                 self.jobs.look = target
                 await self.send_state()
         else:
-            message = {"type": "job", "kind": kind, "error": lines[-1] if lines else "mistyle-render failed"}
+            message = {"type": "job", "kind": kind, "error": error}
         for socket in list(self.sockets):
             await socket.send_json(message)
 
@@ -572,89 +422,3 @@ class PreviewApp:
         # A daemon thread killed inside Mitsuba at exit aborts the process: let it finish its pass.
         await asyncio.get_running_loop().run_in_executor(None, self.worker.join, 60)
         self.uploads.remove()
-
-
-def shown(value) -> str:
-    """``value`` as a JSON-ish text short enough for a message."""
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
-def checked_number(name: str, value) -> float:
-    """``value`` as a finite float; ``ValueError`` naming ``name`` otherwise (a bool is not a number)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{name} {shown(value)} is not a number; send a JSON number.")
-    try:
-        result = float(value)
-    except OverflowError:
-        result = math.inf
-    if not math.isfinite(result):
-        raise ValueError(f"{name} {shown(value)} is not a finite number; send a finite JSON number.")
-    return result
-
-
-def checked_index(name: str, value, count: int | None, what: str) -> int:
-    """``value`` as an index into ``count`` things (``None``: any from 0); ``ValueError`` otherwise."""
-    if isinstance(value, float) and value.is_integer():
-        value = int(value)
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ValueError(f"{name} {shown(value)} is not an integer; send the index of one of the {what}.")
-    if value < 0 or (count is not None and value >= count):
-        bounds = f"0 to {count - 1}" if count is not None else "0 or more"
-        raise ValueError(f"{name} {shown(value)} is not one of the {what} ({bounds}).")
-    return value
-
-
-def controls_from(current: Controls, fields, session: PreviewSession | None = None) -> Controls:
-    """``current`` with the fields a page sent (a JSON object of ``style``, ``mix_with``, ``mix``,
-    ``strength``, ``frame``, ``look``, ``camera``: ``[azimuth, elevation, distance]``).
-
-    Every field is checked, and against ``session``'s styles, frames and look when given; the camera is
-    then clamped to the orbit by ``session.checked``, as the page clamps it.
-
-    Raises:
-        ValueError: an unknown field or a bad value, named with what it takes; nothing of the message
-            is applied."""
-    if not isinstance(fields, dict):
-        raise ValueError(f"a control message is a JSON object of {', '.join(CONTROL_NAMES)}; got {shown(fields)}.")
-    unknown = sorted(str(name) for name in fields if name not in CONTROL_NAMES)
-    if unknown:
-        raise ValueError(f"unknown control {shown(unknown[0])}; the controls are {', '.join(CONTROL_NAMES)}.")
-    styles = len(session.styles) if session is not None else None
-    changes = {}
-    if "style" in fields:
-        changes["style"] = checked_index("style", fields["style"], styles, "styles")
-    if "mix_with" in fields and fields["mix_with"] is not None:
-        try:
-            changes["mix_with"] = checked_index("mix_with", fields["mix_with"], styles, "styles")
-        except ValueError as error:
-            raise ValueError(f"{error} Send null for no second style.") from None
-    elif "mix_with" in fields:
-        changes["mix_with"] = None
-    for name in ("mix", "strength"):
-        if name in fields:
-            value = checked_number(name, fields[name])
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f"{name} {shown(fields[name])} is outside 0 to 1.")
-            changes[name] = value
-    if "frame" in fields:
-        frames = len(session.frames) if session is not None else None
-        changes["frame"] = checked_index("frame", fields["frame"], frames, "frames")
-    if "look" in fields:
-        value = fields["look"]
-        if not isinstance(value, bool):
-            raise ValueError(f"look {shown(value)} is not true or false.")
-        if value and session is not None and session.look is None:
-            raise ValueError("look true: this preview has no look; start it with --look or save one (Save look).")
-        changes["look"] = value
-    if "camera" in fields:
-        camera = fields["camera"]
-        if not isinstance(camera, (list, tuple)) or len(camera) != 3:
-            raise ValueError(f"camera {shown(camera)} is not [azimuth, elevation, distance].")
-        azimuth, elevation, distance = (
-            checked_number(f"camera {part}", value) for part, value in zip(("azimuth", "elevation", "distance"), camera)
-        )
-        if distance <= 0:
-            raise ValueError(f"camera distance {shown(camera[2])} is not positive.")
-        changes["camera"] = Camera(azimuth, elevation, distance)
-    return replace(current, **changes)

@@ -378,15 +378,12 @@ class PreviewSession:
             yield (total / (number + 1)).astype(np.float32), (number + 1) * PASS_SPP
 
     # ------------------------------------------------------------------ outputs
-    def style_arguments(self, controls: Controls, style_paths: list[Path]) -> list[str]:
-        """``mistyle-render``'s style options for ``controls`` (``style_paths``: each style's file)."""
+    def style_request(self, controls: Controls, style_paths: list[Path]) -> dict:
+        """The style of ``controls`` as a ``job.RenderRequest`` takes it (``style_paths``: each style's file):
+        ``{"style": (path,)}``, or ``{"mix": ("PATH:WEIGHT", ...)}``."""
         key = controls.style_key
         if key[1] is None:
-            arguments = ["--style", str(style_paths[controls.style])]
-        else:
-            # repr: the weights parse back to the very floats the preview's look was fitted with
-            first, second = mix_weights(key[2])
-            arguments = ["--mix", f"{style_paths[controls.style]}:{first!r}", f"{style_paths[key[1]]}:{second!r}"]
-        if controls.strength < 1.0:
-            arguments += ["--strength", f"{controls.strength:g}"]
-        return arguments
+            return {"style": (style_paths[controls.style],)}
+        # repr: the weights parse back to the very floats the preview's look was fitted with
+        first, second = mix_weights(key[2])
+        return {"mix": (f"{style_paths[controls.style]}:{first!r}", f"{style_paths[key[1]]}:{second!r}")}

@@ -128,7 +128,7 @@ def _train_locked(args, overrides: list[str]) -> int:
     config = load_config(args.config, overrides)
     if args.optimize:
         from .baseline import compare_with_direct_fit
-        from .trainer import check_run_folder, record_files
+        from .run_folder import check_run_folder, record_files
 
         check_run_folder(args.out, resume=False)
         code = compare_with_direct_fit(config, args.out, args.checkpoint, args.optimize_steps, args.optimize_styles)

@@ -202,7 +202,8 @@ def run_recipe(chosen: Recipe, out: Path, overrides: list[str] | None = None, lo
     from ..files import atomic_write_bytes
     from ..model.config import load_config
     from ..ownership import write_manifest
-    from .trainer import Trainer, record_files
+    from .run_folder import record_files
+    from .trainer import Trainer
 
     out = Path(out)
     check_recipe_folder(out, chosen)

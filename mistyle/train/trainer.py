@@ -22,10 +22,8 @@ taken over when resumed from its ``last.pt``.
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import re
 import resource
 import signal
 import time
@@ -48,7 +46,7 @@ from ..model.config import TrainConfig, config_from_dict, config_to_dict, drop_r
 from ..model.features import make_extractor
 from ..model.skpn import parameter_count
 from ..objective.losses import temporal_loss, tv_loss
-from ..objective.masks import body_mask, render_mask
+from ..objective.masks import body_mask
 from ..objective.metrics import (
     foreground_mask,
     multiview_spread,
@@ -61,36 +59,7 @@ from ..scenes import CameraPath
 from ..tone import tone_map
 from ..version import __version__
 from .dataset import SmokePairs, StyleSet, augment_styles
-
-RUN_KIND = "train"
-RUN_LAYOUT = re.compile(
-    r"config\.toml|metrics\.jsonl|(last|final|best|chosen)\.pt|steps/step_\d{6}\.pt|previews/step_\d{6}\.png"
-    r"|tb/events\.out\.tfevents\.[^/]+|baseline\.json"
-)
-"""The files of a run folder: what one an older mistyle wrote (no manifest) may hold to be resumed."""
-TENSORBOARD_FILE = re.compile(r"tb/events\.out\.tfevents\.[^/]+")
-"""TensorBoard's event files: each writer makes a new one (never replacing a file), named as it starts."""
-RUN_FILES = ["config.toml", "metrics.jsonl", "last.pt", "final.pt", "best.pt"]
-"""The files a run writes whose names are known before it starts."""
-
-
-def check_run_folder(out: Path, resume: bool) -> None:
-    """``ValueError`` (one line) unless ``out`` may take this run: missing, or a folder holding only
-    mistyle's files (with ``resume``, also a run folder an older mistyle wrote)."""
-    from ..ownership import check_replaceable, read_manifest
-
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"The output path {out} is a file; choose a folder for --out.")
-    older = resume and out.is_dir() and read_manifest(out) is None
-    layout = RUN_LAYOUT if older else TENSORBOARD_FILE
-    check_replaceable(out, "--out", also_ours=lambda name: layout.fullmatch(name) is not None)
-
-
-def record_files(out: Path, **changes) -> None:
-    """``ownership.update_manifest`` of the run folder ``out`` (kind ``train``)."""
-    from ..ownership import update_manifest
-
-    update_manifest(out, RUN_KIND, **changes)
+from .run_folder import RUN_FILES, RUN_KIND, RUN_LAYOUT, RunLog, check_run_folder, record_files, trim_metrics
 
 
 class Interrupted(Exception):
@@ -192,7 +161,7 @@ class Trainer:
             self._initialise_from(Path(init))
         self.best = math.inf
         self.interrupted = False
-        self._tensorboard = None
+        self.run_log = RunLog(self.out)
         self.log(
             f"SKPN: {parameter_count(self.model) / 1e6:.2f} M parameters; {len(self.data.train)} training pairs "
             f"({self.data.shape} voxels), {len(self.styles.train)} training styles; "
@@ -363,14 +332,14 @@ class Trainer:
             record_files(self.out, add=RUN_FILES)
             atomic_write_bytes(self.out / "config.toml", to_toml(config_to_dict(config)).encode())
             record_files(self.out, rewritten=["config.toml"])
-            seen = [record.get("val_rgb_swd") for record in self._trim_metrics()]
+            seen = [record.get("val_rgb_swd") for record in trim_metrics(self.out, self.step)]
             # A resumed run's best so far, so that best.pt only improves.
             self.best = min([value for value in seen if isinstance(value, (int, float))], default=math.inf)
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         self._bar = bar(config.optim.steps, "training", initial=self.step) if self.rank == 0 else None
         try:
             if self.step == 0:
-                self._log_record({"step": 0, **self.evaluate()})
+                self.run_log.record({"step": 0, **self.evaluate()}, self.rank)
             window_start, window_steps = time.perf_counter(), 0
             while self.step < config.optim.steps:
                 values, visuals = self.train_step()
@@ -397,9 +366,9 @@ class Trainer:
                     }
                     if evaluate:
                         record.update(self.evaluate())
-                        self._tensorboard_images(visuals)
+                        self.run_log.images(self.step, visuals, self.rank)
                         self._keep_best(record)
-                    self._log_record(record)
+                    self.run_log.record(record, self.rank)
                     self._progress(record)
                 if self.step % config.run.checkpoint_every == 0 or self.interrupted:
                     kept = [f"steps/step_{self.step:06d}.pt"] if config.run.keep_checkpoints else []
@@ -419,8 +388,7 @@ class Trainer:
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-            if self._tensorboard is not None:
-                self._tensorboard.close()
+            self.run_log.close()
             if self._bar is not None:
                 self._bar.close()
             if self.rank == 0:
@@ -527,7 +495,7 @@ class Trainer:
             record_files(self.out, add=[name])
             write_png(self.out / name, preview, srgb=False)
             record_files(self.out, rewritten=[name], done=[name])
-            self._tb().add_image("val/preview", preview, self.step, dataformats="HWC")
+            self.run_log.tensorboard().add_image("val/preview", preview, self.step, dataformats="HWC")
         record = {"val_dark_renders": dark} if dark else {}
         if not fidelity:
             self.log(f"step {self.step}: every validation render is black (albedo near zero); no validation metrics")
@@ -541,57 +509,6 @@ class Trainer:
         }
 
     # ------------------------------------------------------------------ logging
-    def _log_record(self, record: dict) -> None:
-        if self.rank != 0:
-            return
-        with open(self.out / "metrics.jsonl", "a") as handle:
-            handle.write(json.dumps(record) + "\n")
-        tb = self._tb()
-        for key, value in record.items():
-            if key != "step":
-                tb.add_scalar(("val/" if key.startswith("val_") else "train/") + key, value, record["step"])
-
-    def _trim_metrics(self) -> list[dict]:
-        """Drop records past the restored step (written after the checkpoint a killed run resumed from;
-        a new run keeps none) and a last line cut short by a kill; the records kept. ``ValueError``
-        naming the file and line for any other line that is not a record."""
-        path = self.out / "metrics.jsonl"
-        if not path.is_file():
-            return []
-        lines = path.read_bytes().splitlines()
-        kept = []
-        for number, raw in enumerate(lines, 1):
-            try:
-                record = json.loads(raw.decode("utf-8")) if raw.strip() else None
-                if record is not None and not (isinstance(record, dict) and isinstance(record.get("step"), int)):
-                    raise ValueError("not a record with a step")
-            except (UnicodeDecodeError, ValueError):
-                if number == len(lines):
-                    continue  # the line a killed run was appending
-                raise ValueError(
-                    f"{path}, line {number}, is not a training record; the file is damaged: restore it, or "
-                    "delete that line, and resume again."
-                ) from None
-            if record is not None and self.step > 0 and record["step"] <= self.step:
-                kept.append(record)
-        atomic_write_bytes(path, "".join(json.dumps(record) + "\n" for record in kept).encode())
-        return kept
-
-    def _tb(self):
-        if self._tensorboard is None:
-            from torch.utils.tensorboard import SummaryWriter
-
-            self._tensorboard = SummaryWriter(str(self.out / "tb"))
-        return self._tensorboard
-
-    def _tensorboard_images(self, visuals: dict) -> None:
-        if self.rank != 0:
-            return
-        tb, images = self._tb(), visuals["images"][0]  # the first batch item's views
-        tb.add_image("train/style", visuals["styles"][0].clamp(0, 1), self.step)
-        tb.add_images("train/views", tone_map(images).clamp(0, 1), self.step)
-        tb.add_images("train/masks", render_mask(images), self.step)
-
     def _progress(self, record: dict) -> None:
         """The losses on the progress bar (on a terminal), else as a status line (logs, ``nohup``)."""
         if self.rank != 0:

@@ -55,7 +55,7 @@ def main() -> None:
     density = split_density(spec)
     style = load_style(VALIDATION_STYLE_DIR / f"{STYLE}.jpg")
     stylizer = Stylizer()
-    previous = LookSettings(texture_side=32, texture_start="zeros")
+    previous = LookSettings(texture_side=32, texture_start_strength=0.0)
     arms = {
         "previous look, loss by sorting": (sorted_sliced_loss, previous),
         "previous look, loss by rank": (ranked, previous),

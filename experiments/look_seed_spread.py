@@ -22,6 +22,10 @@ import argparse
 import json
 from pathlib import Path
 
+FROZEN_AT = "a2cd51f"
+"""The last commit whose ``LookSettings`` has this study's arms (removed from the product on 2026-12-05): a
+frozen study, run from a checkout of that commit."""
+
 
 def main() -> None:
     from study import add_metric_arguments
@@ -34,6 +38,9 @@ def main() -> None:
     parser.add_argument("--split-fit", action="store_true", help="views' seed against the objective's")
     add_metric_arguments(parser)
     args = parser.parse_args()
+    from study import require_frozen_commit
+
+    require_frozen_commit(__file__, FROZEN_AT)
 
     if args.split_fit:
         split_fit(args)

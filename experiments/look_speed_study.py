@@ -185,6 +185,11 @@ def versus_table(rows: list[dict], versus: str) -> list[str]:
     return lines
 
 
+FROZEN_AT = "a2cd51f"
+"""The last commit whose ``LookSettings`` has this study's arms (removed from the product on 2026-12-05): a
+frozen study, run from a checkout of that commit."""
+
+
 def main() -> None:
     from study import add_metric_arguments
 
@@ -197,6 +202,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("results/look_speed"))
     add_metric_arguments(parser)
     args = parser.parse_args()
+    from study import require_frozen_commit
+
+    require_frozen_commit(__file__, FROZEN_AT)
 
     from study import metric_views, score
 

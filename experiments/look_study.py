@@ -48,6 +48,11 @@ ARMS = {
 }
 
 
+FROZEN_AT = "a2cd51f"
+"""The last commit whose ``LookSettings`` has this study's arms (removed from the product on 2026-12-05): a
+frozen study, run from a checkout of that commit."""
+
+
 def main() -> None:
     from study import add_metric_arguments
 
@@ -59,6 +64,9 @@ def main() -> None:
     parser.add_argument("--list", action="store_true")
     add_metric_arguments(parser)
     args = parser.parse_args()
+    from study import require_frozen_commit
+
+    require_frozen_commit(__file__, FROZEN_AT)
     if args.list:
         for name, settings in ARMS.items():
             print(f"{name}: {settings}")

@@ -1,8 +1,8 @@
 """Does a solid texture of the style give the look the style's structure? (#48 parts 3-5)
 
 Arms, each a look fitted on the pair's density and applied (``benchmark.methods``' ``look``), differing
-only in how the look's texture starts (``LookSettings.texture_start``), next to the training-free
-baselines with the product's colour match:
+only in how the look's texture starts (``LookSettings.texture_start_strength``; 0: from zeros), next to the
+training-free baselines with the product's colour match:
 
 * ``look_zeros``: the look before this study (a 32-texel texture started at zero);
 * ``look_solid2``/``look_solid4``: a 64-texel texture started from a solid texture of the style
@@ -52,16 +52,16 @@ DENSITIES = ("val_smoke64", "val_pyroclastic64")
 REAL_DENSITIES = ("usd_puff", "mitsuba_smoke")
 STYLES = ("klimt_the_kiss", "photo_nasa_io_global", "ciurlionis_fairy_tale_of_the_castle")
 ARMS = {
-    "look_zeros": dict(texture_side=32, texture_start="zeros"),  # the look until the solid-texture start
-    "look_solid2": dict(texture_side=64, texture_start="solid", texture_start_strength=2.0),
-    "look_solid4": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0),
-    "look_solid4_tv1": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, tv_weight=1.0),
-    "look_solid4_tv0": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, tv_weight=0.0),
-    "look_solid4_kept": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, texture_lr=0.0),
-    "look_solid8": dict(texture_side=64, texture_start="solid", texture_start_strength=8.0),
-    "look_solid4_steps0": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, steps=0),
-    "look_solid4_steps30": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, steps=30),
-    "look_solid4_patch1": dict(texture_side=64, texture_start="solid", texture_start_strength=4.0, patch_weight=1.0),
+    "look_zeros": dict(texture_side=32, texture_start_strength=0.0),  # the look until the solid-texture start
+    "look_solid2": dict(texture_side=64, texture_start_strength=2.0),
+    "look_solid4": dict(texture_side=64, texture_start_strength=4.0),
+    "look_solid4_tv1": dict(texture_side=64, texture_start_strength=4.0, tv_weight=1.0),
+    "look_solid4_tv0": dict(texture_side=64, texture_start_strength=4.0, tv_weight=0.0),
+    "look_solid4_kept": dict(texture_side=64, texture_start_strength=4.0, texture_lr=0.0),
+    "look_solid8": dict(texture_side=64, texture_start_strength=8.0),
+    "look_solid4_steps0": dict(texture_side=64, texture_start_strength=4.0, steps=0),
+    "look_solid4_steps30": dict(texture_side=64, texture_start_strength=4.0, steps=30),
+    "look_solid4_patch1": dict(texture_side=64, texture_start_strength=4.0, patch_weight=1.0),
 }
 
 

@@ -70,3 +70,18 @@ def arm_study(description: str, out, register_arms, validation_pairs, argv=None,
         run(out / "heldout", split_pairs("heldout"), [args.heldout], split="heldout", **scoring)
     else:
         run(out, validation_pairs(), ["default", *baselines] + arms, split="validation", **scoring)
+
+
+def require_frozen_commit(script: str, commit: str) -> None:
+    """Stop a frozen study run on a later commit (whose settings no longer have its arms), naming the
+    checkout it runs from."""
+    import subprocess
+    from pathlib import Path
+
+    here = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    if here and not here.startswith(commit) and not commit.startswith(here):
+        name = Path(script).name
+        raise SystemExit(
+            f"{name} is a frozen study: it ran at commit {commit}, whose LookSettings has its arms. Run it there: "
+            f"git worktree add /tmp/frozen {commit} && cd /tmp/frozen && python experiments/{name} ..."
+        )

@@ -81,7 +81,7 @@ def test_a_fit_changes_the_network_and_a_saved_look_stylizes_as_the_fitted_one(
 def test_a_texture_only_look_leaves_the_network_as_it_was(stylizer, blob_density, style):
     """LookSettings.fixed_stage "logits": the head's logits are computed once, and the look keeps the
     network's kernels and convolutions; only its texture moves."""
-    settings = LookSettings(steps=STEPS, tune_sites=(), tune_decoder=(), colour_match="none")
+    settings = LookSettings(steps=STEPS, tune_sites=(), tune_decoder=())
     assert settings.fixed_stage == "logits" and LookSettings().fixed_stage == "body"
     assert LookSettings(tune_sites=()).fixed_stage == "site" and LookSettings(tune_sites=(2, 3)).fixed_stage is None
     textured = fit_look(stylizer, [blob_density], style, settings=settings)
@@ -94,7 +94,7 @@ def test_a_texture_only_look_leaves_the_network_as_it_was(stylizer, blob_density
         stylizer,
         [blob_density],
         style,
-        settings=LookSettings(steps=0, tune_sites=(), tune_decoder=(), colour_match="none"),
+        settings=LookSettings(steps=0, tune_sites=(), tune_decoder=()),
     )
     assert not np.allclose(textured.stylize(blob_density), untextured.stylize(blob_density))
     with pytest.raises(ValueError, match="must fit something"):
@@ -109,7 +109,7 @@ def test_the_fit_folds_the_head_and_fits_what_the_plain_head_fits(stylizer, blob
     from mistyle.model.skpn import SKPN
 
     monkeypatch.setattr(skpn, "inference_precision", lambda device: "fp32")
-    settings = LookSettings(steps=STEPS, colour_match="none")
+    settings = LookSettings(steps=STEPS)
     calls = []
     folded_head_logits = SKPN.folded_head_logits
     monkeypatch.setattr(SKPN, "folded_head_logits", lambda *a: calls.append(1) or folded_head_logits(*a))
@@ -119,44 +119,7 @@ def test_the_fit_folds_the_head_and_fits_what_the_plain_head_fits(stylizer, blob
     plain = fit_look(stylizer, [blob_density], style, settings=settings)
     for key, value in plain.kernels.sites[3].items():
         torch.testing.assert_close(folded.kernels.sites[3][key], value, rtol=1e-3, atol=1e-5)
-    np.testing.assert_allclose(folded.stylize(blob_density), plain.stylize(blob_density), atol=1e-4)
-
-
-def test_coarse_steps_fit_averaged_features_whose_head_is_one_matrix_product(stylizer, blob_density, style):
-    import copy
-
-    import torch.nn.functional as F
-
-    from mistyle.look import coarse_frame, frame_albedo, patch_matrix, prepare_frame
-
-    features, weight = torch.randn(5, 6, 7, 9), torch.randn(3, 5, 3, 3, 3)
-    product = (patch_matrix(features) @ weight.reshape(3, -1).T).T.reshape(3, 6, 7, 9)
-    torch.testing.assert_close(product, F.conv3d(features[None], weight, padding=1)[0], rtol=1e-4, atol=1e-4)
-
-    network = copy.deepcopy(stylizer.trained.model).float().eval()
-    kernels = stylizer.kernels(style).without_noise()
-    frame = coarse_frame(prepare_frame(network, blob_density, 1.0, None, kernels, "body"), 2)
-    assert frame["grid"].shape == (8, 9, 10)
-    with torch.no_grad():
-        by_product = frame_albedo(network, frame, kernels)
-        by_convolution = frame_albedo(network, {**frame, "patches": None}, kernels)
-    assert by_product.shape == (3, 8, 9, 10)
-    torch.testing.assert_close(by_product, by_convolution, rtol=1e-4, atol=1e-5)
-
-    seen = []
-    coarse = fit_look(
-        stylizer,
-        [blob_density],
-        style,
-        settings=LookSettings(steps=1, coarse_steps=2),
-        progress=lambda step, steps, loss: seen.append((step, steps)),
-    )
-    assert seen == [(1, 3), (2, 3), (3, 3)]
-    fine = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=1))
-    assert not torch.equal(coarse.kernels.sites[3]["gamma"], fine.kernels.sites[3]["gamma"])
-    assert np.isfinite(coarse.stylize(blob_density)).all()
-    with pytest.raises(ValueError, match="coarse_factor"):
-        LookSettings(coarse_factor=3)
+    np.testing.assert_allclose(folded.network_albedo(blob_density), plain.network_albedo(blob_density), atol=1e-4)
 
 
 def test_a_texture_is_stretched_over_the_crop_as_trilinear_interpolation_would():
@@ -192,15 +155,20 @@ def test_a_texture_is_stretched_over_the_crop_as_trilinear_interpolation_would()
     )
 
 
-def test_a_cosine_schedule_fits_and_bad_schedules_or_view_samplings_are_refused(stylizer, blob_density, style):
-    cosine = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS, lr_schedule="cosine"))
-    constant = fit_look(stylizer, [blob_density], style, settings=LookSettings(steps=STEPS))
-    assert cosine.meta["settings"]["lr_schedule"] == "cosine"
-    assert not torch.equal(cosine.kernels.sites[3]["gamma"], constant.kernels.sites[3]["gamma"])
-    with pytest.raises(ValueError, match="lr_schedule"):
-        LookSettings(lr_schedule="step")
-    with pytest.raises(ValueError, match="view_sampling"):
-        LookSettings(view_sampling="grid")
+def test_a_look_a_study_fitted_with_noise_fields_is_refused_in_one_line(look, tmp_path):
+    """Noise fields were a study's arm (``LookSettings.noise_channels``, removed): a look file that has them,
+    intact, is refused with the fix rather than applied without them."""
+    from mistyle.look.fitted import PAYLOAD_DIGEST_KEY, payload_digest
+
+    path = look.save(tmp_path / "ours.look")
+    record = torch.load(path, weights_only=True)
+    record["noise_weight"] = torch.zeros(3, 8)
+    record["meta"] = {**record["meta"], "noise_channels": 8}
+    record[PAYLOAD_DIGEST_KEY] = payload_digest(record)
+    studied = tmp_path / "studied.look"
+    torch.save(record, studied)
+    with pytest.raises(ValueError, match=r"noise fields, which only a study fitted.*fit it again with --save-look"):
+        Look.load(studied, stylizer=look.stylizer)
 
 
 def test_frames_are_stylized_each_on_its_own(look, blob_density):

@@ -24,8 +24,7 @@ What a look holds (``LOOK_VERSION`` 1), chosen by measurement (``experiments/loo
   the head's tanh: strokes and grain where the density alone has no structure. It starts as a solid
   texture of the style (``mistyle.solid_texture``: every slice has the style's patches), scaled in the
   head's logits. It lies over the box; in a sequence with velocities it travels with them
-  (``mistyle.advection``). Optionally (off by default) smooth-noise fields the
-  head weighs.
+  (``mistyle.advection``).
 * **The colour match's map** (``colour_match.ColourMatch``), fitted after the fit on the albedo of the
   first key frame the layer sees: a function of colour, shared by every frame like a sequence's.
 * The style's thumbnail (``THUMBNAIL_SIDE`` pixels), the density scale, the orbit and the fit's
@@ -52,50 +51,36 @@ from .fitted import (
     payload_digest,
 )
 from .frames import (
-    NOISE_SCALES,
     THUMBNAIL_SIDE,
     advected_texture,
-    coarse_frame,
     cropped_fit,
     frame_albedo,
     frame_key,
-    look_noise,
-    patch_matrix,
     prepare_frame,
     solid_texture_start,
     stretch_texture,
     thumbnail_of,
 )
 from .settings import (
-    COLOUR_MATCH_MODES,
-    LR_SCHEDULES,
-    TEXTURE_STARTS,
-    VIEW_SAMPLINGS,
     LookSettings,
     default_key_frames,
     parse_key_frames,
 )
 
 __all__ = [
-    "COLOUR_MATCH_MODES",
     "DENSITY_SCALE_TOLERANCE",
     "DIVERGENCE_WINDOW",
     "LOOK_FORMAT",
     "LOOK_VERSION",
-    "LR_SCHEDULES",
     "MAX_LOOK_VALUE",
-    "NOISE_SCALES",
     "PAYLOAD_DIGEST_KEY",
     "SIZE_RATIO_NOTE",
-    "TEXTURE_STARTS",
     "THUMBNAIL_SIDE",
-    "VIEW_SAMPLINGS",
     "Look",
     "LookSettings",
     "advected_texture",
     "check_look_record",
     "checkpoint_digest",
-    "coarse_frame",
     "cropped_fit",
     "default_key_frames",
     "diverged",
@@ -103,9 +88,7 @@ __all__ = [
     "frame_albedo",
     "frame_key",
     "is_look_file",
-    "look_noise",
     "parse_key_frames",
-    "patch_matrix",
     "payload_digest",
     "prepare_frame",
     "solid_texture_start",

@@ -12,7 +12,6 @@ import numpy as np
 
 from .fitted import Look, checkpoint_digest
 from .frames import (
-    coarse_frame,
     cropped_fit,
     frame_albedo,
     frame_key,
@@ -44,7 +43,6 @@ def fit_look(
     each step. ``style_names``: what the look calls its style (default: the image files' names).
     ``prepared(index)``: frame ``index`` prepared for the fast layer at ``density_scale``, when the
     caller keeps them (``pipeline.Frames.prepared``); else each key frame is prepared here."""
-    import torch
 
     from ..integrators import prepare_density
     from ..model.skpn import StylizingKernels
@@ -66,27 +64,18 @@ def fit_look(
     fit = _tuned_parameters(stylizer, style, target, densities[keys[0]].shape, settings)
 
     # Per key frame, what does not change during the fit: the encoder's features (and the decoder as far
-    # as nothing in it is tuned, LookSettings.fixed_stage), the crop, the noise and the layer's Ls grid.
+    # as nothing in it is tuned, LookSettings.fixed_stage), the crop and the layer's Ls grid.
     fixed_kernels = StylizingKernels(fit.free) if settings.fixed_stage is not None else None
     frames = []
     for key in keys:
         raise_if_requested()
-        frames.append(
-            prepare_frame(fit.network, densities[key], scale_structures, fit.noise, fixed_kernels, settings.fixed_stage)
-        )
+        frames.append(prepare_frame(fit.network, densities[key], scale_structures, fixed_kernels, settings.fixed_stage))
     prepared_densities = []
     for key in keys:
         raise_if_requested()
         prepared_densities.append(prepare_density(densities[key], density_scale) if prepared is None else prepared(key))
 
-    def fit_match(key_albedo):
-        return _key_frame_match(key_albedo, [densities[key] for key in keys], target, scene, settings.seed, notes)
-
-    match = None
-    if settings.colour_match == "through":
-        with torch.no_grad():
-            match = fit_match(lambda index: fit.albedo(frames[index]).permute(1, 2, 3, 0).cpu().numpy())
-    losses = _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, notes, progress)
+    losses = _fit_steps(fit, frames, prepared_densities, target, scene, settings, notes, progress)
 
     kernels = StylizingKernels(
         {site: {key: value.detach() for key, value in kernel.items()} for site, kernel in fit.free.items()}
@@ -111,22 +100,25 @@ def fit_look(
         },
         "final_loss": losses[-1] if losses else None,
     }
-    noise_weight, texture = fit.noise_weight, fit.texture
-    if fit.noise is not None:
-        meta.update(noise_channels=settings.noise_channels, noise_seed=settings.seed)
-        noise_weight = noise_weight.detach().clone()
-    if texture is not None:
-        texture = texture.detach().half().float()  # as the file keeps it
-    look = Look(kernels, decoder, match, thumbnail_of(target), meta, noise_weight, texture, stylizer=stylizer)
+    texture = None if fit.texture is None else fit.texture.detach().half().float()  # as the file keeps it
+    look = Look(kernels, decoder, None, thumbnail_of(target), meta, texture, stylizer=stylizer)
     if settings.fixed_stage is not None:
         # What the fit computed once per key frame (encoder features, the decoder up to its fixed stage)
         # is what applying the look computes first, as nothing tuned enters it: kept, applying the look to
         # a key frame (a single frame's default output) computes only the rest, by the plain path.
         for key, frame in zip(keys, frames):
             look._prepared_frames[frame_key(densities[key])] = {**frame, "folded": None}
-    if settings.colour_match == "after":
-        raise_if_requested()
-        look.colour_match = fit_match(lambda index: look.network_albedo(densities[keys[index]]))
+    # The colour match is fitted after the steps, on the tuned network's albedo: fitted first and through
+    # the steps, or left out, it scored worse (docs/decisions/2026-12-02-looks.md).
+    raise_if_requested()
+    look.colour_match = _key_frame_match(
+        lambda index: look.network_albedo(densities[keys[index]]),
+        [densities[key] for key in keys],
+        target,
+        scene,
+        settings.seed,
+        notes,
+    )
     look.meta["fit_seconds"] = time.perf_counter() - started
     return look
 
@@ -143,26 +135,23 @@ class _FitScene:
 @dataclass
 class _TunedParameters:
     """What a look's fit changes (the network's copy with its tuned decoder convolutions, the free kernels,
-    the noise weights, the texture) and its optimizer."""
+    the texture) and its optimizer."""
 
     network: object
     device: object  # torch.device
     free: dict
-    noise: tuple | None  # (channels, seed) of the noise fields, or None
-    noise_weight: object
     texture: object
     optimizer: object
 
     def albedo(self, frame: dict, whole: bool = True):
         from ..model.skpn import StylizingKernels
 
-        return frame_albedo(self.network, frame, StylizingKernels(self.free), self.noise_weight, self.texture, whole)
+        return frame_albedo(self.network, frame, StylizingKernels(self.free), self.texture, whole)
 
 
 def _tuned_parameters(stylizer, style, target: np.ndarray, shape: tuple, settings: LookSettings):
     """The network's copy and the parameters a look's fit tunes on key frames of ``shape``
     (``_TunedParameters``), started as ``settings`` say."""
-    import torch
 
     from ..adam import Adam
 
@@ -186,23 +175,15 @@ def _tuned_parameters(stylizer, style, target: np.ndarray, shape: tuple, setting
         for site, kernel in initial.sites.items()
     }
     parameters = [value for kernel in free.values() for value in kernel.values() if value.requires_grad] + tuned
-    noise = (settings.noise_channels, settings.seed) if settings.noise_channels else None
-    noise_weight = None
-    if noise is not None:
-        noise_weight = torch.zeros((3, settings.noise_channels), device=device, requires_grad=True)
-        parameters.append(noise_weight)
     groups = [{"params": parameters, "lr": settings.lr}]
     texture = None
     if settings.texture_side:
         longest = max(shape)
         texels = tuple(max(1, round(n * settings.texture_side / longest)) for n in shape)
-        generator = torch.Generator().manual_seed(settings.seed)
-        start = settings.texture_init * torch.randn((3,) + texels, generator=generator)
-        if settings.texture_start == "solid":
-            start = start + solid_texture_start(target, texels, settings.texture_start_strength, settings.seed)
+        start = solid_texture_start(target, texels, settings.texture_start_strength, settings.seed)
         texture = start.to(device).requires_grad_(True)
         groups.append({"params": [texture], "lr": settings.texture_lr})
-    return _TunedParameters(network, device, free, noise, noise_weight, texture, Adam(groups))
+    return _TunedParameters(network, device, free, texture, Adam(groups))
 
 
 def _key_frame_match(key_albedo, key_densities: list, target, scene: _FitScene, seed: int, notes: list | None):
@@ -228,13 +209,12 @@ def _key_frame_match(key_albedo, key_densities: list, target, scene: _FitScene, 
     return None
 
 
-def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, notes, progress) -> list[float]:
+def _fit_steps(fit, frames, prepared_densities, target, scene, settings, notes, progress) -> list[float]:
     """The fit's Adam steps on ``frames`` (``prepare_frame``'s, in turn) through the fast layer against the
     sliced objective with the body mask, plus the smoothness term; returns each step's loss."""
     import torch
 
     from ..bridge_torch import render_views
-    from ..integrators import prepare_density
     from ..model.features import square_style
     from ..model.skpn import inference_precision
     from ..objective.losses import tv_loss
@@ -244,18 +224,6 @@ def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, 
     from ..stops import raise_if_requested
 
     device = fit.device
-    # Coarse steps first, on the key frames at a lower resolution (coarse_frame), where each frame allows it.
-    coarse = [coarse_frame(frame, settings.coarse_factor) for frame in frames] if settings.coarse_steps else []
-    coarse_steps = settings.coarse_steps if coarse and all(frame is not None for frame in coarse) else 0
-    if settings.coarse_steps and not coarse_steps and notes is not None:
-        notes.append("the look's coarse steps were skipped: they need the head folded (LookSettings' defaults)")
-    if coarse_steps:
-        coarse_densities = [prepare_density(frame["grid"], scene.density_scale) for frame in coarse]
-    insides = [
-        torch.from_numpy((frame["grid"][frame["window"]] if cropped_fit(frame) else frame["grid"]) > 0).to(device)
-        for frame in frames
-    ]
-    coarse_insides = [torch.from_numpy(frame["grid"] > 0).to(device) for frame in coarse] if coarse_steps else []
     if inference_precision(device) == "bf16":
         # The fit's one convolution in bfloat16 where the hardware computes it natively, as the network
         # runs at inference: 2-4x faster on this project's CPU. The look is applied in float32.
@@ -264,7 +232,6 @@ def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, 
         rgb_weight=settings.rgb_weight,
         patch_weight=settings.patch_weight,
         seed=settings.seed,
-        direction_pool=settings.direction_pool,
         structure_weight=settings.structure_weight,
         # The style's gradients at the scale a final render shows it: its side over the views' side.
         structure_style_pool=max(1, round(SLICED_STYLE_SIZE / settings.layer_res)),
@@ -273,34 +240,22 @@ def _fit_steps(fit, frames, prepared_densities, match, target, scene, settings, 
     orbit, rng = CameraPath(distance=scene.camera_distance), np.random.default_rng(settings.seed)
     render = dict(steps=settings.layer_steps_per_ray, radiance=scene.radiance)
     optimizer, losses = fit.optimizer, []
-    base_rates = [group["lr"] for group in optimizer.groups]
     parameters = [parameter for group in optimizer.groups for parameter in group["params"]]
     best_loss, best_values = math.inf, None
-    total = coarse_steps + settings.steps
+    total = settings.steps
     for step in range(total):
         raise_if_requested()
-        if settings.lr_schedule == "cosine":
-            for group, rate in zip(optimizer.groups, base_rates):
-                group["lr"] = rate * 0.5 * (1.0 + math.cos(math.pi * step / total))
         key = step % len(frames)
-        if step < coarse_steps:
-            frame, prepared, inside = coarse[key], coarse_densities[key], coarse_insides[key]
-            layer_res = max(8, settings.layer_res // settings.coarse_factor)
-        else:
-            frame, prepared, inside = frames[key], prepared_densities[key], insides[key]
-            layer_res = settings.layer_res
-        if settings.view_sampling == "stratified":
-            views = orbit.sample_stratified(settings.views_per_step, rng)
-        else:
-            views = orbit.sample(settings.views_per_step, rng)
+        frame, prepared = frames[key], prepared_densities[key]
+        # A step's views evenly spaced from a random offset: better than independent draws in RGB, patch
+        # and structure (docs/decisions/2026-12-03-look-fit-speed.md).
+        views = orbit.sample_stratified(settings.views_per_step, rng)
         # On the crop window where the frame has one: the albedo outside it repeats its faces, which the
         # render takes as the padded grid (render_views' window); the smoothness term is the crop's
         # part of the grid's mean.
         window = frame["window"] if cropped_fit(frame) else None
         albedo = fit.albedo(frame, whole=window is None)
-        if match is not None:
-            albedo = match.apply_torch(albedo, inside)
-        images, white = render_views(albedo, prepared, views, layer_res, white=True, window=window, **render)
+        images, white = render_views(albedo, prepared, views, settings.layer_res, white=True, window=window, **render)
         smoothness = tv_loss(albedo[None]) * (albedo[0].numel() / frame["grid"].size)
         loss = objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * smoothness
         optimizer.zero_grad()

@@ -18,7 +18,6 @@ LOOK_VERSION = 1
 SIZE_RATIO_NOTE = 2.0
 """A frame more than this many times larger or smaller (longest side) than the key frames gets a note."""
 DENSITY_SCALE_TOLERANCE = 1e-6
-COLOUR_MATCH_MODES = ("through", "after", "none")
 PAYLOAD_DIGEST_KEY = "payload_sha256"
 """Where a saved look records ``payload_digest`` of its tensors and meta; ``Look.load`` checks it (looks saved
 before it was recorded load without, checked for shape, finiteness and magnitude only)."""
@@ -47,7 +46,6 @@ class Look:
     colour_match: object | None  # colour_match.ColourMatch
     thumbnail: np.ndarray  # (H, W, 3) uint8 display RGB
     meta: dict  # checkpoint digest and name, density scale, orbit, key frame shape, settings, fit seconds
-    noise_weight: object = None  # (3, noise channels) tensor, or None
     texture: object = None  # (3, tz, ty, tx) tensor over the box, or None
     stylizer: object = field(default=None, repr=False)
     _network: object = field(default=None, repr=False)
@@ -85,14 +83,9 @@ class Look:
         with torch.no_grad():
             frame = self._prepared_frames.get(frame_key(grid))
             if frame is None:
-                frame = prepare_frame(self.network, grid, self.meta.get("scale_structures", 1.0), self.noise_spec())
-            albedo = frame_albedo(self.network, frame, self.kernels, self.noise_weight, self.texture, phases=phases)
+                frame = prepare_frame(self.network, grid, self.meta.get("scale_structures", 1.0))
+            albedo = frame_albedo(self.network, frame, self.kernels, self.texture, phases=phases)
         return np.ascontiguousarray(albedo.permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
-
-    def noise_spec(self) -> tuple[int, int] | None:
-        """``(channels, seed)`` of the look's noise fields, or None."""
-        channels = int(self.meta.get("noise_channels", 0))
-        return (channels, int(self.meta.get("noise_seed", 0))) if channels else None
 
     def stylize(
         self, density, density_scale: float | None = None, notes: list | None = None, velocities=None
@@ -165,7 +158,6 @@ class Look:
             },
             "decoder": {key: value.detach().cpu().float().clone() for key, value in self.decoder.items()},
             "colour_match": match,
-            "noise_weight": None if self.noise_weight is None else self.noise_weight.detach().cpu().float().clone(),
             "texture": None if self.texture is None else self.texture.detach().cpu().half().clone(),
             "thumbnail": torch.from_numpy(np.ascontiguousarray(self.thumbnail, np.uint8)),
             "meta": {key: value for key, value in self.meta.items() if key != "file_sha256"},
@@ -238,7 +230,6 @@ class Look:
             )
             decoder = {key: value.float() for key, value in record["decoder"].items()}
             thumbnail = record["thumbnail"].numpy()
-            noise_weight = record.get("noise_weight")
             texture = record.get("texture")
             match = record["colour_match"]
             if match is not None:
@@ -269,9 +260,8 @@ class Look:
             }
         )
         decoder = {key: value.to(stylizer.device) for key, value in decoder.items()}
-        noise_weight = None if noise_weight is None else noise_weight.float().to(stylizer.device)
         texture = None if texture is None else texture.float().to(stylizer.device)
-        return cls(kernels, decoder, match, thumbnail, meta, noise_weight, texture, stylizer=stylizer)
+        return cls(kernels, decoder, match, thumbnail, meta, texture, stylizer=stylizer)
 
 
 def _record_tensors(value, name: str = ""):
@@ -362,13 +352,13 @@ def check_look_record(record: dict, path) -> None:
                 raise damaged(f"its colour match's stage {number} is not a monotone map")
     if record.get("texture") is not None:
         shaped("its texture", record["texture"], 4, 3)
+    if record.get("noise_weight") is not None:  # a study's look of 2026-12 (LookSettings.noise_channels, removed)
+        raise ValueError(
+            f"{path} is a look with noise fields, which only a study fitted and this mistyle no longer applies; "
+            "fit it again with --save-look."
+        )
     meta = record.get("meta")
     if isinstance(meta, dict):
-        noise_weight = record.get("noise_weight")
-        if noise_weight is not None:
-            shaped("its noise weights", noise_weight, 2, 3)
-            if noise_weight.shape[1] != int(meta.get("noise_channels", noise_weight.shape[1])):
-                raise damaged(f"its noise weights {tuple(noise_weight.shape)} do not match its noise channels")
         for key in ("density_scale", "camera_distance"):
             value = meta.get(key)
             if value is not None and not (isinstance(value, (int, float)) and 0 < value < math.inf):

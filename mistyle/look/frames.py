@@ -11,33 +11,6 @@ THUMBNAIL_SIDE = 256
 """The longest side of the style picture a look keeps: what renders from it are measured against."""
 
 
-NOISE_SCALES = (1 / 64, 2 / 64)
-"""The blur of a look's noise fields, as fractions of the grid's longest side (1 and 2 voxels at 64^3): the
-scales of the strokes and grain the head can add where the density alone has none."""
-
-
-def look_noise(shape: tuple, channels: int, seed: int):
-    """``(channels, Z, Y, X)`` float32 tensor: Gaussian noise blurred at ``NOISE_SCALES`` in turn (channel
-    ``c`` at scale ``c mod len``), each channel scaled to unit spread. Fixed in the grid's space."""
-    import torch
-    import torch.nn.functional as F
-
-    generator = torch.Generator().manual_seed(int(seed))
-    fields = torch.randn((channels, 1) + tuple(shape), generator=generator)
-    out = []
-    for channel in range(channels):
-        voxels = max(NOISE_SCALES[channel % len(NOISE_SCALES)] * max(shape), 0.5)
-        radius = max(1, int(np.ceil(3 * voxels)))
-        taps = torch.exp(-0.5 * (torch.arange(-radius, radius + 1, dtype=torch.float32) / voxels) ** 2)
-        taps = taps / taps.sum()
-        field = fields[channel : channel + 1]
-        for axis in range(3):
-            kernel = taps.view((1, 1) + tuple(len(taps) if a == axis else 1 for a in range(3)))
-            field = F.conv3d(field, kernel, padding=tuple(radius if a == axis else 0 for a in range(3)))
-        out.append(field[0, 0] / field.std().clamp_min(1e-12))
-    return torch.stack(out)
-
-
 def frame_key(grid: np.ndarray) -> tuple:
     """A frame's identity for a look's cache of what its fit computed of the key frames."""
     data = np.ascontiguousarray(grid, dtype=np.float32).data
@@ -48,13 +21,11 @@ def prepare_frame(
     network,
     grid: np.ndarray,
     scale_structures: float = 1.0,
-    noise=None,
     fixed_kernels=None,
     fixed_stage: str | None = None,
 ) -> dict:
     """What a look's network computes of one frame before its tuned parts: the (resampled, cropped)
-    density's encoder features, its crop window, the noise fields on the padded crop (``noise``:
-    ``(channels, seed)``) and, with ``fixed_kernels``, the decoder up to ``fixed_stage``
+    density's encoder features, its crop window and, with ``fixed_kernels``, the decoder up to ``fixed_stage``
     (``LookSettings.fixed_stage``: the values a fit that tunes only what follows reuses; at ``"body"``
     also what ``frame_albedo`` needs to fold the head into one convolution,
     ``SKPN.folded_head_logits``)."""
@@ -86,68 +57,7 @@ def prepare_frame(
             fixed["site"] = network.head_site(fixed["body"], fixed_kernels, encoded)
         if reached >= 3:
             fixed["logits"] = network.head_logits(fixed["site"], fixed_kernels, encoded)
-    fields = None
-    if noise is not None:
-        fields = look_noise(size, *noise).to(device)
-        if window is not None:
-            fields = fields[(slice(None), *window)]
-        padded = encoded.features[0].shape[2:]
-        fields = F.pad(fields, [p for n, m in reversed(list(zip(fields.shape[1:], padded))) for p in (0, m - n)])[None]
-    return {"grid": grid, "size": size, "window": window, "encoded": encoded, "noise": fields, **fixed}
-
-
-def coarse_frame(frame: dict, factor: int) -> dict | None:
-    """``frame`` (``prepare_frame`` with the head folded) at 1/``factor`` of its resolution, for a look's
-    coarse steps (``LookSettings.coarse_steps``), or None where its head is not folded.
-
-    The folded features are put back on the whole grid (repeating the crop's faces, as ``uncrop`` does
-    the albedo) and averaged over ``factor``^3 blocks, as is the density. The head's convolution then
-    runs on ``factor``^3 fewer voxels with the same weights. What it computes there is close to the
-    fine albedo averaged but not equal (its 3^3 kernel spans ``factor`` times the distance), so coarse
-    steps only start a fit that fine steps finish."""
-    import torch
-    import torch.nn.functional as F
-
-    from ..model.skpn import FoldedBody, uncrop
-
-    folded = frame["folded"]
-    if folded is None:
-        return None
-    crop = frame["encoded"].size
-    features = folded.features[..., : crop[0], : crop[1], : crop[2]].contiguous()
-    whole = uncrop(features, frame["window"], frame["size"])
-    pooled = F.avg_pool3d(whole, factor, ceil_mode=True)
-    grid = torch.from_numpy(np.ascontiguousarray(frame["grid"], dtype=np.float32))[None, None]
-    coarse_grid = F.avg_pool3d(grid, factor, ceil_mode=True)[0, 0].numpy()
-    size = tuple(pooled.shape[2:])
-    encoded = frame["encoded"]._replace(size=size, noise=None)
-    return {
-        **frame,
-        "grid": coarse_grid,
-        "size": size,
-        "window": None,
-        "encoded": encoded,
-        "noise": None,
-        "folded": FoldedBody(pooled, folded.mean, folded.covariance),
-        "patches": patch_matrix(pooled[0]),
-    }
-
-
-def patch_matrix(features):
-    """``(D * H * W, C * 27)``: each voxel's 3^3 neighbourhood of ``features (C, D, H, W)`` (zero beyond the
-    grid), ordered as a ``(O, C, 3, 3, 3)`` convolution weight flattens, so that a 3^3 convolution with
-    padding 1 is one matrix product. Torch's CPU convolution takes a path about ten times slower for
-    some small grids (those whose channels x depth x height are at most 20480, such as 17 x 32 x 32); a
-    product with fixed features has no such case."""
-    import torch
-    import torch.nn.functional as F
-
-    channels, depth, height, width = features.shape
-    padded = F.pad(features, (1, 1, 1, 1, 1, 1))
-    shifted = [
-        padded[:, z : z + depth, y : y + height, x : x + width] for z in range(3) for y in range(3) for x in range(3)
-    ]
-    return torch.stack(shifted, dim=-1).permute(1, 2, 3, 0, 4).reshape(depth * height * width, channels * 27)
+    return {"grid": grid, "size": size, "window": window, "encoded": encoded, **fixed}
 
 
 def stretch_texture(texture, frame: dict, padded: tuple):
@@ -192,27 +102,19 @@ def advected_texture(texture, frame: dict, padded: tuple, phases: list):
     return F.pad(values, [p for n, m in reversed(list(zip(values.shape[1:], padded))) for p in (0, m - n)])
 
 
-def frame_albedo(
-    network, frame: dict, kernels, noise_weight=None, texture=None, whole: bool = True, phases: list | None = None
-):
+def frame_albedo(network, frame: dict, kernels, texture=None, whole: bool = True, phases: list | None = None):
     """A look's albedo ``(3, Z, Y, X)`` of a ``prepare_frame`` frame (differentiable in ``kernels``, the
-    tuned decoder layers, ``noise_weight (3, channels)`` and ``texture (3, tz, ty, tx)``, which is
-    stretched over the box whatever its resolution, or read through the frame's advected ``phases``,
-    ``advection``; the noise fields stay in the grid's place). ``whole=False``: only over the frame's
+    tuned decoder layers and ``texture (3, tz, ty, tx)``, which is stretched over the box whatever its
+    resolution, or read through the frame's advected ``phases``, ``advection``). ``whole=False``: only over the frame's
     crop window where it has one and its grid was not resampled (``cropped_fit``), as
     ``render_views(..., window=frame["window"])`` takes it."""
-    import torch
     import torch.nn.functional as F
 
     from ..model.skpn import head_albedo, uncrop
 
     encoded = frame["encoded"]
     logits = frame["logits"]
-    if logits is None and frame.get("patches") is not None:
-        weight = network.folded_head_weight(frame["folded"], kernels)[0]
-        logits = torch.addmm(network.decoder[2].bias, frame["patches"], weight.reshape(weight.shape[0], -1).T)
-        logits = logits.T.reshape(1, -1, *frame["size"])
-    elif logits is None and frame["folded"] is not None and network.folds_head(kernels):
+    if logits is None and frame["folded"] is not None and network.folds_head(kernels):
         logits = network.folded_head_logits(frame["folded"], kernels, encoded)
     elif logits is None:
         site = frame["site"]
@@ -221,14 +123,11 @@ def frame_albedo(
             site = network.head_site(body, kernels, encoded)
         logits = network.head_logits(site, kernels, encoded)
     offset = None
-    if noise_weight is not None and frame["noise"] is not None:
-        offset = torch.einsum("oc,bcdhw->bodhw", noise_weight, frame["noise"])
     if texture is not None:
         padded = tuple(logits.shape[2:])
-        stretched = (
+        offset = (
             stretch_texture(texture, frame, padded) if not phases else advected_texture(texture, frame, padded, phases)
         )[None]
-        offset = stretched if offset is None else offset + stretched
     albedo = head_albedo(logits if offset is None else logits + offset, encoded.size)
     if not whole and cropped_fit(frame):
         return albedo[0]

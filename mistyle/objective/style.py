@@ -18,7 +18,6 @@ from .losses import (
     gram_loss,
     histogram_loss,
     mean_std_loss,
-    project_target,
     scaled_patches,
     sliced_wasserstein_loss,
 )
@@ -113,7 +112,6 @@ class SlicedObjective:
         max_target_points: int = 8192,
         max_render_patches: int = 4096,
         seed: int = 0,
-        direction_pool: int = 0,
         structure_weight: float = 0.0,
         structure_scales=(1, 2, 4),
         structure_style_pool: int = 1,
@@ -125,7 +123,6 @@ class SlicedObjective:
             max_target_points,
         )
         self.max_render_patches = max_render_patches
-        self.direction_pool = int(direction_pool)
         self.structure_weight, self.structure_scales = structure_weight, tuple(structure_scales)
         self.structure_style_pool = int(structure_style_pool)
         self.generator = torch.Generator().manual_seed(seed)
@@ -141,10 +138,7 @@ class SlicedObjective:
         """Per style of ``styles (B, 3, S, S)``: ``[pixels (N, 3), patches at each scale (N_s, 75)]``, then
         with ``structure_weight`` its scaled gradients at each structure scale ``(N_s, 6)`` and their RMS
         values ``(scales,)`` (``levels``, the extractor's output, is not used: the same call as
-        ``StyleObjective``'s). With
-        ``direction_pool`` > 0 each set comes projected on that many directions and sorted
-        (``losses.ProjectedTarget``): each step then draws its directions from the pool and sorts only
-        the render's projections."""
+        ``StyleObjective``'s)."""
         result = []
         for style in styles:
             entry = [self._subsample(style.reshape(3, -1).T)]
@@ -155,8 +149,6 @@ class SlicedObjective:
                 gradients = gradient_points(style[None], None, scale * self.structure_style_pool)
                 rms.append(gradients.square().mean().sqrt().clamp_min(1e-4))
                 entry.append(self._subsample(gradients / rms[-1]))
-            if self.direction_pool:
-                entry = [project_target(points, self.direction_pool, self.generator) for points in entry]
             if rms:
                 entry.append(torch.stack(rms))  # the last item: the style's RMS gradient per structure scale
             result.append(entry)

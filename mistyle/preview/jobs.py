@@ -21,12 +21,14 @@ def render_in_process(settings, spec, request, errors) -> None:
     from ..progress import set_quiet
     from ..stops import run_stoppable
 
+    def work() -> int:
+        render_outputs(settings, spec, request)
+        return 0
+
     set_quiet(True)
-    message = None
     try:
         with contextlib.redirect_stdout(io.StringIO()):
-            kept = "the output being written was removed"
-            code = run_stoppable(lambda: render_outputs(settings, spec, request) and 0, kept, in_process=True)
+            code = run_stoppable(work, "the output being written was removed", in_process=True)
         message = None if code == 0 else "stopped"
     except (ValueError, OSError, BackendError) as error:
         message = str(error).splitlines()[0] if str(error) else type(error).__name__

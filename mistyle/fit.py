@@ -1,4 +1,11 @@
-"""The one albedo-fitting loop: Adam on an albedo grid against a style, through a differentiable renderer.
+"""The one albedo-fitting loop (``fit_steps``), and Adam on an albedo grid against a style through a
+differentiable renderer (``fit_albedo``).
+
+``fit_steps`` is every fit's loop: per step a stop if one was asked for, the step's loss (views, render,
+objective with its mask, smoothness: what the caller's ``step_loss`` computes of its parametrisation),
+its gradient, Adam's step, a projection, progress; and, where asked, the guard against a fit that
+diverges (``diverged``). A look's fit (``mistyle.look``: the network's head and a texture) and the
+albedo grid's fits here are its two parametrisations.
 
 Used by the direct-optimisation reference (the paper's "tomography-like" comparison: no network,
 the grid itself is fitted), by the final render's refinement and by the objective study. The
@@ -49,6 +56,65 @@ MaskMaker = Callable[[Sequence[View]], torch.Tensor]
 
 PARAMETRISATIONS = ("log", "sigmoid")
 MIN_ALBEDO = 1e-4  # the log parametrisation's floor: display 0.02 under the training light
+
+
+DIVERGENCE_WINDOW = 10
+"""Steps whose mean loss a fit's start and end are compared by (``diverged``)."""
+
+
+def diverged(losses: Sequence[float]) -> bool:
+    """Whether a fit's ``losses`` (one a step) end higher than they started: the mean of the last
+    ``DIVERGENCE_WINDOW`` steps (of the last half, for a short fit) above the first step's, the loss
+    of the start. A fit that converges ends below its start (0.09-0.99 of it on 56 of the benchmark's
+    63 pairs, ``results/look_divergence/``); one that diverged, as a look's gradient term did on
+    a few styles of fine, high-contrast texture by pinning the head's colours at its bounds within a
+    few steps (a flat colour whose only gradients are the silhouette's), ends above it. Each step's
+    loss is measured on other random views, so the end is a mean over steps."""
+    window = min(DIVERGENCE_WINDOW, len(losses) // 2)
+    return window > 0 and float(np.mean(losses[-window:])) > losses[0]
+
+
+@dataclass
+class FittedSteps:
+    """What ``fit_steps`` did: each step's loss, and where a diverging fit went back to, if it did."""
+
+    losses: list[float]
+    kept_step: int | None = None  # 1-based step whose values a diverged fit kept (``keep_lowest``), or None
+
+
+def fit_steps(
+    step_loss: Callable[[int], torch.Tensor],
+    optimizer: Adam,
+    steps: int,
+    progress=None,
+    project: Callable[[], None] | None = None,
+    keep_lowest: bool = False,
+) -> FittedSteps:
+    """``steps`` Adam steps of ``optimizer`` on ``step_loss(step)`` (differentiable in its parameters),
+    each followed by ``project()`` when given and ``progress(step, steps, loss)``. ``keep_lowest``: if
+    the fit ``diverged``, its parameters go back to the values of its lowest loss (as they were when that
+    loss was computed)."""
+    parameters = [parameter for group in optimizer.groups for parameter in group["params"]]
+    losses, best_loss, best_values = [], math.inf, None
+    for step in range(steps):
+        raise_if_requested()
+        loss = step_loss(step)
+        optimizer.zero_grad()
+        loss.backward()
+        losses.append(float(loss.detach()))
+        if keep_lowest and losses[-1] < best_loss:  # the values this step's loss was computed with
+            best_loss, best_values = losses[-1], [parameter.detach().clone() for parameter in parameters]
+        optimizer.step()
+        if project is not None:
+            project()
+        if progress is not None:
+            progress(step + 1, steps, losses[-1])
+    if not (keep_lowest and diverged(losses)):
+        return FittedSteps(losses)
+    with torch.no_grad():
+        for parameter, value in zip(parameters, best_values):
+            parameter.copy_(value)
+    return FittedSteps(losses, losses.index(best_loss) + 1)
 
 
 @dataclass
@@ -116,26 +182,19 @@ def fit_albedo(
     optimizer = Adam([variable.free], lr=settings.lr)
     targets = objective.targets(style[None])
     orbit, rng = CameraPath(distance=settings.camera_distance), np.random.default_rng(settings.seed)
-    losses = []
     started = time.perf_counter()
-    for step in range(settings.steps):
-        raise_if_requested()
+
+    def step_loss(step: int) -> torch.Tensor:
         albedo = variable.albedo()
         views = orbit.sample(settings.views_per_step, rng)
         images = render(albedo, views, step * settings.views_per_step)
         loss = objective.loss(
             images[None], targets, None if masks is None else masks(views)
         ) + settings.tv_weight * tv_loss(albedo[None])
-        if penalty is not None:
-            loss = loss + penalty(albedo)
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        variable.project()
-        losses.append(float(loss.detach()))
-        if progress is not None:
-            progress(step + 1, settings.steps, losses[-1])
-    return AlbedoFit(variable.albedo().detach(), time.perf_counter() - started, losses)
+        return loss if penalty is None else loss + penalty(albedo)
+
+    fitted = fit_steps(step_loss, optimizer, settings.steps, progress, project=variable.project)
+    return AlbedoFit(variable.albedo().detach(), time.perf_counter() - started, fitted.losses)
 
 
 class LayerViews:

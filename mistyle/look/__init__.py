@@ -36,7 +36,8 @@ frame is refined and each frame depends on nothing but the look, its density and
 follows a sequence's velocities, those of the few frames before it (``advection.first_needed``).
 """
 
-from .fit import DIVERGENCE_WINDOW, diverged, fit_look
+from ..fit import DIVERGENCE_WINDOW, diverged
+from .fit import fit_look
 from .fitted import (
     DENSITY_SCALE_TOLERANCE,
     LOOK_FORMAT,

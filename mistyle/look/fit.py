@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -210,18 +209,17 @@ def _key_frame_match(key_albedo, key_densities: list, target, scene: _FitScene, 
 
 
 def _fit_steps(fit, frames, prepared_densities, target, scene, settings, notes, progress) -> list[float]:
-    """The fit's Adam steps on ``frames`` (``prepare_frame``'s, in turn) through the fast layer against the
-    sliced objective with the body mask, plus the smoothness term; returns each step's loss."""
-    import torch
-
+    """The fit's Adam steps (``fit.fit_steps``, the loop every albedo fit shares) on ``frames``
+    (``prepare_frame``'s, in turn) through the fast layer against the sliced objective with the body mask,
+    plus the smoothness term; a fit that diverges keeps its lowest loss's values. Returns each step's loss."""
     from ..bridge_torch import render_views
+    from ..fit import fit_steps
     from ..model.features import square_style
     from ..model.skpn import inference_precision
     from ..objective.losses import tv_loss
     from ..objective.masks import body_mask
     from ..objective.style import SLICED_STYLE_SIZE, SlicedObjective
     from ..scenes import CameraPath
-    from ..stops import raise_if_requested
 
     device = fit.device
     if inference_precision(device) == "bf16":
@@ -239,14 +237,9 @@ def _fit_steps(fit, frames, prepared_densities, target, scene, settings, notes, 
     targets = objective.targets(square_style(target, SLICED_STYLE_SIZE).to(device)[None])
     orbit, rng = CameraPath(distance=scene.camera_distance), np.random.default_rng(settings.seed)
     render = dict(steps=settings.layer_steps_per_ray, radiance=scene.radiance)
-    optimizer, losses = fit.optimizer, []
-    parameters = [parameter for group in optimizer.groups for parameter in group["params"]]
-    best_loss, best_values = math.inf, None
-    total = settings.steps
-    for step in range(total):
-        raise_if_requested()
-        key = step % len(frames)
-        frame, prepared = frames[key], prepared_densities[key]
+
+    def step_loss(step: int):
+        frame, prepared = frames[step % len(frames)], prepared_densities[step % len(frames)]
         # A step's views evenly spaced from a random offset: better than independent draws in RGB, patch
         # and structure (docs/decisions/2026-12-03-look-fit-speed.md).
         views = orbit.sample_stratified(settings.views_per_step, rng)
@@ -257,38 +250,13 @@ def _fit_steps(fit, frames, prepared_densities, target, scene, settings, notes, 
         albedo = fit.albedo(frame, whole=window is None)
         images, white = render_views(albedo, prepared, views, settings.layer_res, white=True, window=window, **render)
         smoothness = tv_loss(albedo[None]) * (albedo[0].numel() / frame["grid"].size)
-        loss = objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * smoothness
-        optimizer.zero_grad()
-        loss.backward()
-        losses.append(float(loss.detach()))
-        if losses[-1] < best_loss:  # the values this step's loss was computed with, before the step
-            best_loss, best_values = losses[-1], [parameter.detach().clone() for parameter in parameters]
-        optimizer.step()
-        if progress is not None:
-            progress(step + 1, total, losses[-1])
-    if diverged(losses):
-        with torch.no_grad():
-            for parameter, value in zip(parameters, best_values):
-                parameter.copy_(value)
-        if notes is not None:
-            notes.append(
-                f"the look's fit diverged (its last steps' loss above its start's): it keeps the values of "
-                f"its lowest loss, {best_loss:.4g}, at step {losses.index(best_loss) + 1} of {len(losses)}"
-            )
-    return losses
+        return objective.loss(images[None], targets, body_mask(white)) + settings.tv_weight * smoothness
 
-
-DIVERGENCE_WINDOW = 10
-"""Steps whose mean loss a fit's start and end are compared by (``diverged``)."""
-
-
-def diverged(losses: Sequence[float]) -> bool:
-    """Whether a fit's ``losses`` (one a step) end higher than they started: the mean of the last
-    ``DIVERGENCE_WINDOW`` steps (of the last half, for a short fit) above the first step's, the loss
-    of the start. A fit that converges ends below its start (0.09-0.99 of it on 56 of the benchmark's
-    63 pairs, ``results/look_divergence/``); one that diverged, as the gradient term did on
-    a few styles of fine, high-contrast texture by pinning the head's colours at its bounds within a
-    few steps (a flat colour whose only gradients are the silhouette's), ends above it. Each step's
-    loss is measured on other random views, so the end is a mean over steps."""
-    window = min(DIVERGENCE_WINDOW, len(losses) // 2)
-    return window > 0 and float(np.mean(losses[-window:])) > losses[0]
+    fitted = fit_steps(step_loss, fit.optimizer, settings.steps, progress, keep_lowest=True)
+    if fitted.kept_step is not None and notes is not None:
+        lowest = fitted.losses[fitted.kept_step - 1]
+        notes.append(
+            f"the look's fit diverged (its last steps' loss above its start's): it keeps the values of "
+            f"its lowest loss, {lowest:.4g}, at step {fitted.kept_step} of {len(fitted.losses)}"
+        )
+    return fitted.losses

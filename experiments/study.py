@@ -83,5 +83,5 @@ def require_frozen_commit(script: str, commit: str) -> None:
         name = Path(script).name
         raise SystemExit(
             f"{name} is a frozen study: it ran at commit {commit}, whose LookSettings has its arms. Run it there: "
-            f"git worktree add /tmp/frozen {commit} && cd /tmp/frozen && python experiments/{name} ..."
+            f"git worktree add ../frozen-{commit} {commit} && cd ../frozen-{commit} && python experiments/{name} ..."
         )

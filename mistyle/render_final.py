@@ -300,12 +300,6 @@ def main(argv=None) -> int:
         raise
 
 
-def log(message: str) -> None:
-    from .progress import status
-
-    status(message)
-
-
 def settings_from(args):
     """The ``pipeline.PipelineSettings`` that ``args`` ask for."""
     from .pipeline import PipelineSettings, RenderSettings
@@ -396,7 +390,7 @@ def run(args) -> int:
     from .job import render_outputs
 
     check_options(args)
-    print(render_outputs(settings_from(args), output_spec(args), request_from(args), log))
+    print(render_outputs(settings_from(args), output_spec(args), request_from(args)))
     return 0
 
 

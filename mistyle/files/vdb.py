@@ -66,6 +66,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import vdb_header
 from .vdb_layout import DENSITY_GRID, VdbTransform
 
 INTERPRETER_ENV = "MISTYLE_VDB_PYTHON"
@@ -227,8 +228,6 @@ def check_vdb_layout(path) -> dict:
     it allocate that many bytes, gigabytes for a minute over a file of a few kilobytes before its error.
     Reading the grid list here rather than with the binding is also what lets a file hold grids the
     binding cannot read (a Blender Mantaflow cache's int32 'flags' grid, for Debian's OpenVDB 10)."""
-    from . import vdb_header
-
     try:
         return vdb_header.scan_file(os.fspath(path))
     except vdb_header.ConvertError as error:
@@ -315,8 +314,6 @@ def choose_grid(path, scan: dict, grid: str | None) -> dict:
     """The grid of ``scan`` (``check_vdb_layout``'s) that ``read_vdb_grid`` reads: ``grid``, else 'density',
     else the only float grid. ``ValueError`` naming the file and listing its grids when there is no such
     grid, it is of a type mistyle does not read, or there are several float grids and no 'density'."""
-    from . import vdb_header
-
     try:
         return vdb_header.choose_grid(os.fspath(path), scan["grids"], grid)
     except vdb_header.ConvertError as error:
@@ -335,8 +332,6 @@ def vdb_info(path) -> dict:
     Read in Python from the file's header (``check_vdb_layout``), so it needs no OpenVDB binding; only a
     file written to a stream, which has no grid offsets, goes through the converter.
     """
-    from . import vdb_header
-
     path, scan = existing_file(path)
     if scan["grids"] is not None:
         info = vdb_header.describe(scan)

@@ -18,7 +18,7 @@ and measures, in the page's own clock (``performance.now``):
   server's clock (its ``fit`` message), with the fit's own time, for ``--looks`` styles.
 
 Browser and server share this machine's cores, as a user's would. Rows: ``results/preview/bench.json``
-and ``results/preview/bench.md`` (machine, load average before the run); ``screenshot.png``, README's.
+and ``results/preview/bench.md`` (machine, load average before the run); ``screenshot.jpg``, README's.
 """
 
 from __future__ import annotations
@@ -176,7 +176,7 @@ def main() -> None:
             page.wait_for_timeout(4000)  # a few path-traced passes: README's screenshot
             args.out.mkdir(parents=True, exist_ok=True)
             if args.stem == "bench":
-                page.screenshot(path=args.out / "screenshot.png")
+                page.screenshot(path=args.out / "screenshot.jpg", type="jpeg", quality=88)
             browser.close()
     finally:
         server.terminate()

@@ -74,11 +74,11 @@ def main() -> None:
     style = Image.open(args.style).convert("RGB")
     style = style.resize((round(style.width * blender.height / style.height), blender.height))
     sheet = np.concatenate([np.asarray(style), np.asarray(ours), np.asarray(shown.convert("RGB"))], axis=1)
-    Image.fromarray(sheet).save(args.out / "side_by_side.png")
+    Image.fromarray(sheet).convert("RGB").save(args.out / "side_by_side.jpg", quality=88)
     for name in ("blender_job.json", "blender_result.json"):
         (args.out / name).unlink()
     shutil.rmtree(work.parent)
-    print(args.out / "side_by_side.png")
+    print(args.out / "side_by_side.jpg")
 
 
 if __name__ == "__main__":

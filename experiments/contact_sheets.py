@@ -2,7 +2,7 @@
 
     python experiments/contact_sheets.py --out results/contact_sheets
 
-writes ``contact_densities.png`` (smoke plumes at three times, fire, pyroclastic sphere,
+writes ``contact_densities.jpg`` (smoke plumes at three times, fire, pyroclastic sphere,
 noise-filled level set, spot noise, voxelized mesh; white albedo, constant light) and
 ``contact_styles.jpg`` (the offline default style set).
 """
@@ -38,7 +38,7 @@ def main() -> None:
     )
     from mistyle.data.smoke import FireConfig, PlumeConfig, simulate
     from mistyle.data.styles import offline_style_set
-    from mistyle.files import write_png
+    from mistyle.files import write_jpeg
     from mistyle.integrators import layer_scene, prepare_density
     from mistyle.scenes import View, split_views
 
@@ -70,7 +70,7 @@ def main() -> None:
     while len(tiles) % columns:
         tiles.append(np.zeros_like(tiles[0]))
     rows = [np.concatenate(tiles[i : i + columns], axis=1) for i in range(0, len(tiles), columns)]
-    write_png(args.out / "contact_densities.png", np.concatenate(rows, axis=0) * 1.5)
+    write_jpeg(args.out / "contact_densities.jpg", np.concatenate(rows, axis=0) * 1.5)
 
     styles = [image for _, image in offline_style_set(size=64)]
     columns = 16
@@ -81,7 +81,7 @@ def main() -> None:
     sheet = (np.concatenate(rows, axis=0).clip(0, 1) * 255 + 0.5).astype(np.uint8)
     Image.fromarray(sheet).save(args.out / "contact_styles.jpg", quality=90)
     write_index(args.out, EXPERIMENTS_TITLE)
-    print(f"wrote {args.out}/contact_densities.png, {args.out}/contact_styles.jpg and {args.out}/index.html")
+    print(f"wrote {args.out}/contact_densities.jpg, {args.out}/contact_styles.jpg and {args.out}/index.html")
 
 
 if __name__ == "__main__":

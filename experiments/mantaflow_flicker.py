@@ -13,7 +13,7 @@ velocity, ``objective.metrics.temporal_flicker``'s warp), the flicker without wa
 they are), for the look's albedo and the feed-forward network's. #49 asks that the first be at most the
 second. The velocities' units are checked on the density itself (warped by them at 0.25x to 2x, the
 frames differ least at the scale that is right). Also each frame path traced at 128^2 (64 spp, denoised,
-one view) for the strip in ``strip.png``.
+one view) for the strip in ``strip.jpg``.
 
     .venv/bin/python experiments/mantaflow_flicker.py --cache data/mantaflow_c42     # about 3 min
 
@@ -80,7 +80,7 @@ def main(argv=None) -> None:
             raise SystemExit(f"{args.cache / name} is not the recorded file (sha256 {digest}).")
 
     from mistyle.advection import TextureMotion
-    from mistyle.files import load_density_frames, write_png
+    from mistyle.files import load_density_frames, write_jpeg
     from mistyle.objective.metrics import style_fidelity
     from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
     from mistyle.tone import display
@@ -126,7 +126,7 @@ def main(argv=None) -> None:
         record[f"{name}_per_frame"] = scores
         strips.append(np.concatenate([display(image) for image in images], axis=1))
     args.out.mkdir(parents=True, exist_ok=True)
-    write_png(args.out / "strip.png", np.concatenate(strips, axis=0), srgb=False)
+    write_jpeg(args.out / "strip.jpg", np.concatenate(strips, axis=0), srgb=False)
     (args.out / "flicker.json").write_text(json.dumps(record, indent=1) + "\n")
     print(json.dumps({key: value for key, value in record.items() if "flicker" in key}, indent=1))
 

@@ -8,7 +8,7 @@ of the styled medium's brightness). Row 2: a mix of two held-out paintings at we
 network's albedo as predicted, path traced with ``volpath`` (multiple scattering, training light),
 with its RGB SWD to the row's full style printed on it. Also writes ``<out>.json`` with the numbers.
 
-    python experiments/strength_mix.py --out results/strength_mix/strength_mix.png
+    python experiments/strength_mix.py --out results/strength_mix/strength_mix.jpg
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ LEVELS = (0.0, 0.25, 0.5, 0.75, 1.0)
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("results/strength_mix/strength_mix.png"))
+    parser.add_argument("--out", type=Path, default=Path("results/strength_mix/strength_mix.jpg"))
     parser.add_argument("--styles", default="hokusai_great_wave,van_gogh_starry_night")
     parser.add_argument("--res", type=int, default=128)
     parser.add_argument("--spp", type=int, default=32)

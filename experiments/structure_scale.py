@@ -14,7 +14,7 @@ inside the medium falls to one half (``albedo_correlation_length``). The density
 length is the same in every tile, so what changes is the style's structure, not the medium's.
 Also writes ``<out>.json`` with the numbers.
 
-    python experiments/structure_scale.py --out results/structure_scale/structure_scale.png
+    python experiments/structure_scale.py --out results/structure_scale/structure_scale.jpg
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ SCALES = (0.5, 1.0, 2.0)
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("results/structure_scale/structure_scale.png"))
+    parser.add_argument("--out", type=Path, default=Path("results/structure_scale/structure_scale.jpg"))
     parser.add_argument("--checkpoint", default=None, help="default: the bundled network")
     parser.add_argument("--density", default="smoke64", help="a held-out density (mistyle.data.heldout)")
     parser.add_argument("--styles", default="hokusai_great_wave,munch_the_scream")

@@ -6,7 +6,7 @@ rendered from one orbit view with the fast layer and with ``volpath`` (multiple 
 training light), first the network's albedo as predicted, then with the colour match that
 ``mistyle.stylize`` applies by default (``mistyle.colour_match``). PNGs use the training tone curve.
 
-    python experiments/stylized_sheet.py --out results/stylized_sheet/stylized_unseen.png
+    python experiments/stylized_sheet.py --out results/stylized_sheet/stylized_unseen.jpg
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from mistyle.pages import EXPERIMENTS_TITLE, write_index
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("results/stylized_sheet/stylized_unseen.png"))
+    parser.add_argument("--out", type=Path, default=Path("results/stylized_sheet/stylized_unseen.jpg"))
     parser.add_argument("--styles", type=int, default=6)
     parser.add_argument("--res", type=int, default=128)
     parser.add_argument("--spp", type=int, default=64)
@@ -31,7 +31,7 @@ def main() -> None:
 
     from mistyle.api import Stylizer, display, path_trace
     from mistyle.bridge_torch import render_views
-    from mistyle.files import load_density, write_png
+    from mistyle.files import load_density, write_jpeg
     from mistyle.integrators import prepare_density
     from mistyle.model.features import square_style
     from mistyle.scenes import CameraPath
@@ -75,7 +75,7 @@ def main() -> None:
         swatch = square_style(style, args.res).permute(1, 2, 0).numpy()
         rows.append(np.concatenate([swatch, display(layer)] + [display(image) for image in traced], axis=1))
         print(styles.val_names[index], flush=True)
-    write_png(args.out, np.concatenate(rows, axis=0), srgb=False)
+    write_jpeg(args.out, np.concatenate(rows, axis=0), srgb=False)
     write_index(args.out.parent, EXPERIMENTS_TITLE)
     print(f"wrote {args.out} and {args.out.parent / 'index.html'}")
 

@@ -3,6 +3,8 @@
 import ast
 from pathlib import Path
 
+import pytest
+
 import mistyle
 
 ROOT = Path(mistyle.__file__).parent
@@ -176,3 +178,17 @@ def test_no_module_of_the_package_is_longer_than_one_role():
         if (lines := len(path.read_text().splitlines())) > MAX_MODULE_LINES
     ]
     assert not long, f"modules over {MAX_MODULE_LINES} lines: {', '.join(long)}"
+
+
+def test_the_checkout_travels_to_a_gpu_machine():
+    """At most 64 MiB reach a lent GPU machine, the packed Mitsuba and Dr.Jit (``pack.sh``) about 22 of
+    them: the tracked files stay under 35 MiB. Figures of renders are JPEGs; checkpoints only a recipe
+    starts from are recovered from history, not kept in the tree."""
+    import subprocess
+
+    listed = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT.parent, capture_output=True, text=True)
+    if listed.returncode != 0:
+        pytest.skip("not a git checkout")
+    tracked = [ROOT.parent / name for name in listed.stdout.split("\0") if name]
+    size = sum(path.stat().st_size for path in tracked if path.is_file())
+    assert size <= 35 * 2**20, f"the tracked files are {size / 2**20:.1f} MiB"

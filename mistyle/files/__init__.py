@@ -16,6 +16,7 @@ from .images import (
     read_png,
     write_exr,
     write_gif,
+    write_jpeg,
     write_mp4,
     write_png,
 )
@@ -59,6 +60,7 @@ __all__ = [
     "write_mp4",
     "write_npy",
     "write_npz",
+    "write_jpeg",
     "write_png",
     "write_vol",
 ]

@@ -93,6 +93,32 @@ def require_variant():
     return mi
 
 
+KERNEL_INPUT_ALIGNMENT = 64
+"""Bytes: where NumPy arrays handed to Dr.Jit as per-lane inputs start (``lanes``)."""
+
+
+def lanes(kind, values):
+    """``kind(values)`` for a Dr.Jit array type of the active variant (``mi.Float``, ``mi.UInt32``,
+    ``mi.Int32``), from a copy of ``values`` that starts on a ``KERNEL_INPUT_ALIGNMENT`` boundary.
+
+    The LLVM backend reads a NumPy array where it lies and compiles each kernel that loads it for
+    that address's alignment (``align 64`` or ``align 1``). Arrays that land wherever the allocator
+    puts them make a new kernel variant on frames whose buffers happened to land elsewhere, so a
+    sequence would keep compiling; aligned, each kernel compiles once per run."""
+    import drjit as dr
+    import numpy as np
+
+    dtype = np.dtype(
+        {dr.VarType.Float32: np.float32, dr.VarType.UInt32: np.uint32, dr.VarType.Int32: np.int32}[dr.type_v(kind)]
+    )
+    flat = np.asarray(values).ravel()
+    padded = np.empty(flat.size + KERNEL_INPUT_ALIGNMENT // dtype.itemsize, dtype)
+    start = (-padded.ctypes.data % KERNEL_INPUT_ALIGNMENT) // dtype.itemsize
+    aligned = padded[start : start + flat.size]
+    aligned[...] = flat
+    return kind(aligned)
+
+
 @contextlib.contextmanager
 def ordered_sums():
     """Within it, Dr.Jit's CPU backend runs kernels on one thread, so that a scatter-add (an adjoint pass

@@ -179,8 +179,8 @@ class _LayerRenderer:
             params["integrator.sigma_t"] = mi.TensorXf(state.density.sigma_t[..., None])
             params["integrator.ls"] = mi.TensorXf(state.density.ls[..., None])
             march_min, march_max = state.density.march_bounds
-            params["integrator.march_min"] = mi.Point3f(*map(float, march_min))
-            params["integrator.march_max"] = mi.Point3f(*map(float, march_max))
+            params["integrator.march_min"] = _opaque_point(mi, march_min)
+            params["integrator.march_max"] = _opaque_point(mi, march_max)
             self.current_density = state.density
         if state.views is not self.current_views:
             for index, view in enumerate(state.views):
@@ -192,11 +192,21 @@ class _LayerRenderer:
             self.current_views = state.views
         albedo_box = state.albedo_box()
         if albedo_box != self.current_albedo_box:
-            params["integrator.albedo_min"] = mi.Point3f(*albedo_box[0])
-            params["integrator.albedo_max"] = mi.Point3f(*albedo_box[1])
+            params["integrator.albedo_min"] = _opaque_point(mi, albedo_box[0])
+            params["integrator.albedo_max"] = _opaque_point(mi, albedo_box[1])
             self.current_albedo_box = albedo_box
         params.update()
         return params
+
+
+def _opaque_point(mi, values):
+    """``values`` (x, y, z) as a Point3f the kernel reads from memory: as a literal it would be baked
+    into the kernel, which would then compile again for every frame whose box differs."""
+    import drjit as dr
+
+    point = mi.Point3f(*map(float, values))
+    dr.make_opaque(point)
+    return point
 
 
 _renderers: OrderedDict[tuple, _LayerRenderer] = OrderedDict()

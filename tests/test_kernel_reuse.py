@@ -103,3 +103,29 @@ def test_another_structure_loads_a_new_scene(mi):
     assert pathtrace.SCENES.builds - builds == 3
     pathtrace.release_scenes()
     assert pathtrace.SCENES.kept is None
+
+
+def test_the_fast_layers_later_frames_launch_only_the_first_frames_kernels(mi):
+    """The layer's Ls grid and image of a blob moving through its box: a new frame's arrays reach Dr.Jit
+    aligned (``backend.lanes``) and its march box as data, so no kernel differs from the first frame's."""
+    import torch
+
+    from mistyle.bridge_torch import render_views
+    from mistyle.integrators import prepare_density
+
+    frames = blob_frames(3)
+    views = CameraPath().turntable(3)
+    seen: set = set()
+    launched = []
+    boxes = set()
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
+        dr.kernel_history()
+        for (density, albedo), view in zip(frames, views):
+            prepared = prepare_density(density, 20.0)
+            boxes.add(tuple(np.concatenate(prepared.march_bounds)))
+            with torch.no_grad():
+                image = render_views(torch.from_numpy(albedo).permute(3, 0, 1, 2).contiguous(), prepared, [view], 16)
+            assert float(image.mean()) > 1e-3
+            launched.append(new_kernels(seen))
+    assert len(boxes) == 3  # the medium's box moves
+    assert launched[0] and launched[1:] == [[], []]

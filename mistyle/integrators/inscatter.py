@@ -48,6 +48,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ..backend import lanes
 from ..conventions import LS_DIRECTIONS
 from ..scenes.box import MediumBox
 
@@ -147,7 +148,7 @@ def resample_trilinear(grid: np.ndarray, factor: int) -> np.ndarray:
     shape = tuple(n * factor for n in grid.shape)
     z, y, x = (np.arange(n, dtype=np.float32) for n in shape)
     zz, yy, xx = np.meshgrid((z + 0.5) / shape[0], (y + 0.5) / shape[1], (x + 0.5) / shape[2], indexing="ij")
-    p = mi.Point3f(mi.Float(xx.ravel()), mi.Float(yy.ravel()), mi.Float(zz.ravel()))
+    p = mi.Point3f(lanes(mi.Float, xx), lanes(mi.Float, yy), lanes(mi.Float, zz))
     return np.asarray(texture.eval(p)[0], dtype=np.float32).reshape(shape)
 
 
@@ -241,7 +242,7 @@ def inscattered_radiance_at(
     sigma_t = np.ascontiguousarray(sigma_t, dtype=np.float32)
     box = MediumBox(sigma_t.shape)
     texture = mi.Texture3f(mi.TensorXf(sigma_t[..., None]))
-    q = mi.Point3f(*(mi.Float(np.asarray(points, dtype=np.float32)[:, i]) for i in range(3)))
+    q = mi.Point3f(*(lanes(mi.Float, np.asarray(points, dtype=np.float32)[:, i]) for i in range(3)))
     return np.asarray(_bruteforce(texture, box, q, hammersley_sphere(directions), steps), dtype=np.float32)
 
 
@@ -261,11 +262,11 @@ def layer_reads_ls(sigma_t: np.ndarray) -> np.ndarray:
 def _voxel_centre_positions(selected: np.ndarray):
     """Voxel-unit positions ``(x+1/2, y+1/2, z+1/2)`` of the ``selected`` voxels, in C order."""
     z, y, x = np.nonzero(selected)
-    return mi.Point3f(mi.Float(x + 0.5), mi.Float(y + 0.5), mi.Float(z + 0.5))
+    return mi.Point3f(lanes(mi.Float, x + 0.5), lanes(mi.Float, y + 0.5), lanes(mi.Float, z + 0.5))
 
 
 def _bruteforce(texture, box: MediumBox, q, omegas: np.ndarray, steps: int):
-    omega_table = mi.Vector3f(*(mi.Float(omegas[:, i]) for i in range(3)))
+    omega_table = mi.Vector3f(*(lanes(mi.Float, omegas[:, i]) for i in range(3)))
     visibility = _march_bruteforce(
         texture, mi.ScalarVector3f(box.resolution_xyz), box.voxel_size, q, omega_table, len(omegas), steps
     )
@@ -353,8 +354,8 @@ def _sheared_batch(texture, res_np, q, visibility, plans: list[dict]):
     def table(key, kind=mi.Float):
         values = np.array([p[key] for p in plans])
         if values.ndim == 2:
-            return mi.Vector3f(*(mi.Float(values[:, i]) for i in range(3)))
-        return kind(values)
+            return mi.Vector3f(*(lanes(mi.Float, values[:, i]) for i in range(3)))
+        return lanes(kind, values)
 
     lines = np.array([p["lines"] for p in plans], dtype=np.int64)
     sizes = lines * np.array([p["samples"] for p in plans])
@@ -367,7 +368,7 @@ def _sheared_batch(texture, res_np, q, visibility, plans: list[dict]):
     tables["slices"] = table("slices")
     for key in ("lines", "lines_c", "samples"):
         tables[key] = table(key, mi.UInt32)
-    tables["buffer_offset"] = mi.UInt32(buffer_offset)
+    tables["buffer_offset"] = lanes(mi.UInt32, buffer_offset)
     res = mi.ScalarVector3f(res_np)
 
     tau_lines = dr.empty(mi.Float, int(sizes.sum()))
@@ -375,10 +376,10 @@ def _sheared_batch(texture, res_np, q, visibility, plans: list[dict]):
         texture,
         res,
         tables,
-        mi.UInt32(direction_of_line),
-        mi.UInt32(local_line),
-        mi.Float(local_line // lines_c),
-        mi.Float(local_line % lines_c),
+        lanes(mi.UInt32, direction_of_line),
+        lanes(mi.UInt32, local_line),
+        lanes(mi.Float, local_line // lines_c),
+        lanes(mi.Float, local_line % lines_c),
         tau_lines,
     )
     visibility = _gather_visibility(visibility, tau_lines, q, res, tables, dr.opaque(mi.UInt32, len(plans)))

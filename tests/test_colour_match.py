@@ -259,10 +259,27 @@ def test_apply_resumes_from_the_fit_with_the_same_result(mi, blob_density):
     match = fit_colour_match(
         albedo, blob_density, _two_colour_style(), density_scale=20.0, radiance=1.0, camera_distance=1.7
     )
-    assert match.resume is not None and 0 < match.resume[2] < len(match.stages)
+    assert match.resume is not None and 0 < match.resume.done < len(match.stages)
     np.testing.assert_array_equal(
         match.apply(albedo, blob_density, 0.8), replace(match, resume=None).apply(albedo, blob_density, 0.8)
     )
+    # Another albedo (one voxel of the medium changed) starts from the first stage.
+    other = albedo.copy()
+    other[tuple(np.argwhere(blob_density > 0)[0])] = 0.5
+    np.testing.assert_array_equal(
+        match.apply(other, blob_density), replace(match, resume=None).apply(other, blob_density)
+    )
+    assert not np.array_equal(match.apply(other, blob_density), match.apply(albedo, blob_density))
+
+
+def test_the_transport_carries_blocks_of_colours_as_it_carries_them_all_at_once():
+    from mistyle.colour_match import TRANSPORT_BLOCK, _carried, apply_sliced_transport, fit_sliced_transport
+
+    rng = np.random.default_rng(3)
+    source = rng.uniform(0, 1, (4096, 3)) ** 2
+    stages = fit_sliced_transport(source, rng.uniform(0, 1, (4096, 3)), rng)
+    colours = np.sort(rng.uniform(0, 1, (2 * TRANSPORT_BLOCK + 123, 3)), axis=0)
+    np.testing.assert_array_equal(apply_sliced_transport(stages, colours), _carried(stages, colours.copy()))
 
 
 def _sphere_case(size: int = 12):

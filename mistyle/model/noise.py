@@ -49,15 +49,21 @@ def validate_noise_scales(scales) -> tuple[float, ...]:
 
 
 def noise_fields(
-    shape: tuple, scales: tuple, per_scale: int, seed: int = 0, orientations: tuple = ("isotropic",)
+    shape: tuple,
+    scales: tuple,
+    per_scale: int,
+    seed: int = 0,
+    orientations: tuple = ("isotropic",),
+    window: tuple[slice, slice, slice] | None = None,
 ) -> torch.Tensor:
     """``(len(orientations) * len(scales) * per_scale, Z, Y, X)`` float32 fields on the CPU: per
     orientation in turn, ``per_scale`` in a row at each of ``scales`` (module docstring). The isotropic
     fields are the same whatever other orientations follow. Cached by its arguments: every frame of
-    one shape shares them."""
+    one shape shares them. ``window``: the part of the box to return (a copy of that part only)."""
     shape = tuple(int(n) for n in shape)
     key = (validate_noise_scales(scales), int(per_scale), int(seed), validate_noise_orientations(orientations))
-    return _noise_fields(shape, *key).clone()
+    fields = _noise_fields(shape, *key)
+    return (fields if window is None else fields[(slice(None), *window)]).clone()
 
 
 @lru_cache(maxsize=8)
@@ -69,17 +75,23 @@ def _noise_fields(shape: tuple, scales: tuple, per_scale: int, seed: int, orient
         torch.fft.rfftfreq(shape[2], dtype=torch.float64)
     ]
     squared = [f.view([-1 if axis == a else 1 for a in range(3)]) ** 2 for axis, f in enumerate(frequencies)]
-    fields = []
-    for orientation in orientations:  # one draw after another: earlier orientations' fields never change
-        white = torch.randn((len(scales) * per_scale,) + shape, generator=generator, dtype=torch.float64)
+    count = len(scales) * per_scale
+    # Filtered into one array and scaled in place: at 256^3 the fields take a gigabyte in float64, and
+    # a copy of them (a concatenation, a centred copy, a scaled copy) cost more than the FFTs.
+    field = torch.empty((len(orientations) * count,) + shape, dtype=torch.float64)
+    for number, orientation in enumerate(
+        orientations
+    ):  # one draw after another: earlier orientations' fields never change
+        white = torch.randn((count,) + shape, generator=generator, dtype=torch.float64)
         spectrum = torch.fft.rfftn(white, dim=(1, 2, 3))
+        del white
         stretched = sum(k**2 * f for k, f in zip(NOISE_ORIENTATIONS[orientation], squared, strict=True))
         for index, scale in enumerate(scales):
             sigma = scale * longest  # voxels, across the long axes
             transfer = torch.exp(-2.0 * torch.pi**2 * sigma**2 * stretched)
             part = spectrum[index * per_scale : (index + 1) * per_scale] * transfer
-            fields.append(torch.fft.irfftn(part, s=shape, dim=(1, 2, 3)))
-    field = torch.cat(fields)
-    field = field - field.mean(dim=(1, 2, 3), keepdim=True)
-    field = field / field.std(dim=(1, 2, 3), keepdim=True).clamp_min(1e-12)
+            first = number * count + index * per_scale
+            torch.fft.irfftn(part, s=shape, dim=(1, 2, 3), out=field[first : first + per_scale])
+    field.sub_(field.mean(dim=(1, 2, 3), keepdim=True))
+    field.div_(field.std(dim=(1, 2, 3), keepdim=True).clamp_min(1e-12))
     return field.float()

@@ -378,10 +378,8 @@ class SKPN(nn.Module):
         if not config.noise_channels:
             return None
         fields = noise_fields(
-            size, config.noise_scales, config.noise_per_scale, config.noise_seed, config.noise_orientations
+            size, config.noise_scales, config.noise_per_scale, config.noise_seed, config.noise_orientations, window
         )
-        if window is not None:
-            fields = fields[(slice(None), *window)]
         return fields[None].to(next(self.parameters()).device)
 
     def encode(

@@ -78,14 +78,23 @@ def visible_weight(density: np.ndarray, density_scale: float) -> np.ndarray:
     density = np.asarray(density, dtype=np.float64)
     if density.ndim != 3:
         raise ValueError(f"density must be (Z, Y, X), got shape {density.shape}.")
-    depth = density * float(density_scale) / max(density.shape)  # optical depth of one voxel (longest side 1)
-    transmittance = np.zeros_like(density)
+    weight = np.zeros_like(density)
+    # Computed over the medium's box alone: outside it the density and so the weight are zero, and the
+    # sums along an axis from a face reach the box through zeros, which add nothing (the same values).
+    occupied = np.nonzero(density)
+    if len(occupied[0]) == 0:
+        return weight
+    box = tuple(slice(int(index.min()), int(index.max()) + 1) for index in occupied)
+    inside = density[box]
+    depth = inside * float(density_scale) / max(density.shape)  # optical depth of one voxel (longest side 1)
+    transmittance = np.zeros_like(inside)
     for axis in (0, 2):
         for flipped in (False, True):
             step = np.flip(depth, axis) if flipped else depth
             seen = np.exp(-(np.cumsum(step, axis=axis) - 0.5 * step))
             transmittance += np.flip(seen, axis) if flipped else seen
-    return density * transmittance / 4.0
+    weight[box] = inside * transmittance / 4.0
+    return weight
 
 
 def fit_sliced_transport(
@@ -347,25 +356,33 @@ def grey_response(density: np.ndarray, *, density_scale: float, radiance: float,
     """Step 1 of the module docstring: the display value ``f(a)`` the medium shows at each of
     ``RESPONSE_LEVELS``, strictly increasing (so that it inverts). ``InvisibleMedium`` when no pixel
     of the response render sees the medium; ``ValueError`` above ``conventions.MAX_EXTINCTION``."""
+    from .memo import kept
     from .response import uniform_display_response
     from .scenes import CameraPath
     from .volume import validate_extinction
 
+    density = np.asarray(density, dtype=np.float32)
     validate_extinction(density, density_scale, "The density")  # a render's time grows with the extinction
-    try:
-        shown_levels = uniform_display_response(
-            np.asarray(density, dtype=np.float32),
-            density_scale,
-            radiance,
-            [CameraPath(distance=camera_distance).view(RESPONSE_VIEW)],
-            RESPONSE_LEVELS,
-            res=32,
-            spp=4,
-            pack_channels=True,
-        )
-    except ValueError as error:  # no pixel sees the medium
-        raise InvisibleMedium(f"{error} The colour match needs a visible medium.") from None
-    return shown_levels + np.arange(len(shown_levels)) * 1e-9
+
+    def rendered():
+        try:
+            shown_levels = uniform_display_response(
+                density,
+                density_scale,
+                radiance,
+                [CameraPath(distance=camera_distance).view(RESPONSE_VIEW)],
+                RESPONSE_LEVELS,
+                res=32,
+                spp=4,
+                pack_channels=True,
+            )
+        except ValueError as error:  # no pixel sees the medium
+            raise InvisibleMedium(f"{error} The colour match needs a visible medium.") from None
+        return shown_levels + np.arange(len(shown_levels)) * 1e-9
+
+    # Kept: the network's colour match and a look's fit on the same frame ask for the same response.
+    light = np.array([density_scale, radiance, camera_distance], dtype=np.float64)
+    return kept("grey response", (density, light), rendered).copy()
 
 
 def fit_colour_match(

@@ -328,3 +328,37 @@ def test_the_torch_fit_is_the_numpy_fit_and_differentiates_through_it():
     finite = (loss(tensor + step * direction) - loss(tensor - step * direction)) / (2 * step)
     assert float((through_fit * direction).sum()) == pytest.approx(float(finite), rel=0.02)
     assert float((through_map * direction).sum()) != pytest.approx(float(finite), rel=0.2)
+
+
+def test_the_visible_weight_over_the_mediums_box_is_the_whole_grids_to_the_bit():
+    from mistyle.colour_match import visible_weight
+
+    rng = np.random.default_rng(4)
+    density = np.zeros((20, 18, 24))
+    density[5:11, 3:15, 9:20] = rng.uniform(0.0, 3.0, (6, 12, 11))
+    depth = density * 20.0 / 24
+    whole = np.zeros_like(density)  # the sums from every face over the whole grid
+    for axis in (0, 2):
+        for flipped in (False, True):
+            step = np.flip(depth, axis) if flipped else depth
+            seen = np.exp(-(np.cumsum(step, axis=axis) - 0.5 * step))
+            whole += np.flip(seen, axis) if flipped else seen
+    np.testing.assert_array_equal(visible_weight(density, 20.0), density * whole / 4.0)
+    assert not visible_weight(np.zeros((4, 4, 4)), 20.0).any()
+
+
+def test_the_grey_response_of_a_density_is_kept_for_the_next_fit(mi, blob_density, monkeypatch):
+    from mistyle import response
+    from mistyle.colour_match import grey_response
+
+    first = grey_response(blob_density, density_scale=20.0, radiance=1.0, camera_distance=1.7)
+    monkeypatch.setattr(response, "uniform_display_response", None)  # a second render would fail
+    again = grey_response(blob_density.copy(), density_scale=20.0, radiance=1.0, camera_distance=1.7)
+    np.testing.assert_array_equal(again, first)
+    again[0] = -1.0  # the caller's copy
+    np.testing.assert_array_equal(
+        grey_response(blob_density, density_scale=20.0, radiance=1.0, camera_distance=1.7), first
+    )
+    monkeypatch.undo()
+    other = grey_response(blob_density, density_scale=10.0, radiance=1.0, camera_distance=1.7)
+    assert not np.array_equal(other, first)

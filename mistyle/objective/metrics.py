@@ -6,12 +6,11 @@ tone curve (``mistyle.tone``) so they are compared with style images in display 
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import torch
 
 from ..conventions import FOREGROUND_THRESHOLD
+from ..memo import kept
 from ..tone import display
 from ..warp import semi_lagrangian_warp
 from .losses import scaled_patches
@@ -57,42 +56,10 @@ def sliced_wasserstein(a: np.ndarray, b: np.ndarray, projections: int = 128, see
     return float(np.sqrt(np.mean((qa - qb) ** 2)))
 
 
-_KEPT: dict = {}
-_KEPT_LOCK = threading.Lock()
-KEPT_BYTES = 1 << 28
-"""What ``_kept`` holds at most: values computed from the last few reference sets."""
-
-
-def _kept(kind: str, arrays: tuple, compute) -> np.ndarray:
-    """``compute()`` (an array), kept for the next call of this ``kind`` with equal ``arrays``: a run
-    measures every frame and view against one style, and the style's half of a metric (its sorted
-    projections, its hue clusters) is most of a call's time."""
-    import hashlib
-
-    digest = hashlib.blake2b(kind.encode(), digest_size=16)
-    for array in arrays:
-        array = np.ascontiguousarray(array)
-        digest.update(repr((array.dtype.str, array.shape)).encode())
-        digest.update(array.view(np.uint8))
-    key = digest.hexdigest()
-    with _KEPT_LOCK:  # callers may measure from several threads
-        kept = _KEPT.get(key)
-    if kept is not None:
-        return kept
-    value = compute()
-    with _KEPT_LOCK:
-        held = sum(entry.nbytes for entry in _KEPT.values())
-        while _KEPT and held + value.nbytes > KEPT_BYTES:
-            held -= _KEPT.pop(next(iter(_KEPT))).nbytes
-        if value.nbytes <= KEPT_BYTES:
-            _KEPT[key] = value
-    return value
-
-
 def _sorted_projections(points: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """``points @ directions.T`` sorted down each column (the second set of ``sliced_wasserstein``, the
-    style: ``_kept``)."""
-    return _kept("sorted projections", (points, directions), lambda: np.sort(points @ directions.T, axis=0))
+    style: ``memo.kept``)."""
+    return kept("sorted projections", (points, directions), lambda: np.sort(points @ directions.T, axis=0))
 
 
 def bounded_points(points, rng: np.random.Generator, limit: int = MAX_METRIC_POINTS) -> np.ndarray:
@@ -249,7 +216,7 @@ def hue_coverage(pixels: np.ndarray, style: np.ndarray, clusters: int = HUE_CLUS
     ours_ab = srgb_to_lab(bounded_points(np.asarray(pixels).reshape(-1, 3), rng, 1 << 16))[:, 1:]
     if len(ours_ab) == 0:
         return 0.0
-    centres = _kept("hue clusters", (style_ab, np.array([clusters, seed])), lambda: kmeans(style_ab, clusters, seed))
+    centres = kept("hue clusters", (style_ab, np.array([clusters, seed])), lambda: kmeans(style_ab, clusters, seed))
 
     def shares(points):
         labels = np.argmin(((points[:, None] - centres[None]) ** 2).sum(-1), axis=1)

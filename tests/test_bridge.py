@@ -120,6 +120,7 @@ def test_a_cached_scene_takes_the_next_densitys_grids_and_march_box(mi, prepared
         (torch.rand(1, 3, 16, 18, 21), "does not match density"),
         (torch.ones(1, 3, 16, 18, 20, dtype=torch.int32), "floating-point"),
         (torch.full((1, 3, 16, 18, 20), float("nan")), "NaN"),
+        (torch.rand(1, 3, 16, 18, 20).index_put_((torch.tensor([0]),) * 5, torch.tensor(float("inf"))), "NaN or inf"),
         (torch.rand(1, 3, 16, 18, 20, device="meta"), "device"),
         (np.zeros((1, 3, 16, 18, 20), np.float32), "torch.Tensor"),
     ],
@@ -127,6 +128,14 @@ def test_a_cached_scene_takes_the_next_densitys_grids_and_march_box(mi, prepared
 def test_bad_albedo_raises_value_error(prepared, albedo, match):
     with pytest.raises(ValueError, match=match):
         render_views(albedo, prepared, VIEWS, 8)
+
+
+def test_finite_albedos_whose_sum_overflows_pass_the_check():
+    from mistyle.bridge_torch import _validate_albedo
+
+    huge = torch.full((1, 3, 16, 18, 20), 3e38)
+    assert not torch.isfinite(huge.sum())
+    assert _validate_albedo(huge)[0] is huge
 
 
 def test_bad_views_and_density_lists_raise(prepared):

@@ -362,3 +362,20 @@ def test_the_grey_response_of_a_density_is_kept_for_the_next_fit(mi, blob_densit
     monkeypatch.undo()
     other = grey_response(blob_density, density_scale=10.0, radiance=1.0, camera_distance=1.7)
     assert not np.array_equal(other, first)
+
+
+def test_distinct_colours_are_the_sorted_distinct_rows_for_bfloat16_colours_and_others():
+    """The network's colours (bfloat16 values) take a one-key sort, others two keys: either way the
+    distinct rows in red, green, blue order, and each row's index among them."""
+    import torch
+
+    from mistyle.colour_match import distinct_colours
+
+    rng = np.random.default_rng(5)
+    network = torch.from_numpy(rng.uniform(0, 1, (20000, 3)).astype(np.float32) ** 3).bfloat16().float().numpy()
+    network = np.concatenate([network, network[::3], np.zeros((5, 3), np.float32)])
+    for colours in (network, network + np.float32(1e-7)):  # bfloat16 values, and values of no such precision
+        distinct, index = distinct_colours(colours)
+        np.testing.assert_array_equal(distinct[index], colours)
+        assert len(distinct) == len(np.unique(colours, axis=0)) < len(colours)
+        np.testing.assert_array_equal(np.lexsort(distinct.T[::-1]), np.arange(len(distinct)))

@@ -1,6 +1,6 @@
 """Values kept for the next call with the same inputs: what a run computes again and again from one
 style or one density (a metric's sorted projections of the style, its hue clusters, the colour
-match's response of a density), held by a digest of the arrays it came from, up to ``KEPT_BYTES``."""
+match's response and visible weight of a density), held by a digest of the arrays it came from, up to ``KEPT_BYTES``."""
 
 from __future__ import annotations
 

@@ -57,10 +57,10 @@ __all__ = [
     "vdb_frames_in_one_box",
     "write_exr",
     "write_gif",
+    "write_jpeg",
     "write_mp4",
     "write_npy",
     "write_npz",
-    "write_jpeg",
     "write_png",
     "write_vol",
 ]

@@ -79,9 +79,8 @@ def _noise_fields(shape: tuple, scales: tuple, per_scale: int, seed: int, orient
     # Filtered into one array and scaled in place: at 256^3 the fields take a gigabyte in float64, and
     # a copy of them (a concatenation, a centred copy, a scaled copy) cost more than the FFTs.
     field = torch.empty((len(orientations) * count,) + shape, dtype=torch.float64)
-    for number, orientation in enumerate(
-        orientations
-    ):  # one draw after another: earlier orientations' fields never change
+    # One draw after another: earlier orientations' fields never change.
+    for number, orientation in enumerate(orientations):
         white = torch.randn((count,) + shape, generator=generator, dtype=torch.float64)
         spectrum = torch.fft.rfftn(white, dim=(1, 2, 3))
         del white

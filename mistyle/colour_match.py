@@ -52,6 +52,8 @@ from functools import partial
 
 import numpy as np
 
+from .volume import box_of
+
 RESPONSE_LEVELS = tuple(np.geomspace(1e-2, 1.0, 9))
 """Grey albedos of the response sweep; albedos below the first are matched as the first."""
 RESPONSE_VIEW = 0.0
@@ -81,10 +83,9 @@ def visible_weight(density: np.ndarray, density_scale: float) -> np.ndarray:
     weight = np.zeros_like(density)
     # Computed over the medium's box alone: outside it the density and so the weight are zero, and the
     # sums along an axis from a face reach the box through zeros, which add nothing (the same values).
-    occupied = np.nonzero(density)
-    if len(occupied[0]) == 0:
+    box = box_of(density != 0)
+    if box is None:
         return weight
-    box = tuple(slice(int(index.min()), int(index.max()) + 1) for index in occupied)
     inside = density[box]
     depth = inside * float(density_scale) / max(density.shape)  # optical depth of one voxel (longest side 1)
     transmittance = np.zeros_like(inside)
@@ -191,16 +192,21 @@ class ColourMatch:
         """``albedo (Z, Y, X, 3)`` with every voxel where ``density > 0`` moved ``strength`` of the way
         along its transport displacement (module docstring); float32. The map is a function of colour,
         so it is evaluated once per distinct colour (a network's bfloat16 output repeats many)."""
-        return self.applied(albedo, density, strength)[0]
+        return self.applied(albedo, density, strength, resumable=False)[0]
 
-    def applied(self, albedo: np.ndarray, density: np.ndarray, strength: float = 1.0) -> tuple[np.ndarray, _Resume]:
-        """``apply``'s albedo, and the ``resume`` of that albedo through all the stages."""
+    def applied(
+        self, albedo: np.ndarray, density: np.ndarray, strength: float = 1.0, resumable: bool = True
+    ) -> tuple[np.ndarray, _Resume | None]:
+        """``apply``'s albedo, and (``resumable``) the ``resume`` of that albedo through all the stages."""
         result = np.array(albedo, dtype=np.float32)
         inside = np.asarray(density) > 0
-        digest = _Resume.digest_of(result, inside)
-        if self.resume is not None and self.resume.digest == digest:
-            colours, voxel_colour = self.resume.colours, self.resume.voxel_colour
-            carried, done = self.resume.carried, self.resume.done
+        # Digested only where it can serve: an albedo over another number of medium voxels is not the fitted one.
+        resume = self.resume
+        if resume is not None and len(resume.voxel_colour) != np.count_nonzero(inside):
+            resume = None
+        digest = _Resume.digest_of(result, inside) if resume is not None or resumable else None
+        if resume is not None and resume.digest == digest:
+            colours, voxel_colour, carried, done = resume.colours, resume.voxel_colour, resume.carried, resume.done
         else:
             colours, voxel_colour = distinct_colours(result[inside])
             carried, done = None, 0
@@ -208,7 +214,7 @@ class ColourMatch:
         carried = apply_sliced_transport(self.stages[done:], shown if carried is None else carried)
         moved = np.clip(shown + float(strength) * (carried - shown), self.shown_levels[0], self.shown_levels[-1])
         result[inside] = np.exp(np.interp(moved, self.shown_levels, self.log_levels))[voxel_colour]
-        return result, _Resume(digest, colours, voxel_colour, carried, len(self.stages))
+        return result, _Resume(digest, colours, voxel_colour, carried, len(self.stages)) if resumable else None
 
     def apply_torch(self, albedo, inside):
         """``apply`` at strength 1 on a torch ``albedo (3, Z, Y, X)``, differentiable (the map is piecewise

@@ -28,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 from .conventions import MAX_FIT_STEPS
+from .volume import box_of
 
 MIN_EXEMPLAR_SIDE = 8
 """The coarsest level's exemplar needs at least this many pixels along its shorter side for patches."""
@@ -188,9 +189,8 @@ def lay_over(texture: np.ndarray, density: np.ndarray) -> np.ndarray:
     (``texture_in_box``): ``(Z, Y, X, 3)``, zero outside the box."""
     density = np.asarray(density)
     albedo = np.zeros(density.shape + (3,), np.float32)
-    occupied = np.argwhere(density > 0)
-    if len(occupied) == 0:
+    box = box_of(density > 0)
+    if box is None:
         return albedo
-    low, high = occupied.min(axis=0), occupied.max(axis=0) + 1
-    albedo[tuple(slice(a, b) for a, b in zip(low, high))] = texture_in_box(texture, tuple(high - low))
+    albedo[box] = texture_in_box(texture, tuple(part.stop - part.start for part in box))
     return albedo

@@ -82,6 +82,19 @@ def validate_extinction(density, density_scale: float, name: str = "density") ->
     return extinction
 
 
+def box_of(mask: np.ndarray) -> tuple[slice, ...] | None:
+    """The slices of the bounding box of ``mask``'s true voxels (any number of axes), None when there
+    are none. From each axis's projection: no index array of the voxels themselves."""
+    mask = np.asarray(mask, dtype=bool)
+    box = []
+    for axis in range(mask.ndim):
+        present = np.flatnonzero(mask.any(axis=tuple(a for a in range(mask.ndim) if a != axis)))
+        if len(present) == 0:
+            return None
+        box.append(slice(int(present[0]), int(present[-1]) + 1))
+    return tuple(box)
+
+
 def validate_albedo(albedo, shape_zyx: tuple[int, int, int] | None = None, name: str = "albedo") -> np.ndarray:
     """Check an RGB albedo grid ``(Z, Y, X, 3)`` in [0, 1] and return it as float32 C-contiguous."""
     array = np.asarray(albedo)

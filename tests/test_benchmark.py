@@ -5,11 +5,12 @@ import shutil
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from mistyle.benchmark import METHODS, split_pairs
 from mistyle.benchmark.__main__ import main
 from mistyle.benchmark.methods import density_ramp, smooth_noise, tuned_noise
-from mistyle.benchmark.runner import read_rows, report, run, summary
+from mistyle.benchmark.runner import TILE, read_rows, report, run, summary
 from mistyle.benchmark.runner import table as table_of
 from mistyle.data.heldout import HELD_OUT_SEED_BASE, HeldOutDensity, held_out_styles, validation_styles
 
@@ -130,6 +131,10 @@ def test_runner_writes_rows_resumes_and_reports(mi, tmp_path):
     (out / "table.md").unlink()
     report(out)
     assert (out / "sheet.jpg").read_bytes() == sheet and (out / "table.md").exists()
+    # One method scored again there: the sheet shows it, not grey columns for the methods without tiles.
+    run(out, [(TINY, "hokusai_great_wave")], ["uniform"], res=16, spp=1, cache=cache)
+    with Image.open(out / "sheet.jpg") as image:
+        assert image.width == 2 * TILE
 
 
 def test_command_refuses_bad_input_in_one_line(tmp_path, capsys):

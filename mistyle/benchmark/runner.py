@@ -483,7 +483,9 @@ def _sheet_tile(path: Path, side: int) -> np.ndarray:
 
 def write_sheet(rows: list[Row], tiles: Path, path: Path, side: int = TILE) -> None:
     """Per (density, style): the style, then each method's tile (grey where none was saved), ``side``
-    pixels each (``SAVED_TILE``: large enough to see strokes)."""
+    pixels each (``SAVED_TILE``: large enough to see strokes). A method with no saved tile at all is
+    left out: tiles are not committed, so a folder scored again on a fresh checkout has rows but no
+    tiles for the methods it did not score again."""
     from PIL import Image, ImageDraw
 
     from ..files import atomic_output, load_style
@@ -493,7 +495,7 @@ def write_sheet(rows: list[Row], tiles: Path, path: Path, side: int = TILE) -> N
     pairs = list(dict.fromkeys((row.density, row.style) for row in rows))
     if not pairs:
         return
-    methods = list(summary(rows))
+    methods = [method for method in summary(rows) if any(tiles.glob(f"*__{method}.png"))]
     styles = {}
     for split in dict.fromkeys(row.split or "heldout" for row in rows):
         styles.update(split_styles(split))

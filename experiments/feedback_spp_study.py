@@ -29,6 +29,7 @@ the default's; a tie goes to fewer samples.
 
     .venv/bin/python experiments/feedback_spp_study.py              # about 30 min on 2 cores
     .venv/bin/python experiments/feedback_spp_study.py --report-only
+    .venv/bin/python experiments/feedback_spp_study.py --cost    # the feedback render's time, into cost.jsonl
 """
 
 from __future__ import annotations
@@ -73,9 +74,63 @@ def pairs() -> list:
     return split_pairs("validation", ["val_smoke64", "val_pyroclastic64"])
 
 
+def feedback_cost(sides=(64, 128), samples=(4, 16, 64), repeats: int = 3) -> list[dict]:
+    """Seconds of the feedback render (``FEEDBACK_VIEWS`` views at ``FEEDBACK_RES``^2, one launch) of the
+    bundled smoke resampled to each side, at each number of paths a pixel: the median of ``repeats``
+    after one render that compiles."""
+    import os
+    import time
+
+    import numpy as np
+    import torch
+    import torch.nn.functional as F
+
+    from mistyle import colour_match
+    from mistyle.files import read_vol
+    from mistyle.response import albedo_renders
+    from mistyle.scenes import CameraPath
+    from mistyle.stylizer import Stylizer
+
+    stylizer = Stylizer(None)
+    render = stylizer.config.render
+    views = CameraPath(distance=render.camera_distance).turntable(colour_match.FEEDBACK_VIEWS)
+    smoke = torch.from_numpy(read_vol(ROOT / "examples" / "smoke_64.vol"))[None, None]
+    rows = []
+    for side in sides:
+        density = F.interpolate(smoke, size=(side,) * 3, mode="trilinear")[0, 0].numpy()
+        albedo = np.full(density.shape + (3,), 0.7, np.float32)
+
+        def once(spp, density=density, albedo=albedo):
+            started = time.perf_counter()
+            albedo_renders(
+                density,
+                stylizer.density_scale,
+                render.radiance,
+                views,
+                [albedo],
+                res=colour_match.FEEDBACK_RES,
+                spp=spp,
+                batch=True,
+            )
+            return time.perf_counter() - started
+
+        once(samples[0])
+        for spp in samples:
+            seconds = float(np.median([once(spp) for _ in range(repeats)]))
+            rows.append({"side": side, "spp": spp, "seconds": seconds, "load_1min": os.getloadavg()[0]})
+    return rows
+
+
 def main(argv=None) -> None:
+    import json
+
     from study import arm_study
 
+    if (argv if argv is not None else sys.argv[1:])[:1] == ["--cost"]:
+        rows = feedback_cost()
+        (OUT / "cost.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+        print("\n".join(json.dumps(row) for row in rows))
+        return
     arm_study(__doc__.splitlines()[0], OUT, register_arms, pairs, argv, baselines=("tuned_noise",))
 
 

@@ -43,6 +43,9 @@ sys.path.insert(0, str(ROOT / "experiments"))
 
 OUT = ROOT / "results" / "feedback_spp_study"
 ARMS = {"feedback16": 16, "feedback64": 64}
+FROZEN_AT = "1dd6867"
+"""The last commit whose default feedback takes 4 paths a pixel, the arms' baseline: the study's rows ran
+there (``--report-only`` and ``--cost`` run anywhere)."""
 
 
 def register_arms() -> list[str]:
@@ -124,13 +127,16 @@ def feedback_cost(sides=(64, 128), samples=(4, 16, 64), repeats: int = 3) -> lis
 def main(argv=None) -> None:
     import json
 
-    from study import arm_study
+    from study import arm_study, require_frozen_commit
 
-    if (argv if argv is not None else sys.argv[1:])[:1] == ["--cost"]:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--cost"]:
         rows = feedback_cost()
         (OUT / "cost.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
         print("\n".join(json.dumps(row) for row in rows))
         return
+    if "--report-only" not in argv:
+        require_frozen_commit(__file__, FROZEN_AT)
     arm_study(__doc__.splitlines()[0], OUT, register_arms, pairs, argv, baselines=("tuned_noise",))
 
 

@@ -70,10 +70,10 @@ FEEDBACK_VIEWS = 8
 """Views of the feedback render, evenly around the orbit from position 0."""
 FEEDBACK_RES = 32
 FEEDBACK_SPP = 16
-"""Paths per pixel of the feedback render. At 4 a thin medium's fringe pixels are black or sparse
-bright samples, so the feedback saw a brighter, wider foreground than the converged render users get
-and darkened and dulled the colours; 16 gave the default output RGB SWD 0.82x on 28 validation pairs,
-64 more patch error (``results/feedback_spp_study/``)."""
+"""Paths per pixel of the feedback render. With fewer, a thin medium's fringe pixels are black or sparse
+bright samples, so the feedback sees a brighter, wider foreground than the converged render users get,
+and its correction darkens and dulls the colours: 16 against 4 gave the default output RGB SWD 0.82x on
+28 validation pairs; 64 cost patch error (``results/feedback_spp_study/``)."""
 FEEDBACK_ROUNDS = 4
 """Rounds of the feedback transport (it corrects a distribution already near the style's)."""
 

@@ -85,11 +85,9 @@ def feedback_cost(sides=(64, 128), samples=(4, 16, 64), repeats: int = 3) -> lis
     import time
 
     import numpy as np
-    import torch
-    import torch.nn.functional as F
+    from bench_scale import density as resampled_smoke
 
     from mistyle import colour_match
-    from mistyle.files import read_vol
     from mistyle.response import albedo_renders
     from mistyle.scenes import CameraPath
     from mistyle.stylizer import Stylizer
@@ -97,10 +95,9 @@ def feedback_cost(sides=(64, 128), samples=(4, 16, 64), repeats: int = 3) -> lis
     stylizer = Stylizer(None)
     render = stylizer.config.render
     views = CameraPath(distance=render.camera_distance).turntable(colour_match.FEEDBACK_VIEWS)
-    smoke = torch.from_numpy(read_vol(ROOT / "examples" / "smoke_64.vol"))[None, None]
     rows = []
     for side in sides:
-        density = F.interpolate(smoke, size=(side,) * 3, mode="trilinear")[0, 0].numpy()
+        density = resampled_smoke(side)
         albedo = np.full(density.shape + (3,), 0.7, np.float32)
 
         def once(spp, density=density, albedo=albedo):

@@ -6,8 +6,10 @@ the network stage of the default output spends on it (#51).
 
 The density is ``bench_scale.density`` (the bundled smoke resampled); the albedo the shipped network's
 for the demo's style. Times: the grey response, the fit (with its feedback render) and the application
-to the fitted albedo, after one untimed round that compiles the renders' kernels; and a digest of the
-matched albedo, so two commits' rows show whether their albedos are the same bit for bit.
+to the fitted albedo, after one untimed round that compiles the renders' kernels; the most memory NumPy
+held at once over the fit and the application beyond the inputs (``numpy_peak_gb``: a last round under
+``tracemalloc``, which NumPy reports its arrays to); and a digest of the matched albedo, so two commits'
+rows show whether their albedos are the same bit for bit.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import hashlib
 import json
 import sys
 import time
+import tracemalloc
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -65,6 +68,10 @@ def main(argv=None) -> None:
             {"response_s": responded - started, "fit_s": fitted - responded, "apply_s": time.perf_counter() - fitted}
         )
     timed = rounds[1:]
+    tracemalloc.start()
+    colour_match.fit_colour_match(albedo, grid, style.target, response=response, **scene).apply(albedo, grid)
+    numpy_peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
     print(
         json.dumps(
             {
@@ -72,6 +79,7 @@ def main(argv=None) -> None:
                 "code": args.label,
                 "medium_voxels": int((grid > 0).sum()),
                 **{key: float(np.median([r[key] for r in timed])) for key in timed[0]},
+                "numpy_peak_gb": numpy_peak / 2**30,
                 "matched_sha256": hashlib.sha256(np.ascontiguousarray(matched).tobytes()).hexdigest()[:16],
             }
         )

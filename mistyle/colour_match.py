@@ -48,7 +48,6 @@ import hashlib
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
-from functools import partial
 
 import numpy as np
 
@@ -63,9 +62,9 @@ TRANSPORT_QUANTILES = 65
 TRANSPORT_SAMPLES = 16384
 """Voxels (drawn by weight) and style pixels the transport is fitted on."""
 TRANSPORT_BLOCK = 32768
-"""Colours ``apply_sliced_transport`` carries through every stage at a time: a block and its
-temporaries stay in the core's cache, where whole arrays through one stage at a time went to memory
-and back once a stage (1.7x the time at 128^3, the same values)."""
+"""Colours carried through every stage at a time (``apply_sliced_transport``, ``ColourMatch.applied``): a
+block and its temporaries stay in the core's cache, where whole arrays through one stage at a time went
+to memory and back once a stage (1.7x the time at 128^3, the same values)."""
 FEEDBACK_VIEWS = 8
 """Views of the feedback render, evenly around the orbit from position 0."""
 FEEDBACK_RES = 32
@@ -129,19 +128,33 @@ def quantiles(values: np.ndarray, levels: np.ndarray) -> np.ndarray:
 
 def apply_sliced_transport(stages: list, colours: np.ndarray) -> np.ndarray:
     """``colours (N, 3)`` carried through ``stages`` (``fit_sliced_transport``). Each colour moves on its
-    own, so a long list is split into blocks of ``TRANSPORT_BLOCK`` consecutive colours, each carried
-    through all the stages on one of a thread per core (numpy releases the interpreter lock in these
-    loops)."""
+    own, so a long list is carried in blocks of ``TRANSPORT_BLOCK`` consecutive colours (``_in_blocks``)."""
     current = np.array(colours, dtype=np.float64)
-    blocks = -(-len(current) // TRANSPORT_BLOCK)
-    workers = min(os.cpu_count() or 1, blocks)
+
+    def carry(begin: int) -> None:
+        _carried(stages, current[begin : begin + TRANSPORT_BLOCK])  # in place
+
+    _in_blocks(carry, len(current))
+    return current
+
+
+def _in_blocks(carry, count: int) -> None:
+    """``carry(begin)`` for ``begin`` in ``range(0, count, TRANSPORT_BLOCK)``, on a thread per core (numpy
+    releases the interpreter lock in the transport's loops). Each block's colours go through every stage
+    while they stay in the core's cache."""
+    starts = range(0, count, TRANSPORT_BLOCK)
+    workers = min(os.cpu_count() or 1, len(starts))
     if workers < 2:
-        return _carried(stages, current)
+        for begin in starts:
+            carry(begin)
+        return
     with ThreadPoolExecutor(workers) as pool:
-        return np.concatenate(list(pool.map(partial(_carried, stages), np.array_split(current, blocks))))
+        for _ in pool.map(carry, starts):
+            pass
 
 
 def _carried(stages: list, current: np.ndarray) -> np.ndarray:
+    """``current (N, 3)`` carried through ``stages``, in place (and returned)."""
     for direction, source, target in stages:
         projected = current @ direction
         current += (np.interp(projected, source, target) - projected)[:, None] * direction
@@ -154,20 +167,18 @@ class InvisibleMedium(ValueError):
 
 @dataclass(frozen=True)
 class _Resume:
-    """Where ``ColourMatch.applied`` left an albedo: its ``digest`` (``digest_of``), its distinct colours
-    ``(M, 3)`` and each medium voxel's index among them (``distinct_colours``), and their shown colours
-    carried through the first ``done`` stages."""
+    """Where ``ColourMatch.applied`` left an albedo: its ``digest`` (``digest_of``) and each medium voxel's
+    shown colour carried through the first ``done`` stages, ``carried (N, 3)`` in the order of
+    ``np.flatnonzero`` of the medium."""
 
     digest: bytes
-    colours: np.ndarray
-    voxel_colour: np.ndarray
     carried: np.ndarray
     done: int
 
     @staticmethod
     def digest_of(albedo: np.ndarray, inside: np.ndarray) -> bytes:
         """A digest of ``albedo`` and of where the medium is: another albedo, or the same one on another
-        medium, never resumes (a tenth of the time of finding the albedo's distinct colours again)."""
+        medium, never resumes."""
         digest = hashlib.blake2b(digest_size=16)
         digest.update(repr((albedo.shape, inside.shape)).encode())
         digest.update(np.ascontiguousarray(albedo).view(np.uint8))
@@ -179,9 +190,9 @@ class _Resume:
 class ColourMatch:
     """A fitted colour match: the grey response ``f`` (``log_levels`` -> ``shown_levels``) and the transport
     stages (``fit_sliced_transport``), in shown colour. ``resume``, when given, is ``_Resume``: the
-    albedo the match was fitted on (by its digest), its distinct colours and their shown colours carried
-    through the first stages, which the fit already computed; ``apply`` on that albedo goes on from
-    there (the same result, fewer stages to run and no second search for its distinct colours)."""
+    albedo the match was fitted on (by its digest) and its voxels' shown colours carried through the
+    first stages, which the fit already computed; ``apply`` on that albedo goes on from there (the same
+    result, fewer stages to run)."""
 
     log_levels: np.ndarray
     shown_levels: np.ndarray
@@ -194,31 +205,42 @@ class ColourMatch:
 
     def apply(self, albedo: np.ndarray, density: np.ndarray, strength: float = 1.0) -> np.ndarray:
         """``albedo (Z, Y, X, 3)`` with every voxel where ``density > 0`` moved ``strength`` of the way
-        along its transport displacement (module docstring); float32. The map is a function of colour,
-        so it is evaluated once per distinct colour (a network's bfloat16 output repeats many)."""
+        along its transport displacement (module docstring); float32."""
         return self.applied(albedo, density, strength, resumable=False)[0]
 
     def applied(
         self, albedo: np.ndarray, density: np.ndarray, strength: float = 1.0, resumable: bool = True
     ) -> tuple[np.ndarray, _Resume | None]:
-        """``apply``'s albedo, and (``resumable``) the ``resume`` of that albedo through all the stages."""
+        """``apply``'s albedo, and (``resumable``) the ``resume`` of that albedo through all the stages.
+
+        The map moves each colour on its own, so the medium's voxels are carried in blocks of
+        ``TRANSPORT_BLOCK``, a block a core at a time, each through every stage and back to albedo, in
+        place: beside the albedo it returns, the match holds the medium's voxel indices, a block's
+        temporaries a core and (``resumable``) the carried colours, never a copy of the grid's colours
+        (``results/bench_scale/colour_match.jsonl``)."""
         result = np.array(albedo, dtype=np.float32)
         inside = np.asarray(density) > 0
+        voxels = np.flatnonzero(inside)
         # Digested only where it can serve: an albedo over another number of medium voxels is not the fitted one.
         resume = self.resume
-        if resume is not None and len(resume.voxel_colour) != np.count_nonzero(inside):
+        if resume is not None and len(resume.carried) != len(voxels):
             resume = None
         digest = _Resume.digest_of(result, inside) if resume is not None or resumable else None
-        if resume is not None and resume.digest == digest:
-            colours, voxel_colour, carried, done = resume.colours, resume.voxel_colour, resume.carried, resume.done
-        else:
-            colours, voxel_colour = distinct_colours(result[inside])
-            carried, done = None, 0
-        shown = self.shown(colours.astype(np.float64))
-        carried = apply_sliced_transport(self.stages[done:], shown if carried is None else carried)
-        moved = np.clip(shown + float(strength) * (carried - shown), self.shown_levels[0], self.shown_levels[-1])
-        result[inside] = np.exp(np.interp(moved, self.shown_levels, self.log_levels))[voxel_colour]
-        return result, _Resume(digest, colours, voxel_colour, carried, len(self.stages)) if resumable else None
+        start, done = (resume.carried, resume.done) if resume is not None and resume.digest == digest else (None, 0)
+        carried = np.empty((len(voxels), 3)) if resumable else None
+        colours, stages, lowest, highest = result.reshape(-1, 3), self.stages[done:], *self.shown_levels[[0, -1]]
+
+        def carry(begin: int) -> None:
+            block = voxels[begin : begin + TRANSPORT_BLOCK]
+            shown = self.shown(colours[block].astype(np.float64))
+            moving = _carried(stages, (shown if start is None else start[begin : begin + len(block)]).copy())
+            if carried is not None:
+                carried[begin : begin + len(block)] = moving
+            moved = np.clip(shown + float(strength) * (moving - shown), lowest, highest)
+            colours[block] = np.exp(np.interp(moved, self.shown_levels, self.log_levels))
+
+        _in_blocks(carry, len(voxels))
+        return result, _Resume(digest, carried, len(self.stages)) if resumable else None
 
     def apply_torch(self, albedo, inside):
         """``apply`` at strength 1 on a torch ``albedo (3, Z, Y, X)``, differentiable (the map is piecewise
@@ -349,31 +371,6 @@ def interpolate(x, xp, fp):
     weight = torch.where(span > 0, (x - left) / safe, 1.0)
     value = low + weight.clamp(0.0, 1.0) * (high - low)
     return torch.where(x <= xp[0], fp[0], torch.where(x >= xp[-1], fp[-1], value))
-
-
-def distinct_colours(colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct rows of ``colours (N, 3)`` (float32, non-negative), sorted by red, then green, then
-    blue, and each row's index among them: ``(distinct (M, 3), index (N,))``.
-
-    The order is what makes a map cheap to evaluate on them: neighbours in it have near projections,
-    which ``np.interp``'s search exploits (about four times faster than in voxel order)."""
-    colours = np.ascontiguousarray(colours, dtype=np.float32)
-    bits = colours.view(np.uint32).astype(np.uint64)  # ordered as the values are, for non-negative floats
-    if len(bits) and not np.any(bits & np.uint64(0x8000FFFF)):
-        # bfloat16 values (the network's output), no -0: a colour's three upper halves make one 48-bit
-        # key in the same order, which one sort orders six times faster than the two keys' lexsort.
-        upper = bits >> np.uint64(16)
-        key = (upper[:, 0] << np.uint64(32)) | (upper[:, 1] << np.uint64(16)) | upper[:, 2]
-        order = np.argsort(key)
-        ordered = key[order]
-        starts = np.concatenate([[True], ordered[1:] != ordered[:-1]])
-    else:
-        order = np.lexsort((bits[:, 2], (bits[:, 0] << np.uint64(32)) | bits[:, 1]))
-        ordered = colours[order]
-        starts = np.concatenate([[True], np.any(ordered[1:] != ordered[:-1], axis=1)])
-    index = np.empty(len(colours), np.intp)
-    index[order] = np.cumsum(starts) - 1
-    return colours[order[starts]], index
 
 
 def grey_response(density: np.ndarray, *, density_scale: float, radiance: float, camera_distance: float) -> np.ndarray:

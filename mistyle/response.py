@@ -29,7 +29,13 @@ def albedo_renders(
 ) -> list[np.ndarray]:
     """``volpath`` renders ``(V, res, res, 3)`` of ``density`` with each albedo of ``albedos`` (grids
     ``(Z, Y, X, 3)``, or grey levels for a uniform albedo), in one scene: only the albedo changes
-    between renders. ``batch``: all views in one launch (faster, other noise than one sensor each)."""
+    between renders. ``batch``: all views in one launch (faster, other noise than one sensor each).
+
+    The scene's grids go back to the system when it returns: Dr.Jit keeps freed memory for its own
+    next arrays, and a 512^3 grid's albedos are gigabytes that the network and the look, in torch and
+    NumPy, would otherwise never get back."""
+    import drjit as dr
+
     from .backend import active_variant
     from .scenes import LightSpec, albedo_parameter, pathtraced_scene, split_views
 
@@ -62,6 +68,8 @@ def albedo_renders(
             renders.append(
                 np.stack([np.array(mi.render(scene, sensor=index), dtype=np.float32) for index in range(len(views))])
             )
+    del scene, params
+    dr.flush_malloc_cache()
     return renders
 
 

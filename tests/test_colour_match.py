@@ -217,8 +217,9 @@ def test_quantiles_are_numpys():
 
 
 def test_apply_is_the_map_voxel_by_voxel():
-    """``apply`` (evaluated once per distinct colour) against the map written out for each voxel."""
-    from mistyle.colour_match import ColourMatch
+    """``apply`` (the medium's voxels carried in blocks, a thread a core) against the map written out for
+    all voxels at once, to the bit, on a medium of a few blocks whose colours repeat."""
+    from mistyle.colour_match import TRANSPORT_BLOCK, ColourMatch, _carried
 
     rng = np.random.default_rng(5)
     levels = np.linspace(0.05, 0.9, 9)
@@ -226,15 +227,16 @@ def test_apply_is_the_map_voxel_by_voxel():
         rng.uniform(0.1, 0.5, size=(400, 3)), rng.uniform(0.2, 0.9, size=(400, 3)), rng, rounds=3
     )
     match = ColourMatch(np.log(RESPONSE_LEVELS), levels, tuple(stages))
-    albedo = rng.choice([0.02, 0.1, 0.3, 0.7], size=(6, 5, 4, 3)).astype(np.float32)  # colours repeat
-    albedo[0, 0, 0] = [0.123, 0.456, 0.789]
-    density = rng.uniform(-0.5, 1.0, size=(6, 5, 4))
+    albedo = rng.choice([0.02, 0.1, 0.3, 0.7], size=(40, 48, 60, 3)).astype(np.float32)  # colours repeat
+    albedo[..., 0] = rng.uniform(0, 1, size=albedo.shape[:3])
+    density = rng.uniform(-0.5, 1.0, size=albedo.shape[:3])
     inside = density > 0
+    assert 2 * TRANSPORT_BLOCK < inside.sum() < 3 * TRANSPORT_BLOCK
     shown = match.shown(albedo[inside].astype(np.float64))
-    moved = np.clip(shown + 0.7 * (apply_sliced_transport(stages, shown) - shown), levels[0], levels[-1])
+    moved = np.clip(shown + 0.7 * (_carried(stages, shown.copy()) - shown), levels[0], levels[-1])
     expected = albedo.copy()
     expected[inside] = np.exp(np.interp(moved, levels, np.log(RESPONSE_LEVELS)))
-    np.testing.assert_allclose(match.apply(albedo, density, 0.7), expected, rtol=1e-6)
+    np.testing.assert_array_equal(match.apply(albedo, density, 0.7), expected)
 
 
 def test_three_levels_a_render_give_the_same_response(mi, blob_density):
@@ -362,20 +364,3 @@ def test_the_grey_response_of_a_density_is_kept_for_the_next_fit(mi, blob_densit
     monkeypatch.undo()
     other = grey_response(blob_density, density_scale=10.0, radiance=1.0, camera_distance=1.7)
     assert not np.array_equal(other, first)
-
-
-def test_distinct_colours_are_the_sorted_distinct_rows_for_bfloat16_colours_and_others():
-    """The network's colours (bfloat16 values) take a one-key sort, others two keys: either way the
-    distinct rows in red, green, blue order, and each row's index among them."""
-    import torch
-
-    from mistyle.colour_match import distinct_colours
-
-    rng = np.random.default_rng(5)
-    network = torch.from_numpy(rng.uniform(0, 1, (20000, 3)).astype(np.float32) ** 3).bfloat16().float().numpy()
-    network = np.concatenate([network, network[::3], np.zeros((5, 3), np.float32)])
-    for colours in (network, network + np.float32(1e-7)):  # bfloat16 values, and values of no such precision
-        distinct, index = distinct_colours(colours)
-        np.testing.assert_array_equal(distinct[index], colours)
-        assert len(distinct) == len(np.unique(colours, axis=0)) < len(colours)
-        np.testing.assert_array_equal(np.lexsort(distinct.T[::-1]), np.arange(len(distinct)))

@@ -53,3 +53,22 @@ def test_scale_benchmark_quick(tmp_path):
             and len(row["path_trace_kernels_compiled"]) == row["frames"]
         )
     assert "| sequence32 (32^3 x 3) | cpu |" in (tmp_path / "table.md").read_text()
+
+
+@pytest.mark.benchmark
+@pytest.mark.slow
+def test_memory_trace_quick(tmp_path):
+    """``experiments/memory_trace.py --side 32``: a finished row whose stages each have a time and a peak."""
+    result = subprocess.run(
+        [sys.executable, str(REPO / "experiments" / "memory_trace.py"), "--side", "32", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=900,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    (row,) = [json.loads(line) for line in (tmp_path / "rows.jsonl").read_text().splitlines()]
+    assert row["finished"] and row["stopped"] is None and row["peak_gb"] > 0
+    stages = {stage["stage"] for stage in row["stages"]}
+    assert {"network forward", "colour match fit", "look fit steps", "path trace"} <= stages
+    assert all(stage["seconds"] >= 0 for stage in row["stages"])

@@ -6,15 +6,18 @@ and path traced once as ``bench_scale`` does (``Pipeline.stylize``, then one 512
 denoised), in a process of its own with an empty Dr.Jit disk cache. A thread samples the process's
 resident set (``VmRSS``) every quarter second; the stages are marked by wrapping the functions that
 make them (the network's noise fields and forward pass, the colour match's fit, renders and
-applications, the look's fit and its steps, the path trace). Above ``--limit-gb`` the process stops
+applications, the look's fit and its steps, the working copy of a grid longer than ``--working-size``
+and its albedo brought back, the path trace). Above ``--limit-gb`` the process stops
 itself (a 24 GB machine would otherwise kill it, or something else, when it runs out) and the row says
 where.
 
     .venv/bin/python experiments/memory_trace.py --side 256                        # about 4 min on 2 cores
-    .venv/bin/python experiments/memory_trace.py --side 512 --scale-structures 0.5 --limit-gb 20
+    .venv/bin/python experiments/memory_trace.py --side 512 --limit-gb 20            # stylized at 256^3
+    .venv/bin/python experiments/memory_trace.py --side 512 --working-size 0 --scale-structures 0.5
 
 Appends a row to ``--out``/rows.jsonl (side, options, seconds and peak resident memory of each stage,
-whether it finished) and writes the sampled trace to ``--out``/trace_<side>_<scale>.txt.
+whether it finished) and writes the sampled trace to ``--out``/trace_<side>_<scale>_<working size>.txt
+and the final image next to it (.png).
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "memory_trace"
 sys.path.insert(0, str(ROOT / "experiments"))
+
+from mistyle.resample import DEFAULT_WORKING_SIZE  # noqa: E402
 
 
 def resident_gb() -> float:
@@ -77,6 +82,7 @@ def mark_stages(trace: Trace) -> None:
     import mistyle.model.noise as noise
     import mistyle.model.skpn as skpn
     import mistyle.pipeline.chain as chain
+    import mistyle.pipeline.frames as frames
     import mistyle.response as response
 
     noise._noise_fields = trace.marked("noise fields", noise._noise_fields)
@@ -87,23 +93,31 @@ def mark_stages(trace: Trace) -> None:
     chain.Pipeline.fit_look = trace.marked("look fit", chain.Pipeline.fit_look)
     look_fit._fit_steps = trace.marked("look fit steps", look_fit._fit_steps)
     chain.Pipeline.path_trace = trace.marked("path trace", chain.Pipeline.path_trace)
+    frames.Frames.at_working_size = trace.marked("working copy", frames.Frames.at_working_size)
+    frames.Frames.full_albedos = trace.marked("albedo to the full grid", frames.Frames.full_albedos)
 
 
-def run_frame(side: int, scale_structures: float, trace_path: Path, limit_gb: float) -> None:
+def run_frame(side: int, scale_structures: float, working_size: int, trace_path: Path, limit_gb: float) -> None:
     trace = Trace(trace_path, limit_gb)
     threading.Thread(target=trace.sample_forever, daemon=True).start()
     mark_stages(trace)
     from bench_scale import STYLE, density
 
+    from mistyle.files import write_png
     from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
+    from mistyle.tone import display
 
     grid = density(side)
     trace.write("density made")
     render = RenderSettings(res=512, spp=64, denoise="oidn")
-    pipeline = Pipeline(PipelineSettings(device="cpu", scale_structures=scale_structures, render=render))
+    settings = PipelineSettings(
+        device="cpu", scale_structures=scale_structures, working_size=working_size, render=render
+    )
+    pipeline = Pipeline(settings)
     stylized = pipeline.stylize(grid, str(STYLE))
-    pipeline.path_trace(stylized.frames, [stylized.albedos[0]], pipeline.views()[:1])
+    images, _ = pipeline.path_trace(stylized.frames, [stylized.albedos[0]], pipeline.views()[:1])
     trace.write("finished")
+    write_png(trace_path.with_suffix(".png"), display(images[0]), srgb=False)
 
 
 def summary(trace_path: Path) -> dict:
@@ -140,26 +154,29 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--side", type=int, default=256)
     parser.add_argument("--scale-structures", type=float, default=1.0)
+    parser.add_argument("--working-size", type=int, default=DEFAULT_WORKING_SIZE)
     parser.add_argument("--limit-gb", type=float, default=20.0)
     parser.add_argument("--out", default=str(OUT))
     parser.add_argument("--run", action="store_true", help=argparse.SUPPRESS)  # the frame, in this process
     parser.add_argument("--trace", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.run:
-        run_frame(args.side, args.scale_structures, Path(args.trace), args.limit_gb)
+        run_frame(args.side, args.scale_structures, args.working_size, Path(args.trace), args.limit_gb)
         return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    trace_path = out / f"trace_{args.side}_{args.scale_structures:g}.txt"
+    trace_path = out / f"trace_{args.side}_{args.scale_structures:g}_{args.working_size}.txt"
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="memory-trace-home-") as home:  # Dr.Jit's disk cache starts empty
         command = [sys.executable, __file__, "--run", "--side", str(args.side), "--trace", str(trace_path)]
         command += ["--scale-structures", str(args.scale_structures), "--limit-gb", str(args.limit_gb)]
+        command += ["--working-size", str(args.working_size)]
         returncode = subprocess.run(command, cwd=ROOT, env={**os.environ, "HOME": home}).returncode
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
     row = {
         "side": args.side,
         "scale_structures": args.scale_structures,
+        "working_size": args.working_size,
         "limit_gb": args.limit_gb,
         "returncode": returncode,
         "commit": commit.stdout.strip(),

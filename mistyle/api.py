@@ -53,6 +53,7 @@ from .look import Look, LookSettings
 from .pathtrace import path_trace
 from .pipeline import Pipeline, PipelineSettings, RenderSettings
 from .pipeline.settings import described, validate_flag, validate_int, validate_path, validate_real
+from .resample import DEFAULT_WORKING_SIZE
 from .style import style_parts
 from .stylizer import Stylizer, checked_frames
 
@@ -172,6 +173,7 @@ def stylize(
     strength: float = 1.0,
     match_colours: bool = True,
     refine: bool = False,
+    working_size: int = DEFAULT_WORKING_SIZE,
 ) -> np.ndarray:
     """Albedo for ``density`` in the look of ``style_image``: the network's arrangement with the
     style's colours (``colour_match``), and with ``refine=True`` refined against the style.
@@ -190,6 +192,8 @@ def stylize(
             at 64^3). True: the albedo ``mistyle-render`` path traces with its defaults (at full
             strength a look fitted on the frame or on a sequence's key frames, tens of seconds,
             ``Pipeline.fits_look``; weakened styles are not refined, see ``Pipeline.refinement``).
+        working_size: a grid longer than this on a side is stylized on a copy resampled to it, and
+            its albedo resampled back (``mistyle.resample``); 0 stylizes the full grid.
 
     Returns:
         ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) float32 albedo in [0, 1].
@@ -206,6 +210,7 @@ def stylize(
         vgg_weights=vgg_weights,
         strength=strength,
         scale_structures=scale_structures,
+        working_size=working_size,
         colour_match=match_colours,
         **steps,
     )

@@ -67,6 +67,7 @@ from .conventions import (
     UP_AXES,
 )
 from .denoise import DENOISERS, oidn_missing
+from .resample import DEFAULT_WORKING_SIZE
 
 
 def _coat(text: str) -> float:
@@ -252,6 +253,14 @@ def _stylize_options(p: argparse.ArgumentParser) -> None:
     group = p.add_argument_group("stylization")
     group.add_argument("--scale-structures", type=float, default=1.0, help="resample the density by f before stylizing")
     group.add_argument(
+        "--working-size",
+        type=int,
+        default=DEFAULT_WORKING_SIZE,
+        metavar="N",
+        help=f"stylize grids longer than N voxels on a side on a copy resampled to N, and path trace the full grid "
+        f"with its albedo resampled back (default {DEFAULT_WORKING_SIZE}; 0: stylize the full grid)",
+    )
+    group.add_argument(
         "--no-colour-match",
         dest="colour_match",
         action="store_false",
@@ -321,6 +330,7 @@ def settings_from(args):
         vgg_weights=args.vgg_weights,
         strength=args.strength,
         scale_structures=args.scale_structures,
+        working_size=args.working_size,
         colour_match=args.colour_match,
         refine_steps=args.refine,
         refine_path_steps=args.refine_path,
@@ -400,6 +410,7 @@ def check_options(args) -> None:
 
     Options that a library function also takes are checked by that function's own validator."""
     from .files import check_link
+    from .resample import validate_working_size
     from .scenes import validate_density_scale
     from .scenes.cameras import validate_camera_distance, validate_orbit_position
     from .scenes.pathtraced import validate_coat_ior, validate_max_depth
@@ -420,6 +431,7 @@ def check_options(args) -> None:
     if args.density_scale is not None:
         validate_density_scale(args.density_scale, "--density-scale")
     validate_scale_structures(args.scale_structures, "--scale-structures")
+    validate_working_size(args.working_size, "--working-size")
     validate_coat_ior(args.coat, "--coat dielectric:<ior>")
     validate_strength(args.strength, "--strength")
     missing_denoiser = oidn_missing() if args.denoise == "oidn" else None

@@ -11,7 +11,7 @@ ROOT = Path(mistyle.__file__).parent
 # A unit may import units of a lower layer only (or itself). Same as the map in README.md.
 LAYERS = [
     {"conventions", "version"},
-    {"tone", "volume", "warp", "backend", "progress", "stops", "memo"},
+    {"tone", "volume", "warp", "resample", "backend", "progress", "stops", "memo"},
     {"files", "ownership", "advection"},
     {"scenes", "pages", "outputs", "style"},
     {"integrators"},

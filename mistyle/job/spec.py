@@ -18,6 +18,7 @@ SETTING_OPTIONS = {
     "turntable": "--turntable",
     "strength": "--strength",
     "scale_structures": "--scale-structures",
+    "working_size": "--working-size",
     "colour_match": "--no-colour-match",
 }
 """The options that decide how an output's frames look, as ``report.json`` records them: chunks merged
@@ -50,6 +51,7 @@ def settings_record(settings) -> dict:
         "turntable": render.turntable,
         "strength": settings.strength,
         "scale_structures": settings.scale_structures,
+        "working_size": settings.working_size,
         "colour_match": settings.colour_match,
     }
     assert record.keys() == SETTING_OPTIONS.keys()

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..resample import DEFAULT_WORKING_SIZE, WorkingGrid, validate_working_size
 from .frames import frame_albedo, frame_key, prepare_frame
 
 LOOK_FORMAT = "mistyle-look"
@@ -88,23 +89,36 @@ class Look:
         return np.ascontiguousarray(albedo.permute(1, 2, 3, 0).clamp(0, 1).cpu().numpy(), dtype=np.float32)
 
     def stylize(
-        self, density, density_scale: float | None = None, notes: list | None = None, velocities=None
+        self,
+        density,
+        density_scale: float | None = None,
+        notes: list | None = None,
+        velocities=None,
+        working_size: int = DEFAULT_WORKING_SIZE,
     ) -> np.ndarray | list[np.ndarray]:
         """Albedo ``(Z, Y, X, 3)`` of one density frame, or a list of them for a sequence ``(T, Z, Y, X)``
         or a list of frames: the tuned network, then the look's colour match. ``velocities`` (one
         ``(Z, Y, X, 3)`` per frame, voxels per frame, ``warp``'s convention): the texture travels with
         them (``advection``). ``density_scale`` (the scale the frames will be rendered at) other than
-        the look's adds a note, as does a frame of a very different size from the key frames."""
+        the look's adds a note, as does a frame of a very different size from the key frames. Frames
+        longer than ``working_size`` on a side are stylized on a copy resampled to it, their albedo
+        resampled back (``mistyle.resample``; 0: the full grid)."""
         from ..advection import TextureMotion
         from ..stylizer import checked_frames
 
         grids, sequence = checked_frames(density)
-        if notes is not None:
-            notes.extend(self.notes_for(grids[0].shape, density_scale))
         if velocities is not None and len(velocities) != len(grids):
             raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
+        validate_working_size(working_size)
+        working = [WorkingGrid.of(grid.shape, working_size) for grid in grids]
+        grids = [grid if work is None else work.density(grid) for grid, work in zip(grids, working)]
+        if velocities is not None:
+            velocities = [v if work is None else work.velocity(v) for v, work in zip(velocities, working)]
+        if notes is not None:
+            notes.extend(self.notes_for(grids[0].shape, density_scale))
         motion = None if velocities is None or not sequence else TextureMotion(list(velocities))
         albedos = [self.apply(grid, None if motion is None else motion.phases(i)) for i, grid in enumerate(grids)]
+        albedos = [a if work is None else work.albedo(a, grid) for a, grid, work in zip(albedos, grids, working)]
         return albedos if sequence else albedos[0]
 
     def apply(self, grid: np.ndarray, phases: list | None = None) -> np.ndarray:

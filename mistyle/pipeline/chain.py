@@ -18,6 +18,8 @@ The chain, each stage owned by one module and configured by ``PipelineSettings``
    refinement (``fit.refine_albedo``): fast-layer steps, then path-traced steps, against the style;
    in a sequence each frame starts from the previous frame's result warped by the velocity and is
    held near it by the temporal term. ``Pipeline.refinement`` owns the rule for how many steps.
+   A grid longer than the settings' ``working_size`` on any side goes through stages 1-3 as a copy
+   resampled to it, and its albedo comes back to the full grid (``mistyle.resample``).
 4. **Path tracing** (``pathtrace.path_trace``): Mitsuba's ``volpath``, multiple scattering, in passes
    (a stop waits for one pass). A render that cannot show the medium is refused with its cause: before
    any work when the inputs decide it (``Pipeline.check_visible``), else after it (``check_images``).
@@ -169,8 +171,9 @@ class Pipeline:
         ``notes`` (a list) collects what the user should know (conversions, skipped stages)."""
         s = self.settings
         notes = [] if notes is None else notes
-        frames = self.frames(density, velocities)
-        self.check_visible(frames)
+        full = self.frames(density, velocities)
+        self.check_visible(full)
+        frames = self.working_frames(full, notes)
         style = Style.of(style, notes)
         refinement = self.refinement(len(frames.densities))
         if s.strength < 1.0 and s.refine_steps is None:
@@ -221,7 +224,33 @@ class Pipeline:
             albedos, report["refine_seconds"] = self.refine(frames, albedos, style.target, refinement)
             report.update(flicker_report(albedos, frames, "_refined"))
         check_finite("The corrected albedo of frame", albedos)
-        return Stylization(frames, network, albedos, style.target, refinement, report, notes, look)
+        network, albedos = self.full_albedos(frames, network, albedos, report)
+        return Stylization(full, network, albedos, style.target, refinement, report, notes, look)
+
+    def working_frames(self, frames: Frames, notes: list | None = None) -> Frames:
+        """``frames`` as they are stylized: their copy at the settings' ``working_size``
+        (``Frames.at_working_size``), said in ``notes`` and the log when it is one."""
+        work = frames.at_working_size(self.settings.working_size)
+        if work is not frames:
+            message = (
+                f"{work.grid.describe()} at working size {self.settings.working_size}, its albedo resampled back "
+                "to the full grid for the path trace (working size 0 stylizes the full grid)"
+            )
+            self.log(message)
+            if notes is not None and message not in notes:
+                notes.append(message)
+        return work
+
+    def full_albedos(self, frames: Frames, network: list, albedos: list, report: dict) -> tuple[list, list]:
+        """``(network, albedos)`` of the stylized ``frames`` on the full grid where ``frames`` are a working copy."""
+        if frames.grid is None:
+            return network, albedos
+        started = time.perf_counter()
+        full_network = frames.full_albedos(network)
+        full_albedos = full_network if albedos is network else frames.full_albedos(albedos)
+        report["working_shape"] = list(frames.densities[0].shape)
+        report["resample_seconds"] = time.perf_counter() - started
+        return full_network, full_albedos
 
     def default_look(self, density, style, notes: list | None = None, progress=None):
         """The look the default output fits (``fits_look``) on ``density``'s frames: on the frame, or on a
@@ -251,7 +280,7 @@ class Pipeline:
 
         if look_settings is None and self.settings.look_steps is not None:
             look_settings = LookSettings(steps=self.settings.look_steps)
-        frames = self.frames(density)
+        frames = self.working_frames(self.frames(density), notes)
         return fit_look(
             self.stylizer,
             frames.densities,
@@ -272,8 +301,9 @@ class Pipeline:
         colour match on each frame's own density, no refinement unless the settings name steps (then
         each frame is refined on its own, from the look's albedo). The target is the look's style."""
         notes = [] if notes is None else notes
-        frames = self.frames(density, velocities)
-        self.check_visible(frames)
+        full = self.frames(density, velocities)
+        self.check_visible(full)
+        frames = self.working_frames(full, notes)
         notes.extend(look.notes_for(frames.densities[0].shape, frames.density_scale))
         report: dict = {}
         started = time.perf_counter()
@@ -293,7 +323,8 @@ class Pipeline:
                 albedos += refined
                 seconds += took
             report["refine_seconds"] = seconds
-        return Stylization(frames, network, albedos, look.style, refinement, report, notes)
+        network, albedos = self.full_albedos(frames, network, albedos, report)
+        return Stylization(full, network, albedos, look.style, refinement, report, notes)
 
     def refine(self, frames: Frames, albedos: list, target: np.ndarray, refinement) -> tuple[list, float]:
         """``fit.refine_albedo`` of every frame against ``target`` with the schedule ``refinement``:
@@ -516,11 +547,16 @@ class Pipeline:
         }
 
     def layer_images(self, frames: Frames, frame: int, albedo: np.ndarray, views: list) -> list[np.ndarray]:
-        """The fast layer's images ``(res, res, 3)`` of ``albedo`` on ``frame`` under the training light."""
+        """The fast layer's images ``(res, res, 3)`` of ``albedo`` on ``frame`` under the training light; of
+        the working copy (``working_frames``) where the frames have one."""
         import torch
 
         from ..bridge_torch import render_views
 
+        work = frames.at_working_size(self.settings.working_size)
+        if work is not frames:
+            albedo = work.grid.working_albedo(albedo, frames.densities[frame])
+            frames = work
         grid = torch.from_numpy(albedo).permute(3, 0, 1, 2).to(self.settings.device)
         with torch.no_grad():
             images = render_views(

@@ -34,7 +34,10 @@ class Frames:
     # ``first`` (a chunk's), or None where the frames carry none
     motion: object = None
     first: int = 0  # the sequence's index of densities[0]
+    # resample.WorkingGrid: these frames are the working copy of a larger grid's (``at_working_size``)
+    grid: object = None
     _prepared: dict = field(default_factory=dict, repr=False)
+    _working: dict = field(default_factory=dict, repr=False)  # working size -> Frames
 
     @property
     def sequence(self) -> bool:
@@ -43,6 +46,35 @@ class Frames:
     def phases(self, frame: int) -> list | None:
         """Frame ``frame``'s advected texture fields (``advection.TextureMotion.phases``), or None."""
         return None if self.motion is None else self.motion.phases(self.first + frame)
+
+    def at_working_size(self, size: int) -> Frames:
+        """These frames as they are stylized at working size ``size`` (``resample``): themselves when
+        no side is longer, else their copy resampled to it (densities, velocities, the texture's
+        motion), made once."""
+        from ..resample import WorkingGrid
+
+        grid = WorkingGrid.of(self.densities[0].shape, size)
+        if grid is None:
+            return self
+        if size not in self._working:
+            resampled: dict = {}  # the motion's velocities are often the frames' own arrays
+
+            def velocity(array):
+                if id(array) not in resampled:
+                    resampled[id(array)] = grid.velocity(array)
+                return resampled[id(array)]
+
+            motion = self.motion
+            if motion is not None:
+                motion = type(motion)([velocity(v) for v in motion.velocities], motion.begin, motion.period)
+            velocities = None if self.velocities is None else [velocity(v) for v in self.velocities]
+            densities = [grid.density(density) for density in self.densities]
+            self._working[size] = Frames(densities, velocities, self.density_scale, motion, self.first, grid)
+        return self._working[size]
+
+    def full_albedos(self, albedos: list) -> list:
+        """The albedos of these frames, a working copy's (``at_working_size``), on the full grid."""
+        return [self.grid.albedo(albedo, density) for albedo, density in zip(albedos, self.densities)]
 
     def prepared(self, frame: int):
         """The frame's density prepared for the fast layer (its Ls grid), computed once."""

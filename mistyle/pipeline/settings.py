@@ -9,6 +9,7 @@ import numpy as np
 
 from ..conventions import DEVICES, HELD_OUT_VIEW, IMAGE_SIDES, LIGHT_KINDS, MAX_FIT_STEPS
 from ..denoise import DENOISERS
+from ..resample import DEFAULT_WORKING_SIZE, validate_working_size
 from ..stylizer import (
     validate_scale_structures,
     validate_strength,
@@ -118,6 +119,8 @@ class PipelineSettings:
     vgg_weights: str | Path | None = None
     strength: float = 1.0
     scale_structures: float = 1.0
+    # the longest side stylized: larger grids are stylized on a resampled copy (mistyle.resample); 0: the full grid
+    working_size: int = DEFAULT_WORKING_SIZE
     colour_match: bool = True
     refine_steps: int | None = None
     refine_path_steps: int | None = None
@@ -152,6 +155,7 @@ class PipelineSettings:
             raise ValueError(f"device must be one of {', '.join(DEVICES)}, got {described(self.device)}.")
         validate_strength(validate_real(self.strength, "strength", "a number in [0, 1]"))
         validate_scale_structures(validate_real(self.scale_structures, "scale_structures"))
+        validate_working_size(self.working_size)
         validate_flag(self.colour_match, "colour_match")
         for name in ("refine_steps", "refine_path_steps", "look_steps"):
             if getattr(self, name) is not None:

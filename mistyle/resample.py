@@ -13,7 +13,7 @@ the density keeps every voxel of its detail, the albedo is as fine as the workin
 - The velocities (voxels per frame) are averaged the same way and measured in working voxels.
 - The albedo comes back density-weighted: ``up(albedo * density) / up(density)`` with trilinear
   ``up`` (the renderer's own lookup between voxel centres), so a voxel at the medium's edge takes the
-  colour of the medium around it, never the albedo of empty working voxels (which nothing renders).
+  colour of the medium around it, not the albedo of empty working voxels (which nothing renders).
 """
 
 from __future__ import annotations
@@ -67,11 +67,9 @@ class WorkingGrid:
     def density(self, grid: np.ndarray) -> np.ndarray:
         """``grid (Z, Y, X)`` box-averaged to the working shape, float32."""
         import torch
-        import torch.nn.functional as F
 
-        tensor = torch.from_numpy(np.ascontiguousarray(grid, dtype=np.float32))[None, None]
         with torch.no_grad():
-            return F.interpolate(tensor, size=self.shape, mode="area")[0, 0].numpy()
+            return _averaged(torch.from_numpy(np.ascontiguousarray(grid, dtype=np.float32)), self.shape).numpy()
 
     def velocity(self, velocity: np.ndarray) -> np.ndarray:
         """A velocity ``(Z, Y, X, 3)`` in full voxels per frame, components ``(x, y, z)`` (``warp``'s
@@ -87,45 +85,49 @@ class WorkingGrid:
         return np.ascontiguousarray((averaged * torch.tensor(ratios)).numpy(), dtype=np.float32)
 
     def albedo(self, albedo: np.ndarray, working_density: np.ndarray) -> np.ndarray:
-        """The working grid's ``albedo (z, y, x, 3)`` on the full grid ``(Z, Y, X, 3)``: weighted by the
-        working density (``working_density``, this grid's ``density`` of the frame) and interpolated
-        trilinearly between voxel centres; where no working medium is near, the plain interpolation.
-        One channel at a time, so that the full grid is held about twice over, not eight times."""
-        import torch
-        import torch.nn.functional as F
-
-        def up(field: torch.Tensor) -> torch.Tensor:
-            return F.interpolate(field[None, None], size=self.full, mode="trilinear", align_corners=False)[0, 0]
-
-        out = np.empty((*self.full, 3), dtype=np.float32)
-        with torch.no_grad():
-            density = torch.from_numpy(np.ascontiguousarray(working_density, dtype=np.float32))
-            weight = up(density)
-            near = weight > 0
-            safe = torch.where(near, weight, torch.ones(()))
-            for channel in range(3):
-                values = torch.from_numpy(np.ascontiguousarray(albedo[..., channel], dtype=np.float32))
-                weighted = up(values * density) / safe
-                plain = up(values)
-                out[..., channel] = torch.where(near, weighted, plain).clamp_(0.0, 1.0).numpy()
-        return out
+        """The working grid's ``albedo (z, y, x, 3)`` on the full grid ``(Z, Y, X, 3)``: interpolated
+        trilinearly between voxel centres, weighted by the working density (``working_density``, this
+        grid's ``density`` of the frame; ``_normalised``). One channel at a time, so that the full grid
+        is held about twice over, not eight times."""
+        return self._normalised(albedo, working_density, self.full, _upsampled)
 
     def working_albedo(self, albedo: np.ndarray, density: np.ndarray) -> np.ndarray:
         """A full grid's ``albedo (Z, Y, X, 3)`` on the working grid: each working voxel the mean albedo of
-        the full voxels it covers, weighted by their ``density``; where they hold none, the plain mean."""
+        the full voxels it covers, weighted by their ``density`` (``_normalised``)."""
+        return self._normalised(albedo, density, self.shape, _averaged)
+
+    @staticmethod
+    def _normalised(albedo: np.ndarray, density: np.ndarray, shape: tuple, resample) -> np.ndarray:
+        """``resample(albedo * w) / resample(w)`` per channel with ``w = density + floor``: a normalised
+        convolution, whose weights take the medium's colours where it is and the plain resampling of
+        the albedo far from it (``floor``, a millionth of the densest voxel, decides only there)."""
         import torch
-        import torch.nn.functional as F
 
-        def down(field: torch.Tensor) -> torch.Tensor:
-            return F.interpolate(field[None, None], size=self.shape, mode="area")[0, 0]
-
-        out = np.empty((*self.shape, 3), dtype=np.float32)
+        out = np.empty((*shape, 3), dtype=np.float32)
+        written = torch.from_numpy(out)
         with torch.no_grad():
             weights = torch.from_numpy(np.ascontiguousarray(density, dtype=np.float32))
-            total = down(weights)
-            held = total > 0
-            safe = torch.where(held, total, torch.ones(()))
+            weights = weights + (float(weights.max()) * WEIGHT_FLOOR or 1.0)  # all zero: the plain resampling
+            total = resample(weights, shape)
             for channel in range(3):
                 values = torch.from_numpy(np.ascontiguousarray(albedo[..., channel], dtype=np.float32))
-                out[..., channel] = torch.where(held, down(values * weights) / safe, down(values)).numpy()
+                written[..., channel] = resample(values * weights, shape).div_(total).clamp_(0.0, 1.0)
         return out
+
+
+WEIGHT_FLOOR = 1e-6
+"""The weight every voxel has in ``WorkingGrid``'s albedo resampling, relative to the densest voxel."""
+
+
+def _upsampled(field, shape: tuple):
+    """``field (z, y, x)`` interpolated trilinearly to ``shape`` between voxel centres, clamped at the faces."""
+    import torch.nn.functional as F
+
+    return F.interpolate(field[None, None], size=shape, mode="trilinear", align_corners=False)[0, 0]
+
+
+def _averaged(field, shape: tuple):
+    """``field (Z, Y, X)`` box-averaged to ``shape``."""
+    import torch.nn.functional as F
+
+    return F.interpolate(field[None, None], size=shape, mode="area")[0, 0]

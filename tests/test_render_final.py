@@ -408,6 +408,7 @@ def test_random_bad_option_values_give_one_clear_line_and_write_nothing(mi, chec
         "--camera-distance": ["0", "-2", "nan", "0.5", "1e9"],
         "--density-scale": ["0", "-1", "nan", "inf", "1e30"],
         "--scale-structures": ["0", "100", "nan"],
+        "--working-size": ["-1", "8", "5000"],
         "--mesh-res": ["1", "99999"],
         "--light": ["constant:-1", "constant:nan", "point:1,2", "area:-4", "sun"],
         "--coat": ["dielectric:1", "dielectric:nan", "glass"],

@@ -5,8 +5,9 @@ Each case runs in a process of its own (``--case``), so its peak memory is its o
 resident set (``ru_maxrss``) and, on CUDA, torch's peak allocated memory. A case is what
 ``mistyle-render`` does by default through ``mistyle.Pipeline``: the network, a look fitted on the frame
 (on a sequence: on its key frames, then applied to every frame), one path-traced view per frame at 64 spp
-(256^2; 512^2 at 256^3), denoised. Stages are timed as the pipeline's report times them; the path trace
-of each frame separately, so a sequence shows what its first frame costs and what each later one does.
+(256^2; 512^2 at 256^3; the preview sequence 64^2 at 4 spp), denoised. Stages are timed as the
+pipeline's report times them; the path trace of each frame separately, so a sequence shows what its
+first frame costs and what each later one does.
 Kernels are Dr.Jit's history (``JitFlag.KernelHistory``) of the path traces: the JIT kernels compiled by
 the backend (found neither in the process's cache nor in Dr.Jit's disk cache, which each case starts
 empty: a temporary ``HOME``, as a fresh farm worker has). The history is off during the network and the
@@ -50,7 +51,12 @@ CASES = {
     "frame256": (256, 1),
     "sparse256": (256, 1),
     "sequence64": (64, 24),
+    "sequence64_preview": (64, 24),
 }
+RENDERS = {"sequence64_preview": (64, 4)}
+"""Cases rendered otherwise than at 256^2 (512^2 from 256^3 on) and 64 spp: ``(side, spp)``. The preview
+sequence is the issue's own measure of recompilation on this CPU (64^2 at 4 spp), where a frame's
+tracing is short enough for its compilation to show."""
 QUICK_CASES = {"frame32": (32, 1), "sequence32": (32, 3)}
 SPARSE_FILL = 0.2
 """The share of the box the smoke's own box takes in the sparse case: a fifth, in one corner."""
@@ -83,8 +89,8 @@ def run_case(name: str, side: int, frames: int, device: str, denoise: str = "oid
 
     from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
 
-    res = 512 if side >= 256 else 256
-    pipeline = Pipeline(PipelineSettings(device=device, render=RenderSettings(res=res, spp=64, denoise=denoise)))
+    res, spp = RENDERS.get(name, (512 if side >= 256 else 256, 64))
+    pipeline = Pipeline(PipelineSettings(device=device, render=RenderSettings(res=res, spp=spp, denoise=denoise)))
     fill = SPARSE_FILL if name.startswith("sparse") else 1.0
     grids = [density(side, frame, fill) for frame in range(frames)]
     stacked = np.stack(grids) if frames > 1 else grids[0]
@@ -117,7 +123,7 @@ def run_case(name: str, side: int, frames: int, device: str, denoise: str = "oid
         "network_seconds": report.get("stylize_seconds"),
         "look_seconds": report.get("look_seconds"),
         "stylize_total_seconds": stylize_total,
-        "render": f"{res}^2, 64 spp, " + ("OIDN" if denoise == "oidn" else "not denoised"),
+        "render": f"{res}^2, {spp} spp, " + ("OIDN" if denoise == "oidn" else "not denoised"),
         "path_trace_first_seconds": traced[0]["seconds"],
         "path_trace_later_seconds": (float(np.median([t["seconds"] for t in traced[1:]])) if frames > 1 else None),
         "path_trace_kernels_compiled": [t["compiled"] for t in traced],

@@ -1,5 +1,5 @@
-"""The working resolution: a grid larger than it is stylized on a resampled copy, and its albedo
-resampled back to the full grid for the path trace.
+"""The working resolution: a grid longer than the working size on a side is stylized on a copy
+resampled to it, and its albedo resampled back to the full grid for the path trace.
 
 What stylizes a frame looks at small pictures and fields of the box: the look's fit renders 64^2
 views, the colour match 32^2 ones, the network's noise fields and kernels act on the box's voxels. At

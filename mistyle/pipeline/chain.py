@@ -233,7 +233,7 @@ class Pipeline:
         work = frames.at_working_size(self.settings.working_size)
         if work is not frames:
             message = (
-                f"{work.grid.describe()} at working size {self.settings.working_size}, its albedo resampled back "
+                f"{work.working_grid.describe()} at working size {self.settings.working_size}, its albedo resampled back "
                 "to the full grid for the path trace (working size 0 stylizes the full grid)"
             )
             self.log(message)
@@ -243,7 +243,7 @@ class Pipeline:
 
     def full_albedos(self, frames: Frames, network: list, albedos: list, report: dict) -> tuple[list, list]:
         """``(network, albedos)`` of the stylized ``frames`` on the full grid where ``frames`` are a working copy."""
-        if frames.grid is None:
+        if frames.working_grid is None:
             return network, albedos
         started = time.perf_counter()
         full_network = frames.full_albedos(network)
@@ -555,7 +555,7 @@ class Pipeline:
 
         work = frames.at_working_size(self.settings.working_size)
         if work is not frames:
-            albedo = work.grid.working_albedo(albedo, frames.densities[frame])
+            albedo = work.working_grid.working_albedo(albedo, frames.densities[frame])
             frames = work
         grid = torch.from_numpy(albedo).permute(3, 0, 1, 2).to(self.settings.device)
         with torch.no_grad():

@@ -35,7 +35,7 @@ class Frames:
     motion: object = None
     first: int = 0  # the sequence's index of densities[0]
     # resample.WorkingGrid: these frames are the working copy of a larger grid's (``at_working_size``)
-    grid: object = None
+    working_grid: object = None
     _prepared: dict = field(default_factory=dict, repr=False)
     _working: dict = field(default_factory=dict, repr=False)  # working size -> Frames
 
@@ -74,7 +74,7 @@ class Frames:
 
     def full_albedos(self, albedos: list) -> list:
         """The albedos of these frames, a working copy's (``at_working_size``), on the full grid."""
-        return [self.grid.albedo(albedo, density) for albedo, density in zip(albedos, self.densities)]
+        return [self.working_grid.albedo(albedo, density) for albedo, density in zip(albedos, self.densities)]
 
     def prepared(self, frame: int):
         """The frame's density prepared for the fast layer (its Ls grid), computed once."""

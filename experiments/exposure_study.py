@@ -155,32 +155,25 @@ def table(rows: list[dict]) -> str:
 
 def sheet(rows: list[dict], out: Path) -> None:
     """``SHEET_DENSITY``'s pairs: the style, each method as rendered, then each at the matched exposure."""
-    from PIL import Image, ImageDraw
+    from study import contact_sheet
 
     from mistyle.benchmark.splits import split_styles
-    from mistyle.files import load_style
-    from mistyle.model.features import square_style
 
     styles = split_styles("real")
     pairs = sorted({row["style"] for row in rows if row["density"] == SHEET_DENSITY})
     columns = ["style"] + list(METHODS) + [f"{m} (matched)" for m in METHODS]
-    canvas = np.full((len(pairs) * TILE + 16, len(columns) * TILE, 3), 1.0, np.float32)
-    for index, style_name in enumerate(pairs):
-        cells = [square_style(load_style(styles[style_name]["path"]), TILE).permute(1, 2, 0).numpy()]
-        for suffix in ("", "__matched"):
-            for method in METHODS:
-                path = out / "tiles" / f"{SHEET_DENSITY}__{style_name}__{method}{suffix}.png"
-                cells.append(
-                    np.asarray(Image.open(path).convert("RGB"), np.float32) / 255
-                    if path.exists()
-                    else np.full((TILE, TILE, 3), 0.5, np.float32)
-                )
-        canvas[16 + index * TILE : 16 + (index + 1) * TILE] = np.concatenate(cells, axis=1)
-    image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
-    draw = ImageDraw.Draw(image)
-    for column, name in enumerate(columns):
-        draw.text((column * TILE + 4, 2), name, fill="black")
-    image.save(out / "sheet.jpg", quality=85)
+    lines = [
+        (
+            styles[style_name]["path"],
+            [
+                out / "tiles" / f"{SHEET_DENSITY}__{style_name}__{method}{suffix}.png"
+                for suffix in ("", "__matched")
+                for method in METHODS
+            ],
+        )
+        for style_name in pairs
+    ]
+    contact_sheet(lines, columns, out / "sheet.jpg", TILE)
 
 
 def main(argv=None) -> None:

@@ -15,6 +15,7 @@ __all__ = [
     "USER_SCORING",
     "add_metric_arguments",
     "arm_study",
+    "contact_sheet",
     "metric_views",
     "score",
     "score_as_users_see",
@@ -38,6 +39,35 @@ def score_as_users_see(context, density, albedo, style, seed: int = 0):
         seed=seed,
         **USER_SCORING,
     )
+
+
+def contact_sheet(lines: list, columns: list[str], path, tile: int, captions: list[str] | None = None) -> None:
+    """A JPEG of one line of tiles per entry of ``lines``, ``(style image path, [tile PNG paths])``: the style
+    squared, then each tile resized to ``tile`` (grey where a tile is missing); ``columns`` name the tiles
+    above them, ``captions`` (one per line) sit in each line's lower left corner."""
+    import numpy as np
+    from PIL import Image, ImageDraw
+
+    from mistyle.files import load_style
+    from mistyle.model.features import square_style
+
+    canvas = np.full((len(lines) * tile + 16, len(columns) * tile, 3), 1.0, np.float32)
+    for index, (style_path, tiles) in enumerate(lines):
+        cells = [square_style(load_style(style_path), tile).permute(1, 2, 0).numpy()]
+        for tile_path in tiles:
+            cells.append(
+                np.asarray(Image.open(tile_path).convert("RGB").resize((tile, tile), Image.LANCZOS), np.float32) / 255
+                if tile_path.exists()
+                else np.full((tile, tile, 3), 0.5, np.float32)
+            )
+        canvas[16 + index * tile : 16 + (index + 1) * tile] = np.concatenate(cells, axis=1)
+    image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
+    draw = ImageDraw.Draw(image)
+    for column, name in enumerate(columns):
+        draw.text((column * tile + 4, 2), name, fill="black")
+    for index, caption in enumerate(captions or []):
+        draw.text((4, 16 + (index + 1) * tile - 14), caption, fill="white")
+    image.save(path, quality=85)
 
 
 def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:

@@ -153,33 +153,18 @@ def table(rows: list[dict]) -> str:
 
 def sheet(rows: list[dict], out: Path) -> None:
     """Every pair's first view: the style, then ``SHEET_METHODS``."""
-    from PIL import Image, ImageDraw
+    from study import contact_sheet
 
     from mistyle.benchmark.splits import split_styles
-    from mistyle.files import load_style
-    from mistyle.model.features import square_style
 
     styles = split_styles("real")
     pairs = sorted({(row["density"], row["style"]) for row in rows})
-    columns = ["style", *SHEET_METHODS]
-    canvas = np.full((len(pairs) * TILE + 16, len(columns) * TILE, 3), 1.0, np.float32)
-    for index, (density, style_name) in enumerate(pairs):
-        cells = [square_style(load_style(styles[style_name]["path"]), TILE).permute(1, 2, 0).numpy()]
-        for method in SHEET_METHODS:
-            path = out / "tiles" / f"{density}__{style_name}__{method}.png"
-            cells.append(
-                np.asarray(Image.open(path).convert("RGB").resize((TILE, TILE), Image.LANCZOS), np.float32) / 255
-                if path.exists()
-                else np.full((TILE, TILE, 3), 0.5, np.float32)
-            )
-        canvas[16 + index * TILE : 16 + (index + 1) * TILE] = np.concatenate(cells, axis=1)
-    image = Image.fromarray((canvas * 255 + 0.5).astype(np.uint8))
-    draw = ImageDraw.Draw(image)
-    for column, name in enumerate(columns):
-        draw.text((column * TILE + 4, 2), name, fill="black")
-    for index, (density, style_name) in enumerate(pairs):
-        draw.text((4, 16 + index * TILE + TILE - 14), f"{density} x {style_name}", fill="white")
-    image.save(out / "sheet.jpg", quality=85)
+    lines = [
+        (styles[style]["path"], [out / "tiles" / f"{density}__{style}__{method}.png" for method in SHEET_METHODS])
+        for density, style in pairs
+    ]
+    captions = [f"{density} x {style}" for density, style in pairs]
+    contact_sheet(lines, ["style", *SHEET_METHODS], out / "sheet.jpg", TILE, captions)
 
 
 def main(argv=None) -> None:

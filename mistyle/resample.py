@@ -6,7 +6,9 @@ views, the colour match 32^2 ones, the network's noise fields and kernels act on
 512^3 they would hold the full grid many times over (``results/memory_trace/``: over 20 GB), for
 detail that none of those pictures resolve. So ``WorkingGrid`` stylizes a copy whose longest side is
 the working size, and the path tracer renders the full density with the albedo brought back to it:
-the density keeps every voxel of its detail, the albedo is as fine as the working grid.
+the density keeps every voxel of its detail, the albedo is as fine as the working grid, and the
+network's structures, sized in voxels, are those of a frame at the working size (a 512^3 frame gets
+the patterns of a 256^3 one: ``results/working_size_study/``).
 
 - The density is box-averaged (``F.interpolate``'s ``area``): each working voxel holds the mean of
   the voxels it covers, so a ray's optical depth through the box is kept and no medium is dropped.

@@ -232,9 +232,10 @@ class Pipeline:
         (``Frames.at_working_size``), said in ``notes`` and the log when it is one."""
         work = frames.at_working_size(self.settings.working_size)
         if work is not frames:
+            size = self.settings.working_size
             message = (
-                f"{work.working_grid.describe()} at working size {self.settings.working_size}, its albedo resampled back "
-                "to the full grid for the path trace (working size 0 stylizes the full grid)"
+                f"{work.working_grid.describe()} at working size {size}, its albedo resampled back to the full "
+                "grid for the path trace (working size 0 stylizes the full grid)"
             )
             self.log(message)
             if notes is not None and message not in notes:

@@ -17,7 +17,8 @@ where.
 
 Appends a row to ``--out``/rows.jsonl (side, options, seconds and peak resident memory of each stage,
 whether it finished) and writes the sampled trace to ``--out``/trace_<side>_<scale>_<working size>.txt
-and the final image next to it (.png).
+(not kept in the repository: the row holds each stage's seconds and peak) and the final image next to it
+(.jpg).
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ def run_frame(side: int, scale_structures: float, working_size: int, trace_path:
     mark_stages(trace)
     from bench_scale import STYLE, density
 
-    from mistyle.files import write_png
+    from mistyle.files import write_jpeg
     from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
     from mistyle.tone import display
 
@@ -117,7 +118,7 @@ def run_frame(side: int, scale_structures: float, working_size: int, trace_path:
     stylized = pipeline.stylize(grid, str(STYLE))
     images, _ = pipeline.path_trace(stylized.frames, [stylized.albedos[0]], pipeline.views()[:1])
     trace.write("finished")
-    write_png(trace_path.with_suffix(".png"), display(images[0]), srgb=False)
+    write_jpeg(trace_path.with_suffix(".jpg"), display(images[0]), srgb=False)
 
 
 def summary(trace_path: Path) -> dict:

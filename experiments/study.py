@@ -41,7 +41,9 @@ def score_as_users_see(context, density, albedo, style, seed: int = 0):
     )
 
 
-def contact_sheet(lines: list, columns: list[str], path, tile: int, captions: list[str] | None = None) -> None:
+def contact_sheet(
+    lines: list, columns: list[str], path, tile: int, captions: list[str] | None = None, quality: int = 85
+) -> None:
     """A JPEG of one line of tiles per entry of ``lines``, ``(style image path, [tile PNG paths])``: the style
     squared, then each tile resized to ``tile`` (grey where a tile is missing); ``columns`` name the tiles
     above them, ``captions`` (one per line) sit in each line's lower left corner."""
@@ -67,7 +69,7 @@ def contact_sheet(lines: list, columns: list[str], path, tile: int, captions: li
         draw.text((column * tile + 4, 2), name, fill="black")
     for index, caption in enumerate(captions or []):
         draw.text((4, 16 + (index + 1) * tile - 14), caption, fill="white")
-    image.save(path, quality=85)
+    image.save(path, quality=quality)
 
 
 def add_metric_arguments(parser, res: int = 128, spp: int = 16) -> None:

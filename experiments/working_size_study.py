@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 OUT = ROOT / "results" / "working_size_study"
 METHODS = ("default", "half", "tuned_noise", "uniform")
 SHEET_METHODS = ("default", "half", "tuned_noise")
-TILE = 192
+TILE = 160
 
 
 def albedo_of(method: str, context, density, style) -> np.ndarray:
@@ -164,7 +164,7 @@ def sheet(rows: list[dict], out: Path) -> None:
         for density, style in pairs
     ]
     captions = [f"{density} x {style}" for density, style in pairs]
-    contact_sheet(lines, ["style", *SHEET_METHODS], out / "sheet.jpg", TILE, captions)
+    contact_sheet(lines, ["style", *SHEET_METHODS], out / "sheet.jpg", TILE, captions, quality=60)
 
 
 def main(argv=None) -> None:

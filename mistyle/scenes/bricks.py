@@ -38,8 +38,6 @@ Not for a dielectric coat (the box is then an optical boundary) or for ``prbvolp
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 
 from ..backend import require_variant
@@ -141,7 +139,7 @@ def bricked_media(
     shared = mi.load_dict(grid_volume(validate_albedo(albedo, density.shape), box.unit_to_world_matrix()))
     media = {
         k: mi.load_dict(heterogeneous_medium(grid, density_scale, shared))
-        for k, grid in level_densities(density, level, edges)
+        for k, grid in level_densities(density, level, edges).items()
     }
     quads = face_quads(box, level, edges)
     entries = {}
@@ -171,20 +169,18 @@ def update_bricked_media(
     mi = require_variant()
     box = MediumBox(density.shape)
     level, edges = brick_levels(density, brick, levels) if split is None else split
+    grids = level_densities(density, level, edges)
     quads = face_quads(box, level, edges)
-    extinction = {}  # level -> the keys of its medium's density grid
     for key in params.keys():
         # A shared object is listed once, under the first mesh that names it: the key's mesh and side
         # (interior: the name's first region, exterior: its second) tell which level's medium it is.
         parts = key.split(".")  # e.g. brick_faces_0_vacuum.interior_medium.sigma_t.data
         if parts[2:] == ["sigma_t", "data"]:
             inner, outer = parts[0].split("_")[-2:]
-            extinction.setdefault(int(inner if parts[1] == "interior_medium" else outer), []).append(key)
+            k = int(inner if parts[1] == "interior_medium" else outer)
+            params[key] = mi.TensorXf(grids[k][..., None])
         elif parts[2:] == ["albedo", "data"]:
             params[key] = mi.TensorXf(validate_albedo(albedo, density.shape))
-    for k, grid in level_densities(density, level, edges):
-        for key in extinction.get(k, []):
-            params[key] = mi.TensorXf(grid[..., None])
     for inner, outer in region_pairs(present_levels(level)):
         vertices, faces = _mesh_buffers(quads[inner, outer])
         name = face_mesh_name(inner, outer)
@@ -192,18 +188,16 @@ def update_bricked_media(
         params[f"{name}.faces"] = faces
 
 
-def level_densities(
-    density: np.ndarray, level: np.ndarray, edges: list[np.ndarray]
-) -> Iterator[tuple[int, np.ndarray]]:
-    """``(level, grid)`` for each present level: its density grid ``(Z, Y, X)`` float32, ``density`` in its
-    bricks and their halos, zero elsewhere (its maximum is the level's majorant), over the whole box so
-    that its transform and bounding box (literals in the kernel) are the box's whatever the frame. One
-    at a time: a caller holds one full grid beside the media made of the others (at 512^3, 0.5 GB a level)."""
+def level_densities(density: np.ndarray, level: np.ndarray, edges: list[np.ndarray]) -> dict[int, np.ndarray]:
+    """Each present level's density grid ``(Z, Y, X)`` float32: ``density`` in its bricks and their halos,
+    zero elsewhere (its maximum is the level's majorant), over the whole box so that its transform and
+    bounding box (literals in the kernel) are the box's whatever the frame."""
     # Each voxel's brick level, then a level's bricks grown by the one-voxel halo (a 3x3x3 maximum,
     # separable: one axis at a time): the union of its bricks' windows, each a brick and one voxel
     # more on every side, clipped to the grid.
     brick_of = [np.searchsorted(bounds, np.arange(n), side="right") - 1 for bounds, n in zip(edges, density.shape)]
     voxel_level = level[np.ix_(*brick_of)]
+    grids = {}
     for k in present_levels(level):
         mask = voxel_level == k
         for axis in range(3):
@@ -214,7 +208,8 @@ def level_densities(
             grown[tuple(behind)] |= mask[tuple(ahead)]
             grown[tuple(ahead)] |= mask[tuple(behind)]
             mask = grown
-        yield k, np.where(mask, density, 0.0).astype(np.float32)
+        grids[k] = np.where(mask, density, 0.0).astype(np.float32)
+    return grids
 
 
 def face_quads(box: MediumBox, level: np.ndarray, edges: list[np.ndarray]) -> dict[tuple[int, int], np.ndarray]:

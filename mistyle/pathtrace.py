@@ -267,9 +267,18 @@ SCENES = SceneCache()
 """The one ``SceneCache`` of this process, which ``path_trace`` renders through."""
 
 
+KEPT_SCENE_VOXELS = 256**3
+"""The largest grid whose scene outlives the frames of one ``Pipeline.path_trace``: a 512^3 grid's scene
+holds about 7 GB (``results/memory_trace/``), which a command would keep while it writes its files."""
+
+
 def release_scenes() -> None:
-    """Free the scene that ``path_trace`` keeps for the next frame (its grids, on the device too)."""
+    """Free the scene that ``path_trace`` keeps for the next frame (its grids, on the device too), and
+    return the memory Dr.Jit kept of it to the system."""
+    import drjit as dr
+
     SCENES.release()
+    dr.flush_malloc_cache()
 
 
 def render_passes(scene, sensor: int, passes: list[int], seed: int, render_pass=None) -> np.ndarray:

@@ -105,6 +105,27 @@ def test_another_structure_loads_a_new_scene(mi):
     assert pathtrace.SCENES.kept is None
 
 
+def test_a_large_grids_scene_is_not_kept_past_its_frames(mi, monkeypatch):
+    """A sequence's frames share the kept scene within one ``Pipeline.path_trace``; a grid larger than
+    ``KEPT_SCENE_VOXELS`` has its scene freed after them (at 512^3 it holds about 7 GB), a smaller one's
+    is kept for the next call."""
+    from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
+
+    pipeline = Pipeline(PipelineSettings(render=RenderSettings(res=16, spp=1, denoise="none")))
+    (density, albedo), (moved, moved_albedo) = blob_frames(2)
+    frames = pipeline.frames([density, moved])
+    pathtrace.release_scenes()
+    builds, updates = pathtrace.SCENES.builds, pathtrace.SCENES.updates
+    pipeline.path_trace(frames, [albedo, moved_albedo])
+    assert pathtrace.SCENES.kept is not None
+    monkeypatch.setattr(pathtrace, "KEPT_SCENE_VOXELS", density.size - 1)
+    pipeline.path_trace(frames, [albedo, moved_albedo])
+    assert pathtrace.SCENES.kept is None
+    assert (pathtrace.SCENES.builds - builds, pathtrace.SCENES.updates - updates) == (1, 3)  # kept until then
+    pipeline.path_trace(frames, [albedo, moved_albedo])
+    assert (pathtrace.SCENES.builds - builds, pathtrace.SCENES.updates - updates) == (2, 4)  # built anew
+
+
 def test_the_fast_layers_later_frames_launch_only_the_first_frames_kernels(mi):
     """The layer's Ls grid and image of a blob moving through its box: a new frame's arrays reach Dr.Jit
     aligned (``backend.lanes``) and its march box as data, so no kernel differs from the first frame's."""

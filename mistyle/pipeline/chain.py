@@ -396,9 +396,10 @@ class Pipeline:
         or one that shows the medium in too few pixels (``check_images``). In a sequence or a turntable
         an image that shows no medium while others do is a warning, logged and added to ``notes``; in a
         ``chunk`` of a sequence (``first`` > 0, or ``chunk``: rendered in parts, ``--frames``) even when
-        none of its images does, since the other chunks may."""
+        none of its images does, since the other chunks may. The path tracer's scene is kept for the next
+        call, unless the grid is larger than ``pathtrace.KEPT_SCENE_VOXELS``."""
         from ..denoise import denoise
-        from ..pathtrace import path_trace
+        from ..pathtrace import KEPT_SCENE_VOXELS, path_trace, release_scenes
 
         render = self.settings.render
         plan = self.render_plan(frames, views, first)
@@ -432,6 +433,8 @@ class Pipeline:
                 took = [t + (time.perf_counter() - started) / len(took) for t in took]
             images += frame_images
             seconds += took
+        if frames.densities[0].size > KEPT_SCENE_VOXELS:
+            release_scenes()  # its frames are traced: the next ones (a chunk, an output) rebuild it
         check_finite("The path-traced image", images)
         self.check_images(images, frames, albedos, plan, labels, notes, refuse=not (chunk or first))
         return images, seconds

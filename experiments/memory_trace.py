@@ -14,6 +14,7 @@ where.
     .venv/bin/python experiments/memory_trace.py --side 256                        # about 4 min on 2 cores
     .venv/bin/python experiments/memory_trace.py --side 512 --limit-gb 20            # stylized at 256^3
     .venv/bin/python experiments/memory_trace.py --side 512 --working-size 0 --scale-structures 0.5
+    .venv/bin/python experiments/memory_trace.py --side 512 --command    # mistyle-render, writing its files
 
 Appends a row to ``--out``/rows.jsonl (side, options, seconds and peak resident memory of each stage,
 whether it finished) and writes the sampled trace to ``--out``/trace_<side>_<scale>_<working size>.txt
@@ -98,6 +99,31 @@ def mark_stages(trace: Trace) -> None:
     frames.Frames.full_albedos = trace.marked("albedo to the full grid", frames.Frames.full_albedos)
 
 
+def run_command(side: int, working_size: int, trace_path: Path, limit_gb: float) -> None:
+    """``mistyle-render`` of the frame written as a ``.vol`` (256^2, 16 spp), its job's stages marked too:
+    what the command holds while it writes its files."""
+    trace = Trace(trace_path, limit_gb)
+    threading.Thread(target=trace.sample_forever, daemon=True).start()
+    mark_stages(trace)
+    import mistyle.job.run as job_run
+
+    for name in ("stylize_frames", "render_frames", "write_assets", "write_report"):
+        setattr(job_run, name, trace.marked(name, getattr(job_run, name)))
+    from bench_scale import STYLE, density
+
+    from mistyle.files import write_vol
+    from mistyle.render_final import main
+
+    with tempfile.TemporaryDirectory(prefix="memory-trace-command-") as folder:
+        write_vol(Path(folder) / "density.vol", density(side))
+        trace.write("density made")
+        options = ["--density", str(Path(folder) / "density.vol"), "--style", str(STYLE), "--out", f"{folder}/out"]
+        options += ["--res", "256", "--spp", "16", "--working-size", str(working_size), "--quiet"]
+        if main(options) != 0:
+            raise SystemExit("mistyle-render failed")
+        trace.write("finished")
+
+
 def run_frame(side: int, scale_structures: float, working_size: int, trace_path: Path, limit_gb: float) -> None:
     trace = Trace(trace_path, limit_gb)
     threading.Thread(target=trace.sample_forever, daemon=True).start()
@@ -158,26 +184,34 @@ def main(argv=None) -> None:
     parser.add_argument("--working-size", type=int, default=DEFAULT_WORKING_SIZE)
     parser.add_argument("--limit-gb", type=float, default=20.0)
     parser.add_argument("--out", default=str(OUT))
+    parser.add_argument(
+        "--command", action="store_true", help="trace mistyle-render on the frame as a .vol (256^2, 16 spp)"
+    )
     parser.add_argument("--run", action="store_true", help=argparse.SUPPRESS)  # the frame, in this process
     parser.add_argument("--trace", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.run and args.command:
+        run_command(args.side, args.working_size, Path(args.trace), args.limit_gb)
+        return
     if args.run:
         run_frame(args.side, args.scale_structures, args.working_size, Path(args.trace), args.limit_gb)
         return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    trace_path = out / f"trace_{args.side}_{args.scale_structures:g}_{args.working_size}.txt"
+    kind = "command_" if args.command else ""
+    trace_path = out / f"trace_{kind}{args.side}_{args.scale_structures:g}_{args.working_size}.txt"
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="memory-trace-home-") as home:  # Dr.Jit's disk cache starts empty
         command = [sys.executable, __file__, "--run", "--side", str(args.side), "--trace", str(trace_path)]
         command += ["--scale-structures", str(args.scale_structures), "--limit-gb", str(args.limit_gb)]
-        command += ["--working-size", str(args.working_size)]
+        command += ["--working-size", str(args.working_size)] + (["--command"] if args.command else [])
         returncode = subprocess.run(command, cwd=ROOT, env={**os.environ, "HOME": home}).returncode
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
     row = {
         "side": args.side,
         "scale_structures": args.scale_structures,
         "working_size": args.working_size,
+        "command": args.command,
         "limit_gb": args.limit_gb,
         "returncode": returncode,
         "commit": commit.stdout.strip(),

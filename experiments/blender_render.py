@@ -53,7 +53,7 @@ def main() -> None:
         "radiance": DEFAULT_ENV_RADIANCE,
         "res": args.res,
         "spp": args.spp,
-        "image": str(args.out / "blender_cycles.png"),
+        "image": str(work / "blender_cycles.png"),
         "result": str(args.out / "blender_result.json"),
     }
     (args.out / "blender_job.json").write_text(json.dumps(job))
@@ -67,7 +67,7 @@ def main() -> None:
         check=True,
         capture_output=True,
     )
-    blender = Image.open(args.out / "blender_cycles.png").convert("RGBA")
+    blender = Image.open(work / "blender_cycles.png").convert("RGBA")
     shown = Image.new("RGBA", blender.size, (0, 0, 0, 255))
     shown.alpha_composite(blender)
     ours = Image.open(work / "final.png").convert("RGB").resize(blender.size)

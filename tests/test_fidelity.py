@@ -149,6 +149,19 @@ def test_gradient_points_are_the_opponent_channels_differences_inside_the_mask()
     mask[..., :8] = 0
     assert len(gradient_points(ramp, mask, 1)) == 14 * 6  # centres x = 9..14: whole 3x3 neighbourhoods inside
     assert gradient_points(ramp, None, 2).shape == (6 * 6, 6)
+    assert gradient_points(ramp, None, 8).shape == (0, 6)  # 2 pixels a side once downsampled
+
+
+def test_an_image_too_small_for_a_scale_has_no_patches_at_it():
+    from mistyle.objective.losses import scaled_patches
+    from mistyle.objective.metrics import patch_swd
+
+    strip = torch.rand(1, 3, 3, 256)  # a style reduced to 3 px high: nothing at scale 4 (it was an error)
+    assert scaled_patches(strip, None, 4, 5).shape == (0, 75)
+    assert scaled_patches(strip[..., :2, :], None, 4, 5).shape == (0, 75)
+    style = np.random.default_rng(0).random((20, 256, 3), dtype=np.float32)
+    render = np.random.default_rng(1).random((64, 64, 3), dtype=np.float32)
+    assert np.isfinite(patch_swd([render], None, style))  # scale 4: 5 px high, one row of patches
 
 
 def test_structure_term_tells_the_style_s_orientation_from_another():

@@ -29,6 +29,7 @@ def inputs(tmp_path_factory, blob_density):
     Image.fromarray((rng.random((32, 32)) * 255).astype(np.uint8), "L").save(folder / "grey.png")
     Image.fromarray((rng.random((32, 32)) * 65535).astype(np.uint16)).save(folder / "deep.png")
     Image.fromarray(np.zeros((1, 1, 3), np.uint8)).save(folder / "dot.png")
+    Image.fromarray(np.full((8, 600, 3), 90, np.uint8)).save(folder / "sliver.png")  # 3 px high at 256 wide
     (folder / "notes.txt").write_text("not an image")
     (folder / "no_images").mkdir()
     np.save(folder / "nan.npy", np.full((8, 8, 8), np.nan, np.float32))
@@ -350,6 +351,7 @@ def test_unusual_style_images_are_converted_with_a_note(mi, checkpoint, inputs, 
     "change, message",
     [
         ({"--style": "dot.png"}, "needs at least"),
+        ({"--style": "sliver.png"}, "Crop it to a picture at most 32 times"),
         ({"--style": "notes.txt"}, "not a readable image"),
         ({"--style": "missing.png"}, "does not exist"),
         ({"--density": "nan.npy"}, "NaN"),

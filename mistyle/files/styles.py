@@ -155,7 +155,15 @@ def _style_array(array: np.ndarray, name: str, notes: list) -> np.ndarray:
             f"{MIN_STYLE_SIZE}x{MIN_STYLE_SIZE}."
         )
     if max(values.shape[:2]) > MAX_STYLE_SIDE:
+        height, width = values.shape[:2]
         values = _reduced(values, name, notes)
+        if min(values.shape[:2]) < MIN_STYLE_SIZE:
+            raise ValueError(
+                f"{name} is {width}x{height} pixels: brought to {MAX_STYLE_SIDE} pixels on its longer side, as "
+                f"every style is, it would be {values.shape[1]}x{values.shape[0]}, under {MIN_STYLE_SIZE} pixels "
+                f"on its shorter side. Crop it to a picture at most {MAX_STYLE_SIDE // MIN_STYLE_SIZE} times as "
+                "long as it is wide."
+            )
     return np.ascontiguousarray(np.clip(values, 0.0, 1.0), dtype=np.float32)
 
 

@@ -183,6 +183,8 @@ def masked_patches(images: torch.Tensor, mask: torch.Tensor | None, size: int) -
 def scaled_patches(images: torch.Tensor, mask: torch.Tensor | None, scale: int, size: int) -> torch.Tensor:
     """``masked_patches`` of ``images (B, C, H, W)`` box-downsampled by ``scale``; the mask is min-pooled, so
     a patch counts only when every pixel under it lies inside the mask."""
+    if min(images.shape[-2:]) < scale * size:  # fewer than ``size`` pixels a side once downsampled: no patch
+        return images.new_zeros((0, images.shape[1] * size * size))
     if scale > 1:
         images = F.avg_pool2d(images, scale)
         mask = None if mask is None else -F.max_pool2d(-mask, scale)
@@ -199,11 +201,11 @@ def gradient_points(images: torch.Tensor, mask: torch.Tensor | None, scale: int)
     """``(N, 6)``: the central-difference gradients ``(d/dx, d/dy)`` of the luminance and the two opponent
     channels (``OPPONENT``) of ``images (B, 3, H, W)`` box-downsampled by ``scale``, at the pixels whose
     3x3 neighbourhood lies wholly inside ``mask (B, 1, H, W)`` (min-pooled like ``scaled_patches``)."""
+    if min(images.shape[-2:]) < 3 * scale:  # fewer than 3 pixels a side once downsampled: no gradient
+        return images.new_zeros((0, 6))
     if scale > 1:
         images = F.avg_pool2d(images, scale)
         mask = None if mask is None else -F.max_pool2d(-mask, scale)
-    if min(images.shape[-2:]) < 3:
-        return images.new_zeros((0, 6))
     channels = torch.einsum("oc,bchw->bohw", images.new_tensor(OPPONENT), images)
     dx = (channels[..., 1:-1, 2:] - channels[..., 1:-1, :-2]) / 2
     dy = (channels[..., 2:, 1:-1] - channels[..., :-2, 1:-1]) / 2

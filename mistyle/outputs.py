@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .conventions import STYLE_SUFFIXES
+from .files.paths import output_target
 from .ownership import check_replaceable, is_beside_output, is_owned, read_manifest
 
 REPORT_FILE = "report.json"
@@ -151,7 +152,8 @@ def plan_outputs(
 ) -> list[Output]:
     """Every (density, style) pair's output folder, checked before any work: distinct names, and no
     existing output replaced without ``overwrite`` or kept without ``resume`` (the caller then skips
-    the complete ones: ``is_mistyle_output``)."""
+    the complete ones: ``is_mistyle_output``). ``out`` a symbolic link: its target (``output_target``)."""
+    out = output_target(out)
     sources = [DensitySource(Path(p)) for p in densities or []] + [
         DensitySource(Path(p), mesh=True) for p in meshes or []
     ]

@@ -226,6 +226,39 @@ def test_an_output_edited_while_a_run_renders_is_not_replaced(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
+def test_an_output_another_run_finished_since_the_check_is_not_replaced_without_overwrite(tmp_path):
+    out = tmp_path / "out"
+    with staged_directory(out, replace=False) as staging:  # nothing there yet
+        (staging / "a.npy").write_bytes(b"first run")
+    worked = []
+    with pytest.raises(ValueError, match="written by another mistyle run after this one began; pass --overwrite"):
+        with staged_directory(out, replace=False) as staging:
+            worked.append(True)
+    assert not worked and (out / "a.npy").read_bytes() == b"first run"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    with staged_directory(out, replace=True) as staging:
+        (staging / "a.npy").write_bytes(b"second run")
+    assert (out / "a.npy").read_bytes() == b"second run"
+
+
+def test_an_out_that_links_to_a_folder_is_written_through_the_link(mi, checkpoint, inputs, tmp_path, capsys):
+    target = tmp_path / "disk" / "shot"
+    target.mkdir(parents=True)
+    link = tmp_path / "out"
+    link.symlink_to(target, target_is_directory=True)
+    arguments = ["--density", inputs / "blob.vol", "--style", inputs / "style.png", "--out", link, *FAST]
+    assert render(checkpoint, *arguments) == 0
+    assert link.is_symlink() and is_owned(target) and (target / "final.png").is_file()
+    assert render(checkpoint, *arguments) == 2 and "already holds a render" in capsys.readouterr().err
+    assert render(checkpoint, *arguments, "--overwrite") == 0 and link.is_symlink() and is_owned(target)
+    broken = tmp_path / "broken"
+    broken.symlink_to(tmp_path / "nowhere")
+    assert render(checkpoint, *arguments[:4], "--out", broken, *FAST) == 2
+    error = capsys.readouterr().err
+    assert "--out" in error and "broken symbolic link" in error and "Traceback" not in error
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken", "disk", "out"]
+
+
 # ------------------------------------------------------------------ chunks and resumes keep their settings
 def test_resume_and_chunks_refuse_other_render_settings(mi, checkpoint, inputs, tmp_path, capsys):
     batch = ["--density", inputs / "blob.vol", inputs / "puff.npy", "--style", inputs / "style.png"]

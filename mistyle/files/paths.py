@@ -83,6 +83,16 @@ def check_link(path: Path, what: str, fix: str) -> None:
             ) from None
 
 
+def output_target(out) -> Path:
+    """``--out`` as the folder mistyle writes: a symbolic link is followed (an output linked to another
+    disk is written there, and the link kept), a broken link or a loop refused before any work."""
+    out = Path(out)
+    if not os.path.islink(out):
+        return out
+    check_link(out, "--out", "point --out at a folder, or at a path that does not exist yet")
+    return Path(os.path.realpath(out))
+
+
 def one_line(error: BaseException) -> str:
     text = error.args[0] if error.args and isinstance(error.args[0], str) else str(error)
     return " ".join(text.split()) or type(error).__name__

@@ -137,7 +137,7 @@ def render_outputs(settings, spec: OutputSpec, request: RenderRequest, log: Call
                 log(f"[{number}/{len(outputs)}] {output.name}")
             job = load_job(spec, output, pipeline, styles, request.frame_range)
             job.look, job.merged = look, merging
-            write_output(job)
+            write_output(job, replace=request.overwrite)
     finally:
         if batch:  # also when a pair failed: the index shows the outputs that are complete
             write_batch_index(request.out, pipeline)

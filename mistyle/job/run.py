@@ -82,9 +82,10 @@ def load_job(spec: OutputSpec, output, pipeline, styles: dict, frame_range: tupl
     )
 
 
-def write_output(job: Job) -> None:
-    """Make ``job``'s output: in a staging folder that replaces its folder only when complete, or, for a
-    chunk of a sequence (``job.merged``), in a staging folder whose files then merge into the folder."""
+def write_output(job: Job, replace: bool = True) -> None:
+    """Make ``job``'s output: in a staging folder that replaces its folder only when complete (an
+    output of mistyle's already there only with ``replace``, ``--overwrite``), or, for a chunk of a
+    sequence (``job.merged``), in a staging folder whose files then merge into the folder."""
     from ..ownership import chunk_staging, output_lock, staged_directory
 
     if job.merged:
@@ -95,7 +96,7 @@ def write_output(job: Job) -> None:
             with output_lock(job.output.folder, wait=True) as (folder, _):
                 merge_chunk(job, folder)
     else:
-        with staged_directory(job.output.folder) as staging:
+        with staged_directory(job.output.folder, replace=replace) as staging:
             job.out = staging
             render_job(job)
 

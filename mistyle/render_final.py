@@ -297,8 +297,13 @@ def main(argv=None) -> int:
             "the output being written was removed; finished outputs are kept",
             in_process=argv is not None,
         )
-    except (ValueError, OSError) as error:
+    except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        from .files.paths import os_error_line
+
+        print(f"error: {os_error_line(error, 'choose a writable --out')}", file=sys.stderr)
         return 2
     except RuntimeError as error:
         from .backend import BackendError

@@ -66,3 +66,16 @@ def test_mesh_cli_writes_a_vol_file(mi, tmp_path, sphere_ply):
     assert data_cli(["mesh", "--mesh", str(sphere_ply), "--res", "16", "--out", str(tmp_path / "ball.vol")]) == 0
     assert load_density(tmp_path / "ball.vol").shape == (16, 16, 16)
     assert data_cli(["mesh", "--mesh", str(tmp_path / "none.ply"), "--out", str(tmp_path / "x.vol")]) == 2
+
+
+def test_data_commands_that_cannot_write_say_so_in_one_line(mi, tmp_path, capsys):
+    from mistyle.data.__main__ import main as data_cli
+
+    (tmp_path / "a_file").write_text("not a folder")
+    for command in (["mesh", "--res", "8", "--out", str(tmp_path / "a_file" / "ball.vol")],
+                    ["styles", "--out", str(tmp_path / "a_file" / "styles")]):  # fmt: skip
+        assert data_cli(command) == 2
+        error = capsys.readouterr().err
+        assert error.startswith("error: ") and error.count("\n") == 1 and "Traceback" not in error, error
+        assert "a_file" in error
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]

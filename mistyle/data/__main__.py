@@ -128,6 +128,11 @@ def main(argv=None) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except OSError as error:
+        from ..files.paths import os_error_line
+
+        print(f"error: {os_error_line(error, 'choose a writable --out')}", file=sys.stderr)
+        return 2
 
 
 def check_options(args) -> None:

@@ -93,6 +93,15 @@ def output_target(out) -> Path:
     return Path(os.path.realpath(out))
 
 
+def os_error_line(error: OSError, fix: str = "choose a writable output folder") -> str:
+    """One line for a failed file operation: mistyle's own message as it is, the system's (``[Errno 30]
+    Read-only file system: 'out'``) as what failed, on which path, and ``fix``."""
+    if error.errno is None and error.args and isinstance(error.args[0], str):
+        return one_line(error)
+    where = f" {error.filename}" if error.filename else ""
+    return f"cannot write{where}: {error.strerror or error}; {fix}."
+
+
 def one_line(error: BaseException) -> str:
     text = error.args[0] if error.args and isinstance(error.args[0], str) else str(error)
     return " ".join(text.split()) or type(error).__name__

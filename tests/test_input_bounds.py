@@ -143,6 +143,17 @@ def test_a_frames_folder_with_a_broken_link_is_refused_naming_it(tmp_path, grid)
     assert load_density_frames(frames).names == ["smoke_000", "smoke_001", "smoke_003"]
 
 
+def test_unpadded_frame_numbers_are_in_frame_order(tmp_path, grid):
+    """Not every simulator pads its frame numbers: smoke_10 comes after smoke_9, not after smoke_1."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for number in (1, 2, 9, 10, 11):
+        np.save(frames / f"smoke_{number}.npy", grid * number)
+    loaded = load_density_frames(frames)
+    assert loaded.names == ["smoke_1", "smoke_2", "smoke_9", "smoke_10", "smoke_11"]
+    assert [float(frame.max() / grid.max()) for frame in loaded.densities] == [1, 2, 9, 10, 11]
+
+
 # ----------------------------------------------------------------------------- values
 def test_float64_values_beyond_float32_are_named_as_such(tmp_path, grid):
     """1e300 is finite in float64 and inf in float32: the file holds no NaN/inf values to report."""

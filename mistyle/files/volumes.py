@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import struct
 from pathlib import Path
 from typing import NamedTuple
@@ -95,12 +96,20 @@ def load_density(path, grid: str | None = None) -> np.ndarray:
     return _read_density_file(Path(path), grid)["density"]
 
 
+def frame_order(path: Path) -> tuple:
+    """The sort key of a frame file: its name with each run of digits compared as a number, so that
+    ``smoke_2`` comes before ``smoke_10`` (simulators do not all pad frame numbers); the name breaks ties."""
+    parts = re.split(r"(\d+)", path.name)
+    return tuple(int(part) if index % 2 else part for index, part in enumerate(parts)), path.name
+
+
 def density_frame_files(path) -> list[Path]:
-    """The frame files of a density: the file itself, or a folder's density files sorted by name."""
+    """The frame files of a density: the file itself, or a folder's density files in the order of
+    their frame numbers (``frame_order``)."""
     path = Path(path)
     if not path.is_dir():
         return [path]
-    candidates = sorted(p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES)
+    candidates = sorted((p for p in path.iterdir() if p.suffix.lower() in DENSITY_SUFFIXES), key=frame_order)
     for candidate in candidates:  # a frame left out of a sequence would go unnoticed in the render
         check_link(candidate, "The frame", "restore the frame or remove the link; a sequence renders every frame")
     files = [p for p in candidates if p.is_file()]
@@ -118,7 +127,7 @@ def load_density_frames(
     fps: float | None = None,
     notes: list | None = None,
 ) -> DensityFrames:
-    """Density frames from a file or a folder of frame files (sorted by name).
+    """Density frames from a file or a folder of frame files (in frame-number order, ``frame_order``).
 
     Velocities, ``(Z, Y, X, 3)`` per frame in ``mistyle.warp``'s units: voxels per frame, components
     ``(x, y, z)`` along the array's last, middle and first axes, frame t's velocity carrying it towards

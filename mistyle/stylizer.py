@@ -268,6 +268,20 @@ def check_enough_medium(grid: np.ndarray, name: str = "density") -> None:
         )
 
 
+def _frames_with_medium(items: list) -> str:
+    """What to say of a sequence holding empty frames (a simulation before its emitter starts, or after
+    its smoke is gone): which of its frames hold medium, and the ``--frames`` range of them."""
+    holding = [index for index, frame in enumerate(items) if np.any(np.asarray(frame) > 0)]
+    if not holding:
+        return " Every frame of the sequence is empty."
+    first, last = holding[0], holding[-1]
+    listed = f"{first}-{last}" if holding == list(range(first, last + 1)) else ", ".join(map(str, holding))
+    return (
+        f" Frames {listed} (0-based) of its {len(items)} hold medium: move the empty frames out of the folder, "
+        "or with a look render only those (--look FILE --frames A-B)."
+    )
+
+
 def checked_frames(density, names: list[str] | None = None) -> tuple[list[np.ndarray], bool]:
     """``(grids, sequence)``: ``density`` (one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
     frames) as checked float32 frames, and whether it was a sequence; ``names``: the frames' names in
@@ -286,7 +300,8 @@ def checked_frames(density, names: list[str] | None = None) -> tuple[list[np.nda
             name = f"density frame {index}" if len(items) > 1 else "density"
         grid = validate_density(frame, name=name)
         if not grid.any():
-            raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
+            advice = _frames_with_medium(items) if sequence else ""
+            raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.{advice}")
         check_enough_medium(grid, name)
         grids.append(grid)
     return grids, sequence

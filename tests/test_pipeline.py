@@ -129,6 +129,9 @@ def test_pipeline_refuses_empty_and_mismatched_frames(blob_density):
     pipeline = Pipeline()
     with pytest.raises(ValueError, match="all zero"):
         pipeline.frames(np.zeros((8, 8, 8), np.float32))
+    empty = np.zeros_like(blob_density)
+    with pytest.raises(ValueError, match=r"Frames 1-2 \(0-based\) of its 4 hold medium: move the empty frames out"):
+        pipeline.frames([empty, blob_density, blob_density, empty])
     with pytest.raises(ValueError, match="one grid size"):
         pipeline.frames([blob_density, blob_density[:8]])
     with pytest.raises(ValueError, match="one velocity per frame"):

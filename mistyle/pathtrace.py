@@ -426,13 +426,33 @@ def medium_span(density, view, res: int) -> float:
     """How many pixels across the medium (the box around its non-zero voxels) appears in a ``res``^2
     image from ``view`` (a ``scenes.View``): the larger side of the rectangle around its projected
     corners; inf when a corner lies at or behind the camera."""
+    corners = _projected_box(density, view, res)
+    if corners is None or not len(corners):
+        return 0.0 if corners is not None else float("inf")
+    return float(np.ptp(corners, axis=0).max())
+
+
+def medium_width(density, view, res: int) -> float:
+    """How many pixels the medium's projected box is across where it is narrowest (a medium seen edge-on,
+    a filament): the least width of its projected corners over directions a degree apart; inf when a
+    corner lies at or behind the camera."""
+    corners = _projected_box(density, view, res)
+    if corners is None or not len(corners):
+        return 0.0 if corners is not None else float("inf")
+    angles = np.radians(np.arange(180.0))
+    return float(np.ptp(corners @ np.stack([np.cos(angles), np.sin(angles)]), axis=0).min())
+
+
+def _projected_box(density, view, res: int) -> np.ndarray | None:
+    """The 8 corners of the box around ``density``'s non-zero voxels in pixels of a ``res``^2 image from
+    ``view``, ``(8, 2)`` (none when the density is empty); None when a corner lies at or behind the camera."""
     from .scenes.box import MediumBox
 
     grid = np.asarray(density)
     box = MediumBox(grid.shape)
     occupied = grid > 0
     if not occupied.any():
-        return 0.0
+        return np.zeros((0, 2))
     ranges = []  # (first, last + 1) occupied voxel along x, y, z
     for axis in (2, 1, 0):
         present = np.flatnonzero(occupied.any(axis=tuple(a for a in range(3) if a != axis)))
@@ -449,10 +469,9 @@ def medium_span(density, view, res: int) -> float:
     offsets = corners - origin
     depth = offsets @ forward
     if (depth <= 1e-9).any():
-        return float("inf")
+        return None
     focal = res / (2.0 * np.tan(np.radians(view.fov_deg) / 2.0))  # the fov spans the image's width
-    across, down = (offsets @ right) / depth * focal, (offsets @ up) / depth * focal
-    return float(max(np.ptp(across), np.ptp(down)))
+    return np.stack([(offsets @ right) / depth * focal, (offsets @ up) / depth * focal], axis=1)
 
 
 def medium_pixels(image: np.ndarray) -> int:
@@ -554,7 +573,7 @@ def dark_render(image: np.ndarray, density, albedo, view, res: int, density_scal
     shown = f"the medium shows in {seen} pixel(s) of the {res}^2 image (a final image needs {needed})"
     bound = medium_radiance_bound(density, density_scale, light)
     brightest = float(np.asarray(albedo)[np.asarray(density) > 0].max(initial=0.0))
-    pixels = medium_span(density, view, res)
+    pixels, narrow = medium_span(density, view, res), medium_width(density, view, res)
     if bound < DARK_MARGIN * FOREGROUND_THRESHOLD:
         return f"{shown}: {_too_faint(density, density_scale, light, bound)}"
     if bound * brightest < DARK_MARGIN * FOREGROUND_THRESHOLD:
@@ -564,6 +583,12 @@ def dark_render(image: np.ndarray, density, albedo, view, res: int, density_scal
         )
     if pixels < res / 4.0:
         return f"{shown}: {_too_far(view, res, pixels)}"
+    if narrow < 2.0:
+        return (
+            f"{shown}: the medium is {pixels:.0f} pixels long but {narrow:.2g} across, thinner than the pixels "
+            "that would show it. Raise the resolution (--res), move the camera closer (--camera-distance) or "
+            "raise --density-scale so that it covers its pixels."
+        )
     return (
         f"{shown}, though the medium spans {pixels:.0f} pixels and could scatter a radiance up to {bound:.2g}: "
         f"the {light.kind} light may not reach the medium from where it is, or the medium lies outside the view. "

@@ -103,6 +103,17 @@ def test_a_black_albedo_is_refused_after_the_render(pipeline, blob_density):
         pipeline.path_trace(pipeline.frames(blob_density), [black])
 
 
+def test_a_filament_thinner_than_a_pixel_is_named_as_such(pipeline):
+    from mistyle.pathtrace import medium_span, medium_width
+
+    filament = np.ones((2, 2, 500), np.float32)  # 500 voxels long, 2 across: a tenth of a pixel at 16^2
+    view = pipeline.views()[0]
+    assert medium_span(filament, view, 16) > 8 and medium_width(filament, view, 16) < 0.5
+    grey = np.full(filament.shape + (3,), 0.5, np.float32)
+    with pytest.raises(ValueError, match="pixels long but .* across, thinner than the pixels .* Raise the resolution"):
+        pipeline.path_trace(pipeline.frames(filament), [grey])
+
+
 def test_a_sequence_frame_that_shows_no_medium_is_a_warning_on_the_console(pipeline, blob_density):
     """A simulation may start as a wisp: that frame renders, with its cause logged and noted; a sequence
     that no frame shows is refused."""

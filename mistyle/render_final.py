@@ -71,8 +71,8 @@ from .resample import DEFAULT_WORKING_SIZE
 
 
 def _coat(text: str) -> float:
-    kind, _, ior = text.partition(":")
-    if kind != "dielectric":
+    kind, colon, ior = text.partition(":")
+    if kind != "dielectric" or (colon and not ior):
         raise argparse.ArgumentTypeError(f"--coat takes dielectric[:ior], e.g. dielectric:1.5; got {text!r}")
     try:
         return float(ior) if ior else 1.5
@@ -429,6 +429,8 @@ def check_options(args) -> None:
         check_link(Path(path), "Style image", "point --style at an image file or a folder of them")
     if args.look is not None:
         check_link(Path(args.look), "Look", "point --look at a look file made by --save-look")
+    if args.vgg_weights is not None and not Path(args.vgg_weights).is_file():
+        raise ValueError(f"--vgg-weights {args.vgg_weights} does not exist; point it at a VGG16 weights file.")
     validate_max_depth(args.max_depth, "--max-depth")
     validate_orbit_position(args.view, "--view")
     if args.camera_distance is not None:
@@ -473,6 +475,8 @@ def check_look_options(args) -> None:
 
     if args.out is None and args.save_look is None:
         raise ValueError("--out is required (only --save-look alone, which writes the look file, needs none).")
+    if args.resume and args.overwrite:
+        raise ValueError("--resume keeps the complete outputs and --overwrite replaces them: give one of the two.")
     sources = (args.density or []) + (args.mesh or [])
     if args.save_look is not None:
         if args.look is not None:
@@ -491,6 +495,8 @@ def check_look_options(args) -> None:
         )
     if args.look is not None and args.strength != 1.0:
         raise ValueError("A look holds its style at full strength; --look does not take --strength.")
+    if args.look is not None and args.look_steps is not None:
+        raise ValueError("--look-steps sets the steps of a look's fit; --look applies a look already fitted: drop one.")
     if args.key_frames is not None and args.save_look is None:
         if args.look is not None or not settings_from(args).fits_look:
             raise ValueError(

@@ -197,7 +197,7 @@ def test_damaged_foreign_and_mismatched_looks_are_one_clear_error(look, stylizer
     torch.save({"weights": torch.zeros(3)}, tmp_path / "foreign.look")
     torch.save({"format": "mistyle-look", "version": LOOK_VERSION, "meta": {}}, tmp_path / "hollow.look")
     cases = {
-        "garbage.look": "not a readable mistyle look",
+        "garbage.look": "is not a mistyle look \\(the file is not one --save-look writes\\)",
         "truncated.look": "not a readable mistyle look",
         "future.look": f"format version {LOOK_VERSION + 1}",
         "foreign.look": "is not a mistyle look",
@@ -393,11 +393,13 @@ def test_chunks_of_a_sequence_with_velocities_merge_into_the_single_run(checkpoi
     "arguments, message",
     [
         (["--look", "{look}", "--strength", "0.5", "--out", "{out}"], "full strength"),
+        (["--look", "{look}", "--look-steps", "5", "--out", "{out}"], "--look applies a look already fitted"),
+        (["--look", "{look}", "--resume", "--overwrite", "--out", "{out}"], "give one of the two"),
         (["--style", "{style}", "--key-frames", "0", "--refine", "0", "--out", "{out}"], "leave out"),
         (["--look", "{look}", "--frames", "5-9", "--out", "{out}"], "outside"),
         (["--style", "{style}", "--frames", "0-1", "--out", "{out}"], "renders chunks from a look"),
         (["--look", "{look}", "--frames", "b-a", "--out", "{out}"], "--frames takes A-B"),
-        (["--look", "{garbage}", "--out", "{out}"], "not a readable mistyle look"),
+        (["--look", "{garbage}", "--out", "{out}"], "is not a mistyle look (the file is not one --save-look writes)"),
         (["--style", "{style}", "--save-look", "{out}/missing/x.look"], "folder does not exist"),
         (["--style", "{style}"], "--out is required"),
     ],

@@ -215,8 +215,13 @@ class Look:
         path = Path(path)
         if not path.is_file():
             raise ValueError(f"Look {path} does not exist; fit one with mistyle-render ... --save-look {path}.")
+        data = path.read_bytes()
+        if not data.startswith(b"PK\x03\x04"):  # torch's archives are zip files; anything else is not a look
+            raise ValueError(
+                f"{path} is not a mistyle look (the file is not one --save-look writes); fit one with "
+                f"mistyle-render --style S --save-look {path.name}."
+            )
         try:
-            data = path.read_bytes()
             record = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
         except Exception as error:  # torch raises many types for a damaged or foreign file
             text = str(error)

@@ -50,6 +50,12 @@ def load_checkpoint(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"No checkpoint file at {path}.")
+    with open(path, "rb") as handle:
+        if handle.read(4) != b"PK\x03\x04":  # torch's archives are zip files
+            raise ValueError(
+                f"{path} is not a mistyle checkpoint (not a file torch.save writes); only checkpoints written "
+                "by mistyle can be loaded."
+            )
     try:
         with warnings.catch_warnings():  # torch warns about foreign pickle protocols; the error below says it all
             warnings.simplefilter("ignore")

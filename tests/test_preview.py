@@ -491,3 +491,17 @@ def test_a_bad_control_message_is_answered_to_its_page_only_and_changes_nothing(
             await collector
 
     asyncio.run(scenario())
+
+
+def test_a_signal_stops_the_server_and_is_reported_as_the_commands_stop():
+    import os
+    import signal
+    import time
+
+    from mistyle.preview import serve
+
+    for number in (signal.SIGTERM, signal.SIGINT):
+        before = signal.getsignal(number)
+        assert serve(lambda number=number: (os.kill(os.getpid(), number), time.sleep(10))) == number
+        assert signal.getsignal(number) is before  # the command's handlers are put back
+    assert serve(lambda: None) is None

@@ -72,7 +72,8 @@ def server(tmp_path_factory):
     process, url = start_server(folder, "--refine 0 --res 32 --spp 2 --look-steps 2")
     yield url, folder / "out"
     process.terminate()
-    process.wait(timeout=30)
+    assert process.wait(timeout=30) == 143  # SIGTERM, as every command reports it
+    assert "mistyle-preview: terminated: the preview server stopped" in process.stdout.read()
 
 
 @pytest.fixture(scope="module")

@@ -18,8 +18,10 @@ why it is built so.
 from __future__ import annotations
 
 import argparse
+import signal
 import socket
 import sys
+import threading
 from pathlib import Path
 
 from ..conventions import UP_AXES
@@ -137,10 +139,39 @@ def main(argv: list[str] | None = None) -> int:
         )
         port = listener.getsockname()[1]
         print(f"mistyle preview: http://{args.host}:{port}/  (Ctrl-C to stop)", flush=True)
-        web.run_app(app, sock=listener, print=None, handle_signals=True)
+        received = serve(lambda: web.run_app(app, sock=listener, print=None, handle_signals=False))
     except ValueError as error:
         print(f"mistyle-preview: error: {error}", file=sys.stderr)
         return 2
+    if received is None:
+        return 0
+    from ..stops import INTERRUPTED_CODE, TERMINATED_CODE, stopped
+
+    word, code = ("terminated", TERMINATED_CODE) if received == signal.SIGTERM else ("interrupted", INTERRUPTED_CODE)
+    kept = "the preview server stopped; the outputs its render jobs finished are kept"
+    return stopped(f"mistyle-preview: {word}: {kept}", code, in_process=argv is not None)
+
+
+def serve(run) -> int | None:
+    """``run()`` (the server, until it is stopped); the signal that stopped it (SIGINT or SIGTERM), or
+    None. Either signal stops the server as Ctrl-C does: ``aiohttp.web.run_app`` closes its connections
+    and cleans up on the ``KeyboardInterrupt`` raised here."""
+    received = []
+
+    def on_signal(number, frame):
+        received.append(number)
+        raise KeyboardInterrupt
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():  # Ctrl-C only where it is not ignored
+        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, on_signal)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            previous[signal.SIGINT] = signal.signal(signal.SIGINT, on_signal)
+    try:
+        run()
     except KeyboardInterrupt:
-        return 130
-    return 0
+        received.append(signal.SIGINT)
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+    return received[0] if received else None

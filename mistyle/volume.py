@@ -21,6 +21,11 @@ def validate_density(density, name: str = "density") -> np.ndarray:
     array = np.asarray(density)
     if array.ndim == 4 and array.shape[-1] == 1:
         array = array[..., 0]
+    if array.ndim == 4 and array.shape[-1] in (2, 3, 4):
+        raise ValueError(
+            f"{name} holds {array.shape[-1]} values a voxel (shape {array.shape}): a vector or colour grid, not "
+            "a density. Choose the file's density grid (--grid NAME; mistyle-vdb FILE lists them)."
+        )
     if array.ndim != 3:
         raise ValueError(f"{name} must be a 3D array (Z, Y, X), got shape {array.shape}.")
     if array.size == 0:

@@ -116,6 +116,10 @@ def test_vol_files_are_checked_against_their_size_before_reading(tmp_path, grid)
     np.testing.assert_array_equal(read_vol(path), grid)
     path.write_bytes(path.read_bytes()[:-10])
     one_line_error(lambda: load_density(path), "cut.vol", "truncated")
+    path.write_bytes(path.read_bytes()[:20])
+    one_line_error(lambda: load_density(path), "cut.vol", "header is cut short (20 of", "truncated")
+    colours = write_vol(tmp_path / "colours.vol", np.stack([grid] * 3, axis=-1))
+    one_line_error(lambda: load_density(colours), "holds 3 values a voxel", "not a density", "--grid")
 
 
 # ----------------------------------------------------------------------------- links
@@ -141,6 +145,15 @@ def test_a_frames_folder_with_a_broken_link_is_refused_naming_it(tmp_path, grid)
     one_line_error(lambda: load_density_frames(frames), "smoke_002.npy is a broken symbolic link", "restore the frame")
     (frames / "smoke_002.npy").unlink()
     assert load_density_frames(frames).names == ["smoke_000", "smoke_001", "smoke_003"]
+
+
+def test_a_folder_whose_frames_lie_in_a_subfolder_names_it(tmp_path, grid):
+    """A Blender cache's root holds config/ and data/; its frames are in data/."""
+    cache = tmp_path / "cache_fluid"
+    (cache / "config").mkdir(parents=True)
+    (cache / "data").mkdir()
+    np.save(cache / "data" / "fluid_data_0001.npy", grid)
+    one_line_error(lambda: load_density_frames(cache), "holds no", f"its subfolder {cache / 'data'} does")
 
 
 def test_unpadded_frame_numbers_are_in_frame_order(tmp_path, grid):

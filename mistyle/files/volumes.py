@@ -43,8 +43,13 @@ def read_vol(path) -> np.ndarray:
     with open(path, "rb") as handle:
         raw = handle.read(_VOL_HEADER.size)
         held = os.fstat(handle.fileno()).st_size - _VOL_HEADER.size
-        if len(raw) < _VOL_HEADER.size or raw[:3] != b"VOL":
+        if raw[:3] != b"VOL":
             raise ValueError(f"{path} is not a Mitsuba .vol file (missing the 'VOL' header).")
+        if len(raw) < _VOL_HEADER.size:
+            raise ValueError(
+                f"{path}: its .vol header is cut short ({len(raw)} of {_VOL_HEADER.size} bytes); the file is "
+                "truncated: write it again."
+            )
         magic, version, encoding, x, y, z, c, *_bbox = _VOL_HEADER.unpack_from(raw)
         _check_vol_header(path, version, encoding, (x, y, z, c), held)
         data = np.fromfile(handle, dtype="<f4", count=x * y * z * c)
@@ -114,8 +119,29 @@ def density_frame_files(path) -> list[Path]:
         check_link(candidate, "The frame", "restore the frame or remove the link; a sequence renders every frame")
     files = [p for p in candidates if p.is_file()]
     if not files:
-        raise ValueError(f"The folder {path} holds no {', '.join(DENSITY_SUFFIXES)} density frames.")
+        inner = _frames_below(path)
+        hint = f"; its subfolder {inner} does (Blender's caches keep their frames in data/): read that" if inner else ""
+        raise ValueError(f"The folder {path} holds no {', '.join(DENSITY_SUFFIXES)} density frames{hint}.")
     return files
+
+
+def _frames_below(path: Path, depth: int = 2) -> Path | None:
+    """The first subfolder of ``path``, at most ``depth`` levels down, that holds density files."""
+    try:
+        folders = sorted(p for p in path.iterdir() if p.is_dir() and not p.name.startswith("."))
+    except OSError:
+        return None
+    for folder in folders:
+        try:
+            if any(p.suffix.lower() in DENSITY_SUFFIXES and p.is_file() for p in folder.iterdir()):
+                return folder
+        except OSError:
+            continue
+    for folder in folders if depth > 1 else ():
+        found = _frames_below(folder, depth - 1)
+        if found is not None:
+            return found
+    return None
 
 
 def load_density_frames(

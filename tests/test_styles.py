@@ -185,6 +185,18 @@ def test_exr_styles_are_read_with_the_display_curve(tmp_path):
     assert any("display curve" in note for note in notes)
 
 
+def test_a_luminance_only_exr_is_a_grey_style(tmp_path):
+    import OpenEXR
+
+    from mistyle.tone import display
+
+    luminance = np.random.default_rng(3).random((12, 12)).astype(np.float32) * 4
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    OpenEXR.File(header, {"Y": luminance}).write(str(tmp_path / "grey.exr"))
+    style = load_style(tmp_path / "grey.exr")
+    np.testing.assert_allclose(style, display(np.repeat(luminance[..., None], 3, axis=-1)), atol=1e-6)
+
+
 def test_huge_images_are_refused_before_decoding(tmp_path, monkeypatch):
     save(tmp_path / "big.png", np.zeros((64, 64, 3), np.uint8))
     monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # 64 x 64 > 2 x 1000: Pillow's bomb error

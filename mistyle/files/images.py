@@ -34,11 +34,12 @@ def write_exr(path, image) -> Path:
 
 
 def read_exr(path) -> np.ndarray:
-    """Read an RGB OpenEXR file as a float32 ``(H, W, 3)`` array.
+    """Read an RGB OpenEXR file as a float32 ``(H, W, 3)`` array; a luminance-only one (its ``Y`` channel,
+    as greyscale images are written) as grey.
 
     Raises:
         ValueError: naming the file, for a truncated or damaged file (``check_exr_layout``) or one
-            without R, G and B channels.
+            without R, G and B channels (nor Y).
     """
     import OpenEXR
 
@@ -48,6 +49,9 @@ def read_exr(path) -> np.ndarray:
             channels = exr.channels()
             if "RGB" in channels:
                 return np.asarray(channels["RGB"].pixels, dtype=np.float32)
+            if "Y" in channels and "R" not in channels:
+                grey = np.asarray(channels["Y"].pixels, dtype=np.float32)
+                return np.repeat(grey[..., None], 3, axis=-1)
             return np.stack([np.asarray(channels[c].pixels, dtype=np.float32) for c in "RGB"], axis=-1)
     except KeyError as error:
         raise ValueError(f"{path} is not an RGB OpenEXR image (it has no {error.args[0]} channel).") from None

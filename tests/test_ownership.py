@@ -79,6 +79,10 @@ def test_save_look_replaces_only_a_look_and_only_with_overwrite(mi, checkpoint, 
     assert render(checkpoint, *fit, "--save-look", look) == 2
     assert "already exists; pass --overwrite" in capsys.readouterr().err and look.read_bytes() == first
     assert render(checkpoint, *fit, "--save-look", look, "--overwrite") == 0
+    link = tmp_path / "linked.look"
+    link.symlink_to(look)
+    assert render(checkpoint, *fit, "--save-look", link, "--overwrite") == 2
+    assert "is a symbolic link (to" in capsys.readouterr().err and link.is_symlink()
 
 
 # ------------------------------------------------------------------ --overwrite

@@ -8,6 +8,7 @@ The command line, the preview's page and scripts call ``render_outputs`` with ``
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,11 @@ def check_look_replaceable(path: Path, overwrite: bool) -> None:
 
     if not (path.exists() or path.is_symlink()):
         return
+    if path.is_symlink():
+        raise ValueError(
+            f"--save-look {path} is a symbolic link (to {os.readlink(path)}); mistyle saves a look as a file of "
+            "its own, never through a link: give the link's target, or another name."
+        )
     if not is_look_file(path):
         raise ValueError(
             f"--save-look {path} already exists and is not a mistyle look; mistyle replaces only its own files. "

@@ -37,6 +37,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from .files.paths import one_line
+
 DEFAULT_CHUNK = 8
 """Frames per task: enough to amortise loading the network (about a second) against a frame's render."""
 POLL_SECONDS = 0.2
@@ -236,6 +238,10 @@ def _prepare_worker() -> int:
     return os.getpid()
 
 
+SCHEDULER_TIMEOUT = 30
+"""Seconds ``--scheduler``'s address has to answer before the farm gives up on it."""
+
+
 class _cluster:
     """``with _cluster(args) as client``: a client of ``--scheduler``, or of a local cluster of
     ``--local-workers``. However the block ends, the client is closed; a local cluster is closed too,
@@ -251,7 +257,14 @@ class _cluster:
         from .ownership import make_staging
 
         if self.args.scheduler is not None:
-            self.client = Client(self.args.scheduler, timeout=30)
+            try:
+                self.client = Client(self.args.scheduler, timeout=SCHEDULER_TIMEOUT)
+            except (OSError, ValueError, TypeError) as error:  # Dask's kinds for a bad or unreachable address
+                raise ValueError(
+                    f"--scheduler {self.args.scheduler}: no Dask scheduler answered there ({one_line(error)}). Give "
+                    "the address `dask scheduler` printed (tcp://HOST:8786), or leave --scheduler out to start "
+                    "--local-workers."
+                ) from None
             return self.client
         # Dask's scratch space, as a staging folder of this process: removed when it ends, or by the
         # next run once this process is gone.

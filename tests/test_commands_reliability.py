@@ -118,6 +118,23 @@ def test_farm_refuses_a_bad_out_before_starting_workers(farm_inputs, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "shots"]  # no lock or staging left
 
 
+def test_farm_names_a_scheduler_address_that_does_not_answer(farm_inputs, tmp_path, monkeypatch):
+    """Dask's own words ("missing port number in address", a time-out) named neither the option nor a fix."""
+    import argparse
+
+    from mistyle import farm as farm_module
+
+    out = tmp_path / "fb"
+    where = ["--scheduler", "notanaddress", "--density", farm_inputs["frames"], "--look", farm_inputs["look"]]
+    done = command("mistyle.farm", *where, "--out", out, "--", "--checkpoint", farm_inputs["checkpoint"], *FAST)
+    one_line_error(done, "--scheduler notanaddress: no Dask scheduler answered there", "leave --scheduler out")
+    assert not out.exists()
+    monkeypatch.setattr(farm_module, "SCHEDULER_TIMEOUT", 1)  # nothing listens on port 1
+    with pytest.raises(ValueError, match="tcp://127.0.0.1:1: no Dask scheduler answered there .*Timed out"):
+        with farm_module._cluster(argparse.Namespace(scheduler="tcp://127.0.0.1:1")):
+            pass
+
+
 def test_a_killed_chunk_leaves_nothing_that_the_next_run_does_not_remove(farm_inputs, tmp_path):
     """A chunk killed with SIGKILL leaves its staging folders (the render's and the shipped look's, both
     named after its process); the next chunk into the same folder removes them. The look once went to a

@@ -505,3 +505,12 @@ def test_a_signal_stops_the_server_and_is_reported_as_the_commands_stop():
         assert serve(lambda number=number: (os.kill(os.getpid(), number), time.sleep(10))) == number
         assert signal.getsignal(number) is before  # the command's handlers are put back
     assert serve(lambda: None) is None
+
+
+def test_render_options_may_start_with_a_dash():
+    from mistyle.preview import joined_render_options, parser
+
+    argv = joined_render_options(["--density", "d.vol", "--render-options", "--vdb", "--port", "0"])
+    args = parser().parse_args(argv)
+    assert args.render_options == "--vdb" and args.port == 0
+    assert joined_render_options(["--render-options"]) == ["--render-options"]  # argparse names what is missing

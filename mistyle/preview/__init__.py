@@ -113,7 +113,7 @@ def page_settings(args, style: Path) -> tuple:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    args = parser().parse_args(joined_render_options(sys.argv[1:] if argv is None else argv))
     try:
         from aiohttp import web
 
@@ -150,6 +150,19 @@ def main(argv: list[str] | None = None) -> int:
     word, code = ("terminated", TERMINATED_CODE) if received == signal.SIGTERM else ("interrupted", INTERRUPTED_CODE)
     kept = "the preview server stopped; the outputs its render jobs finished are kept"
     return stopped(f"mistyle-preview: {word}: {kept}", code, in_process=argv is not None)
+
+
+def joined_render_options(argv: list[str]) -> list[str]:
+    """``argv`` with ``--render-options VALUE`` as ``--render-options=VALUE``: argparse takes a value that
+    starts with a dash (``--render-options "--vdb"``) for an option of its own and refuses it."""
+    joined, items = [], iter(argv)
+    for item in items:
+        if item == "--render-options":
+            value = next(items, None)
+            joined.append(item if value is None else f"{item}={value}")
+        else:
+            joined.append(item)
+    return joined
 
 
 def serve(run) -> int | None:

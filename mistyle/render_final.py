@@ -217,7 +217,12 @@ def _render_options(p: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--view", type=float, default=HELD_OUT_VIEW, help="camera position on the training orbit, in [0, 1)"
     )
-    group.add_argument("--turntable", type=int, default=0, help="render N frames around the orbit (a video)")
+    group.add_argument(
+        "--turntable",
+        type=int,
+        default=0,
+        help="render N views around the orbit (a video; a sequence's frame i takes view i mod N)",
+    )
     group.add_argument("--camera-distance", type=float, default=None, help="orbit radius (default: the checkpoint's)")
     group.add_argument(
         "--light", default=LIGHT_KINDS[0], help="constant[:Le] | envmap:<file.exr>[:scale] | point:x,y,z[:I] | area[:L]"

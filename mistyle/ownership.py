@@ -371,16 +371,16 @@ def output_lock(directory, wait: bool = False):
 
 
 @contextlib.contextmanager
-def staged_directory(directory, kind: str = "render", replace: bool = True):
+def staged_directory(directory, kind: str = "render", keep: tuple[str, ...] = ()):
     """Yield an empty staging folder; when the block succeeds, it becomes ``directory`` whole, with its
     manifest (``kind``). An existing ``directory`` is replaced only if it holds nothing but
     mistyle's files (checked again under the lock, as a user may have added one since the run began);
-    a failure or an interrupt removes the staging folder and leaves ``directory`` as it was. Without
-    ``replace`` (no ``--overwrite``), a complete output of mistyle's that another run finished after
-    this one checked the path is refused under the lock, before the block's work."""
+    a failure or an interrupt removes the staging folder and leaves ``directory`` as it was. An
+    output whose manifest's kind is in ``keep`` (without ``--overwrite``: a complete render that another
+    run finished after this one checked the path) is refused under the lock, before the block's work."""
     with output_lock(directory) as (directory, parent):
         record = read_manifest(directory) if directory.is_dir() else None
-        if not replace and record is not None:
+        if record is not None and record.get("kind") in keep:
             raise ValueError(
                 f"{directory} was written by another mistyle run after this one began; pass --overwrite to "
                 "replace it, or choose another --out."

@@ -232,15 +232,15 @@ def test_an_output_edited_while_a_run_renders_is_not_replaced(tmp_path):
 
 def test_an_output_another_run_finished_since_the_check_is_not_replaced_without_overwrite(tmp_path):
     out = tmp_path / "out"
-    with staged_directory(out, replace=False) as staging:  # nothing there yet
+    with staged_directory(out, keep=("render",)) as staging:  # nothing there yet
         (staging / "a.npy").write_bytes(b"first run")
     worked = []
     with pytest.raises(ValueError, match="written by another mistyle run after this one began; pass --overwrite"):
-        with staged_directory(out, replace=False) as staging:
+        with staged_directory(out, keep=("render",)) as staging:
             worked.append(True)
     assert not worked and (out / "a.npy").read_bytes() == b"first run"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
-    with staged_directory(out, replace=True) as staging:
+    with staged_directory(out) as staging:  # --overwrite
         (staging / "a.npy").write_bytes(b"second run")
     assert (out / "a.npy").read_bytes() == b"second run"
 

@@ -83,9 +83,10 @@ def load_job(spec: OutputSpec, output, pipeline, styles: dict, frame_range: tupl
 
 
 def write_output(job: Job, replace: bool = True) -> None:
-    """Make ``job``'s output: in a staging folder that replaces its folder only when complete (an
-    output of mistyle's already there only with ``replace``, ``--overwrite``), or, for a chunk of a
+    """Make ``job``'s output: in a staging folder that replaces its folder only when complete (a
+    complete render already there only with ``replace``, ``--overwrite``), or, for a chunk of a
     sequence (``job.merged``), in a staging folder whose files then merge into the folder."""
+    from ..outputs import RENDER_KINDS
     from ..ownership import chunk_staging, output_lock, staged_directory
 
     if job.merged:
@@ -96,7 +97,7 @@ def write_output(job: Job, replace: bool = True) -> None:
             with output_lock(job.output.folder, wait=True) as (folder, _):
                 merge_chunk(job, folder)
     else:
-        with staged_directory(job.output.folder, replace=replace) as staging:
+        with staged_directory(job.output.folder, keep=() if replace else RENDER_KINDS) as staging:
             job.out = staging
             render_job(job)
 

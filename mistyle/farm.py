@@ -37,7 +37,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .files.paths import one_line
+from .files.paths import one_line, os_error_line
 
 DEFAULT_CHUNK = 8
 """Frames per task: enough to amortise loading the network (about a second) against a frame's render."""
@@ -181,7 +181,10 @@ def main(argv=None) -> int:
     try:
         kept = f"the frames finished so far are kept in {args.out}"
         return run_stoppable(lambda: _farm(args), kept, in_process=argv is not None)
-    except (ValueError, OSError, RuntimeError) as error:
+    except OSError as error:
+        print(f"error: {os_error_line(error, 'choose a writable --out')}", file=sys.stderr)
+        return 2
+    except (ValueError, RuntimeError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
 

@@ -500,11 +500,15 @@ def test_a_signal_stops_the_server_and_is_reported_as_the_commands_stop():
 
     from mistyle.preview import serve
 
-    for number in (signal.SIGTERM, signal.SIGINT):
-        before = signal.getsignal(number)
-        assert serve(lambda number=number: (os.kill(os.getpid(), number), time.sleep(10))) == number
-        assert signal.getsignal(number) is before  # the command's handlers are put back
-    assert serve(lambda: None) is None
+    suite = signal.signal(signal.SIGINT, signal.default_int_handler)  # as a command started from a terminal
+    try:
+        for number in (signal.SIGTERM, signal.SIGINT):
+            before = signal.getsignal(number)
+            assert serve(lambda number=number: (os.kill(os.getpid(), number), time.sleep(10))) == number
+            assert signal.getsignal(number) is before  # the command's handlers are put back
+        assert serve(lambda: None) is None
+    finally:
+        signal.signal(signal.SIGINT, suite)
 
 
 def test_render_options_may_start_with_a_dash():

@@ -169,3 +169,26 @@ def test_quick_benchmark(mi, tmp_path, capsys):
     assert len(rows) == len(METHODS) * len(split_pairs("quick"))
     table = capsys.readouterr().out
     assert "| smooth_noise |" in table and "| density_ramp |" in table and "| default |" in table
+
+
+def test_resume_and_the_table_tell_one_network_from_another():
+    """``--resume`` with another --checkpoint once kept the old network's rows, and a partial run blended
+    two networks into one median without a word."""
+    from mistyle.benchmark.runner import Row, check_methods, mixed_networks, same_network
+
+    settings = {"res": 16, "spp": 1}
+
+    def row(method, checkpoint, style="a"):
+        return Row(method, "d", style, 0.1, 0.1, 0.5, 1.0, settings, checkpoint, "c", "heldout")
+
+    assert not same_network(row("network", "one.pt:1"), row("network", "two.pt:2"))
+    assert same_network(row("network", "one.pt:1"), row("network", "one.pt:1"))
+    assert same_network(row("uniform", "one.pt:1"), row("uniform", "two.pt:2"))  # no network in it
+    assert mixed_networks([row("network", "one.pt:1"), row("network", "two.pt:2", "b"), row("uniform", "x")]) == [
+        "network"
+    ]
+    assert mixed_networks([row("network", "one.pt:1"), row("uniform", "two.pt:2")]) == []
+    with pytest.raises(ValueError, match="names a method twice"):
+        check_methods(["uniform", "uniform"])
+    with pytest.raises(ValueError, match="Unknown method\\(s\\) ''"):
+        check_methods(["uniform", ""])

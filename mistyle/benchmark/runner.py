@@ -237,7 +237,7 @@ def run(
             for name in method_names:
                 raise_if_requested()
                 probe = Row(name, spec.name, style_name, 0.0, 0.0, 0.0, 0.0, **common)
-                if resume and any(row.key() == probe.key() for row in rows):
+                if resume and any(row.key() == probe.key() and same_network(row, probe) for row in rows):
                     continue
                 albedo, seconds = timed(METHODS[name], context, density, style)
                 metrics, images = score(
@@ -270,16 +270,45 @@ def run(
                     f"patch {row.patch_swd:.4f} hue {row.hue_coverage:.2f} "
                     f"structure {row.structure or float('nan'):.3f} {seconds:6.1f} s"
                 )
+    mixed = mixed_networks(rows)
+    if mixed:
+        from ..progress import status
+
+        status(
+            f"note: {rows_path} holds rows of {', '.join(mixed)} made with more than one network; their medians "
+            "in the table mix them (a folder per --checkpoint keeps them apart)"
+        )
     report(out)
     return rows
+
+
+def same_network(row: Row, other: Row) -> bool:
+    """Whether ``row`` stands for ``other`` under ``--resume``: the same network, where its method uses one."""
+    from .methods import METHODS
+
+    method = METHODS.get(row.method)
+    return method is None or not method.uses_network or row.checkpoint == other.checkpoint
+
+
+def mixed_networks(rows: list[Row]) -> list[str]:
+    """The methods that use the network whose rows at one settings hold more than one checkpoint."""
+    from .methods import METHODS
+
+    seen: dict[tuple, set] = {}
+    for row in rows:
+        if row.method in METHODS and METHODS[row.method].uses_network:
+            seen.setdefault((row.method, _group(row)), set()).add(row.checkpoint)
+    return sorted({method for (method, _), checkpoints in seen.items() if len(checkpoints) > 1})
 
 
 def check_methods(method_names: list[str]) -> None:
     from .methods import METHODS
 
-    unknown = [name for name in method_names if name not in METHODS]
+    unknown = [name or "''" for name in method_names if name not in METHODS]
     if unknown:
         raise ValueError(f"Unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}.")
+    if len(set(method_names)) < len(method_names):
+        raise ValueError(f"--methods names a method twice: {','.join(method_names)}; give each once.")
 
 
 def folder_files(pairs: list, method_names: list[str]) -> list[str]:
@@ -370,6 +399,7 @@ def summary(rows: list[Row]) -> dict:
                 entry["beats_uniform"] = sum(
                     row.rgb_swd < base.rgb_swd and row.patch_swd < base.patch_swd for row, base in matched
                 )
+                entry["uniform_pairs"] = len(matched)
                 continue
             against = [(row, base) for row, base in matched if row.structure is not None and base.structure is not None]
             entry[f"structure_pairs_{suffix}"] = len(against)
@@ -394,13 +424,16 @@ def table(rows: list[Row]) -> str:
         pairs = m[f"structure_pairs_{suffix}"]
         return f"{m[f'structure_beats_{suffix}']}/{pairs}" if pairs else "n/a"
 
+    def beats(m: dict) -> str:
+        return f"{m['beats_uniform']}/{m['uniform_pairs']}" if m["uniform_pairs"] else "n/a"
+
     for method, m in summary(rows).items():
         structure = "n/a" if np.isnan(m["structure"]) else f"{m['structure']:.3f}"
         lines.append(
             f"| {method} | {m['rgb_swd']:.4f} | {ratio(m['rgb_swd_x_uniform'])} | {ratio(m['rgb_swd_x_noise'])} | "
             f"{ratio(m['rgb_swd_x_tuned'])} | {m['patch_swd']:.4f} | {ratio(m['patch_swd_x_uniform'])} | "
             f"{ratio(m['patch_swd_x_noise'])} | {ratio(m['patch_swd_x_tuned'])} | {m['hue_coverage']:.2f} | "
-            f"{structure} | {closer(m, 'noise')} | {closer(m, 'tuned')} | {m['beats_uniform']}/{m['pairs']} | "
+            f"{structure} | {closer(m, 'noise')} | {closer(m, 'tuned')} | {beats(m)} | "
             f"{m['seconds']:.1f} | {m['pairs']} |"
         )
     return "\n".join(lines) + "\n"

@@ -51,7 +51,16 @@ def test_overrides_are_typed():
         ("optim.steps=1.5", "steps must be int"),
         ('optim.steps="ten"', "steps must be int"),
         ("model.widths=[1, 2]", "must have 3 entries"),
-        ("optim.lr=-1", "optim.lr must be > 0"),
+        ("optim.lr=-1", "optim.lr must be a finite number > 0"),
+        ("optim.lr=inf", "optim.lr must be a finite number > 0"),
+        ("optim.betas=[2, 3]", "optim.betas must be two numbers in"),
+        ("optim.decay_every_epochs=0", "decay_every_epochs must be a finite number > 0"),
+        ("model.widths=[8, -1, 16]", "widths, style_channels and style_hidden must be >= 1"),
+        ("model.style_hidden=0", "widths, style_channels and style_hidden must be >= 1"),
+        ("model.residual_blocks=-1", "residual_blocks must be >= 0"),
+        ("loss.tv_weight=-1", "a negative weight rewards what its term penalises"),
+        ("run.threads=-1", "run.threads must be >= 0"),
+        ("run.eval_views=0", "run.eval_styles, run.eval_densities and run.eval_views must be >= 1"),
         ("run.device=tpu", "run.device must be one of cpu, cuda"),
         ("model.kernels=3", "kernels must be 1, 2 or 4"),
         ("optim.lr", "--set takes section.key=value"),
@@ -86,3 +95,20 @@ def test_bad_files(tmp_path):
     unknown.write_text("[optim]\nlr = 1e-3\nmomentum = 0.9\n")
     with pytest.raises(ConfigError, match="unknown key 'momentum'"):
         load_config(unknown)
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--optimize", "--optimize-styles", "0"], "must be >= 1, got 300 and 0"),
+        (["--optimize", "--optimize-steps", "-3"], "must be >= 1, got -3 and 3"),
+        (["--optimize-steps", "5"], "set the direct optimisation: add --optimize"),
+    ],
+)
+def test_the_direct_optimisations_options_are_checked(tmp_path, capsys, arguments, message):
+    from mistyle.train.__main__ import main
+
+    assert main(["--config", "configs/tiny.toml", "--out", str(tmp_path / "run"), *arguments]) == 2
+    error = capsys.readouterr().err
+    assert message in error and "Traceback" not in error
+    assert not (tmp_path / "run").exists()

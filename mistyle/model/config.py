@@ -174,10 +174,39 @@ class TrainConfig:
                 self.loss.colour_match_gradient in COLOUR_MATCH_GRADIENTS,
                 f"loss.colour_match_gradient must be one of {', '.join(COLOUR_MATCH_GRADIENTS)}",
             ),
-            (self.loss.patch_weight >= 0, "loss.patch_weight must be >= 0"),
+            (
+                all(
+                    math.isfinite(weight) and weight >= 0
+                    for weight in (
+                        self.loss.patch_weight,
+                        self.loss.style_weight,
+                        self.loss.rgb_weight,
+                        self.loss.tv_weight,
+                        self.loss.temporal_weight,
+                    )
+                ),
+                "loss.patch_weight, style_weight, rgb_weight, tv_weight and temporal_weight must be finite and >= 0 "
+                "(a negative weight rewards what its term penalises)",
+            ),
             (self.optim.steps >= 1 and self.optim.batch >= 1, "optim.steps and optim.batch must be >= 1"),
             (self.optim.clip_grad >= 0, "optim.clip_grad must be >= 0 (0 turns clipping off)"),
-            (self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1, "optim.lr must be > 0 and optim.lr_decay in (0, 1]"),
+            (
+                math.isfinite(self.optim.lr) and self.optim.lr > 0 and 0 < self.optim.lr_decay <= 1,
+                "optim.lr must be a finite number > 0 and optim.lr_decay in (0, 1]",
+            ),
+            (
+                len(self.optim.betas) == 2 and all(0 <= beta < 1 for beta in self.optim.betas),
+                "optim.betas must be two numbers in [0, 1), e.g. [0.9, 0.999]",
+            ),
+            (
+                math.isfinite(self.optim.decay_every_epochs) and self.optim.decay_every_epochs > 0,
+                "optim.decay_every_epochs must be a finite number > 0",
+            ),
+            (self.run.threads >= 0, "run.threads must be >= 0 (0 keeps torch's default)"),
+            (
+                min(self.run.eval_styles, self.run.eval_densities, self.run.eval_views) >= 1,
+                "run.eval_styles, run.eval_densities and run.eval_views must be >= 1",
+            ),
             (self.run.device in DEVICES, f"run.device must be one of {', '.join(DEVICES)}"),
             (self.run.precision in PRECISIONS, f"run.precision must be one of {', '.join(PRECISIONS)}"),
             (self.run.extractor in EXTRACTOR_KINDS, f"run.extractor must be one of {', '.join(EXTRACTOR_KINDS)}"),

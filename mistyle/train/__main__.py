@@ -54,8 +54,8 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--optimize", action="store_true", help="run the direct per-volume optimisation baseline")
     parser.add_argument("--checkpoint", type=Path, default=None, help="with --optimize: the network to compare against")
-    parser.add_argument("--optimize-steps", type=int, default=300)
-    parser.add_argument("--optimize-styles", type=int, default=3)
+    parser.add_argument("--optimize-steps", type=int, default=None, help="with --optimize: steps per volume (300)")
+    parser.add_argument("--optimize-styles", type=int, default=None, help="with --optimize: held-out styles (3)")
     parser.add_argument(
         "--quiet", action="store_true", help="no progress bar or status lines (errors are still printed)"
     )
@@ -126,12 +126,18 @@ def _train_locked(args, overrides: list[str]) -> int:
         print(f"done: {chosen}  (stages and choices: {args.out / 'recipe.json'})")
         return 0
     config = load_config(args.config, overrides)
+    if not args.optimize and (args.optimize_steps is not None or args.optimize_styles is not None):
+        raise ValueError("--optimize-steps and --optimize-styles set the direct optimisation: add --optimize.")
+    steps = 300 if args.optimize_steps is None else args.optimize_steps
+    styles = 3 if args.optimize_styles is None else args.optimize_styles
+    if not (steps >= 1 and styles >= 1):
+        raise ValueError(f"--optimize-steps and --optimize-styles must be >= 1, got {steps} and {styles}.")
     if args.optimize:
         from .baseline import compare_with_direct_fit
         from .run_folder import check_run_folder, record_files
 
         check_run_folder(args.out, resume=False)
-        code = compare_with_direct_fit(config, args.out, args.checkpoint, args.optimize_steps, args.optimize_styles)
+        code = compare_with_direct_fit(config, args.out, args.checkpoint, steps, styles)
         record_files(args.out, rewritten=["baseline.json"])
         return code
     if distributed:

@@ -412,3 +412,20 @@ def test_a_run_that_cannot_start_leaves_no_folder(tmp_path, tiny_smoke, extra, m
     result = run(out, tiny_smoke, *extra, check=False)
     assert result.returncode == 2 and message in result.stderr and "Traceback" not in result.stderr
     assert not out.exists()
+
+
+def test_a_frame_of_another_shape_is_named(tiny_smoke, tmp_path):
+    """A frame file replaced by one of another grid size once ended in numpy's "all input arrays must have
+    the same shape", naming no file."""
+    from mistyle.train.dataset import SmokePairs
+
+    root = tmp_path / "smoke"
+    shutil.copytree(tiny_smoke, root)
+    data = SmokePairs(root, log=lambda *a: None)
+    pair = data.train[0]
+    with np.load(pair.second) as frame:
+        arrays = {key: frame[key] for key in frame.files}
+    arrays["density"] = arrays["density"][:4]
+    np.savez(pair.second, **arrays)
+    with pytest.raises(ValueError, match=f"{pair.second.name} holds a .* density; the dataset's frames are"):
+        data.load(pair)

@@ -74,9 +74,8 @@ class SmokePairs:
             raise ValueError(
                 f"The smoke dataset at {self.root} has no frame pairs; generate at least two kept frames per plume."
             )
-        missing = [p.first for p in all_pairs if not p.first.is_file()] + [
-            p.second for p in all_pairs if not p.second.is_file()
-        ]
+        listed = dict.fromkeys(path for pair in all_pairs for path in (pair.first, pair.second))
+        missing = [path for path in listed if not path.is_file()]
         if missing:
             raise ValueError(
                 f"{len(missing)} frame files listed in {manifest_path} are missing, e.g. {missing[0]}; "
@@ -97,6 +96,12 @@ class SmokePairs:
     def load(self, pair: FramePair) -> dict:
         """``density0/1 (Z,Y,X)``, frame t's ``ls0 (Z,Y,X)`` and ``velocity0 (3,Z,Y,X)`` (x,y,z) as float32."""
         a, b = load_frame(pair.first), load_frame(pair.second)
+        for path, frame in ((pair.first, a), (pair.second, b)):
+            if frame["density"].shape != self.shape:
+                raise ValueError(
+                    f"{path} holds a {frame['density'].shape} density; the dataset's frames are {self.shape}. "
+                    "Delete it and re-run generation."
+                )
         return {
             "density0": a["density"],
             "density1": b["density"],

@@ -434,8 +434,8 @@ class Trainer:
         if self.interrupted:  # a second Ctrl-C: stop at once
             raise KeyboardInterrupt
         self.interrupted = True
-        self.log(
-            f"\n{signal.Signals(signum).name}: finishing step {self.step + 1}, "
+        self.log(  # the signal may come inside a step or after its count went up: no step number here
+            f"\n{signal.Signals(signum).name}: finishing the step in progress, "
             f"saving {self.out / 'last.pt'} and stopping "
             "(press Ctrl-C again to abort without saving)"
         )

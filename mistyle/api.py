@@ -103,9 +103,12 @@ def _frame_count(density) -> int:
 
 def _style(style_image, name: str = "style_image", mixes: bool = True) -> None:
     """The style's form: a path, an ``(H, W, C)`` array or (``mixes``) a mix ``[(style, weight), ...]``."""
-    accepted = "an image's path or an (H, W, 3) array" + (" or a mix [(style, weight), ...]" if mixes else "")
+    accepted = "an image's path, an (H, W, 3) array, a PIL image" + (
+        " or a mix [(style, weight), ...]" if mixes else " or the like"
+    )
     for image, _ in style_parts(style_image) if mixes else [(style_image, 1.0)]:
-        if not isinstance(image, (str, os.PathLike, np.ndarray)):
+        array_like = hasattr(image, "__array_interface__") or hasattr(image, "__array__")  # PIL, torch
+        if not (isinstance(image, (str, os.PathLike, np.ndarray)) or array_like):
             raise TypeError(f"{name} must be {accepted}; got {described(image)}.")
 
 

@@ -75,7 +75,7 @@ def test_display_refuses_nan_and_inf():
         (lambda d, a: api.render(d, a, view="0.25"), r"^view must be an orbit position"),
         (lambda d, a: api.stylize(d, STYLE, strength="0.5"), r"^strength must be a number in \[0, 1\]"),
         (lambda d, a: api.stylize(d, STYLE, refine="yes"), r"^refine must be True or False"),
-        (lambda d, a: api.stylize(d, None), r"^style_image must be an image's path"),
+        (lambda d, a: api.stylize(d, None), r"^style_image must be an image's path, an \(H, W, 3\) array, a PIL"),
         (lambda d, a: api.fit_look(d, STYLE, key_frames="0,1"), r"^key_frames must be a list of frame indices"),
         (lambda d, a: api.display("bright"), r"^image must hold real numbers"),
         (lambda d, a: api.load_density(3), r"^path must be a density file's path"),
@@ -185,3 +185,15 @@ def test_the_apis_render_is_denoised_as_the_commands(blob_density, albedo):
     np.testing.assert_array_equal(shown, denoise(raw))
     assert not np.array_equal(shown, raw)
     refused(ValueError, r"^denoise must be one of", lambda: mistyle.render(blob_density, albedo, denoise="nlm"))
+
+
+def test_a_pil_image_is_a_style_as_its_array_is(mi, blob_density, tiny_checkpoint_factory, tmp_path):
+    """``Pipeline.stylize`` took a PIL image and ``mistyle.stylize`` refused it."""
+    from PIL import Image
+
+    checkpoint = tiny_checkpoint_factory(tmp_path / "tiny.pt")
+    with Image.open(STYLE) as image:
+        picture = image.convert("RGB")
+    from_picture = mistyle.stylize(blob_density, picture, checkpoint=checkpoint)
+    from_array = mistyle.stylize(blob_density, np.asarray(picture), checkpoint=checkpoint)
+    np.testing.assert_array_equal(from_picture, from_array)

@@ -34,6 +34,7 @@ import torch
 import torch.distributed as dist
 
 from ..files import atomic_write_bytes, check_writable_dir, write_png
+from ..files.paths import one_line
 from ..integrators import prepare_density
 from ..model.checkpoint import (
     CHECKPOINT_FORMAT,
@@ -418,8 +419,11 @@ class Trainer:
         try:
             missing, unexpected = self.model.load_state_dict(checkpoint["model"], strict=False)
         except RuntimeError as error:
+            lines = [line.strip() for line in str(error).splitlines()[1:] if line.strip()]
+            first = lines[0] if lines else one_line(error)  # torch's first line only says where it failed
             raise ValueError(
-                f"--init {path} does not fit this run's [model] config ({str(error).splitlines()[0]})."
+                f"--init {path} does not fit this run's [model] config ({first[:300]}); give the [model] settings "
+                "of the run that made it."
             ) from None
         # A noise site added to a network without one starts at zero: the network computes what it did.
         missing = [key for key in missing if not key.startswith("noise_predictor.")]

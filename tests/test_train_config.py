@@ -112,3 +112,13 @@ def test_the_direct_optimisations_options_are_checked(tmp_path, capsys, argument
     error = capsys.readouterr().err
     assert message in error and "Traceback" not in error
     assert not (tmp_path / "run").exists()
+
+
+def test_init_from_another_architecture_names_the_mismatch(tmp_path, capsys):
+    from mistyle.train.__main__ import main
+
+    bundled = "mistyle/checkpoints/skpn_noise.pt"  # wider than configs/tiny.toml's network
+    assert main(["--config", "configs/tiny.toml", "--init", bundled, "--out", str(tmp_path / "run")]) == 2
+    error = capsys.readouterr().err
+    assert "does not fit this run's [model] config (size mismatch for" in error and "Traceback" not in error
+    assert not (tmp_path / "run").exists()

@@ -74,13 +74,9 @@ class SKPNConfig:
     noise_orientations: tuple[str, ...] = ("isotropic",)  # model.noise.NOISE_ORIENTATIONS, fields of each
 
     def __post_init__(self):
-        if min(self.widths) < 1 or min(self.style_channels) < 1 or self.style_hidden < 1:
-            raise ValueError(
-                f"widths, style_channels and style_hidden must be >= 1, got {list(self.widths)}, "
-                f"{list(self.style_channels)}, {self.style_hidden}."
-            )
-        if self.residual_blocks < 0:
-            raise ValueError(f"residual_blocks must be >= 0, got {self.residual_blocks}.")
+        if min(*self.widths, *self.style_channels, self.style_hidden) < 1 or self.residual_blocks < 0:
+            sizes = f"{list(self.widths)}, {list(self.style_channels)}, {self.style_hidden}, {self.residual_blocks}"
+            raise ValueError(f"widths, style_channels, style_hidden must be >= 1, residual_blocks >= 0; got {sizes}.")
         if self.kernels not in (1, 2, 4):
             raise ValueError(f"kernels must be 1, 2 or 4, got {self.kernels}.")
         if self.kernel_size not in (1, 3):

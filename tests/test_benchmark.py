@@ -158,6 +158,8 @@ def test_command_refuses_bad_input_in_one_line(tmp_path, capsys):
     assert "run the benchmark first" in capsys.readouterr().err
     assert main(["--split", "quick", "--styles", "munch_the_scream"]) == 2
     assert "no style munch_the_scream" in capsys.readouterr().err
+    assert main(["--split", "quick", "--styles", "", "--out", str(tmp_path / "y")]) == 2
+    assert "--styles names none" in capsys.readouterr().err and not (tmp_path / "y").exists()
 
 
 @pytest.mark.benchmark

@@ -84,6 +84,9 @@ def main(argv=None) -> int:
             return 0
         split = "quick" if args.quick else args.split
         res, spp, denoise = check_settings(args)
+        for option, value in (("--densities", args.densities), ("--styles", args.styles)):
+            if value is not None and not value.strip(", "):
+                raise ValueError(f"{option} names none; give comma-separated names, or leave {option} out for all.")
         pairs = split_pairs(
             split,
             args.densities.split(",") if args.densities else None,

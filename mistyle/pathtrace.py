@@ -426,21 +426,25 @@ def medium_span(density, view, res: int) -> float:
     """How many pixels across the medium (the box around its non-zero voxels) appears in a ``res``^2
     image from ``view`` (a ``scenes.View``): the larger side of the rectangle around its projected
     corners; inf when a corner lies at or behind the camera."""
-    corners = _projected_box(density, view, res)
-    if corners is None or not len(corners):
-        return 0.0 if corners is not None else float("inf")
-    return float(np.ptp(corners, axis=0).max())
+    return medium_extent(density, view, res)[0]
 
 
 def medium_width(density, view, res: int) -> float:
-    """How many pixels the medium's projected box is across where it is narrowest (a medium seen edge-on,
-    a filament): the least width of its projected corners over directions a degree apart; inf when a
-    corner lies at or behind the camera."""
+    """How many pixels the medium's projected box is across where narrowest (``medium_extent``)."""
+    return medium_extent(density, view, res)[1]
+
+
+def medium_extent(density, view, res: int) -> tuple[float, float]:
+    """``(span, width)`` in pixels of the medium's box projected from ``view``: ``medium_span``, and its least
+    width over directions a degree apart (a filament, seen edge-on); inf behind the camera, 0 when empty."""
     corners = _projected_box(density, view, res)
-    if corners is None or not len(corners):
-        return 0.0 if corners is not None else float("inf")
+    if corners is None:
+        return float("inf"), float("inf")
+    if not len(corners):
+        return 0.0, 0.0
     angles = np.radians(np.arange(180.0))
-    return float(np.ptp(corners @ np.stack([np.cos(angles), np.sin(angles)]), axis=0).min())
+    width = np.ptp(corners @ np.stack([np.cos(angles), np.sin(angles)]), axis=0).min()
+    return float(np.ptp(corners, axis=0).max()), float(width)
 
 
 def _projected_box(density, view, res: int) -> np.ndarray | None:
@@ -573,7 +577,7 @@ def dark_render(image: np.ndarray, density, albedo, view, res: int, density_scal
     shown = f"the medium shows in {seen} pixel(s) of the {res}^2 image (a final image needs {needed})"
     bound = medium_radiance_bound(density, density_scale, light)
     brightest = float(np.asarray(albedo)[np.asarray(density) > 0].max(initial=0.0))
-    pixels, narrow = medium_span(density, view, res), medium_width(density, view, res)
+    pixels, narrow = medium_extent(density, view, res)
     if bound < DARK_MARGIN * FOREGROUND_THRESHOLD:
         return f"{shown}: {_too_faint(density, density_scale, light, bound)}"
     if bound * brightest < DARK_MARGIN * FOREGROUND_THRESHOLD:

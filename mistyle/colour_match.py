@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import hashlib
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -404,6 +404,23 @@ def grey_response(density: np.ndarray, *, density_scale: float, radiance: float,
     # Kept: the network's colour match and a look's fit on the same frame ask for the same response.
     light = np.array([density_scale, radiance, camera_distance], dtype=np.float64)
     return kept("grey response", (density, light), rendered).copy()
+
+
+_AHEAD: ThreadPoolExecutor | None = None
+
+
+def grey_response_ahead(
+    density: np.ndarray, *, density_scale: float, radiance: float, camera_distance: float
+) -> Future:
+    """``grey_response`` of ``density``, computed on a thread of its own while the caller goes on (the
+    network, in torch, which releases the interpreter lock): it depends on the density and the light
+    only, so its render and Dr.Jit's compilation of its kernels take the core torch leaves. The
+    future's ``result()`` is ``grey_response``'s array, or raises what it raises."""
+    global _AHEAD
+    if _AHEAD is None:
+        _AHEAD = ThreadPoolExecutor(1, thread_name_prefix="mistyle-response")
+    light = {"density_scale": density_scale, "radiance": radiance, "camera_distance": camera_distance}
+    return _AHEAD.submit(grey_response, np.array(density, dtype=np.float32), **light)
 
 
 def fit_colour_match(

@@ -154,8 +154,9 @@ class Stylizer:
         validate_scale_structures(scale_structures)
         validate_strength(strength)
         style = Style.of(style, notes)
+        light = self.colour_match_light(density_scale, camera_distance)
         inputs = self.kernels(style)
-        grids, albedos = [], []
+        grids, albedos, response = [], [], None
         for index, frame in enumerate(frames):
             grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
             if not grid.any():
@@ -164,6 +165,10 @@ class Stylizer:
                     "there is no medium to stylize."
                 )
             if index == 0:
+                if match_colours and strength > 0:  # rendered while the network runs
+                    from .colour_match import grey_response_ahead
+
+                    response = grey_response_ahead(grid, **light)
                 inputs = self.weakened(inputs, grid, strength)
             grids.append(grid)
             albedos.append(self.network_albedo(grid, inputs, scale_structures))
@@ -174,10 +179,21 @@ class Stylizer:
                 style.target,
                 strength,
                 notes,
-                density_scale=density_scale,
-                camera_distance=camera_distance,
+                density_scale=light["density_scale"],
+                camera_distance=light["camera_distance"],
+                response=response,
             )
         return np.stack(albedos) if sequence else albedos[0]
+
+    def colour_match_light(self, density_scale: float | None = None, camera_distance: float | None = None) -> dict:
+        """The light the colour match renders the medium in: ``density_scale`` and ``camera_distance``
+        (None: the checkpoint's) and the checkpoint's radiance, as ``grey_response`` takes them."""
+        render = self.config.render
+        return {
+            "density_scale": self.density_scale if density_scale is None else density_scale,
+            "radiance": render.radiance,
+            "camera_distance": render.camera_distance if camera_distance is None else camera_distance,
+        }
 
     def match_colours(
         self,
@@ -189,27 +205,21 @@ class Stylizer:
         *,
         density_scale: float | None = None,
         camera_distance: float | None = None,
+        response=None,
     ) -> list:
         """The frames' albedos ``[(Z, Y, X, 3)]`` on ``grids`` with the colours of the picture ``target (H, W, 3)``
         (``colour_match``), through the map fitted on the first frame the layer sees (a simulation's first
         frame can be a wisp), moved ``strength`` of the way. The map is fitted on renders at ``density_scale``
         from ``camera_distance``, the final render's (None: the checkpoint's). A medium too thin to be seen
-        in every frame keeps its albedos (said in ``notes``)."""
+        in every frame keeps its albedos (said in ``notes``). ``response``: the first frame's
+        ``grey_response_ahead`` in this light, when the caller started it."""
         from .colour_match import InvisibleMedium, fit_colour_match
 
-        render = self.config.render
-        density_scale = self.density_scale if density_scale is None else density_scale
-        camera_distance = render.camera_distance if camera_distance is None else camera_distance
-        for albedo, grid in zip(albedos, grids):
+        light = self.colour_match_light(density_scale, camera_distance)
+        for index, (albedo, grid) in enumerate(zip(albedos, grids)):
             try:
-                match = fit_colour_match(
-                    albedo,
-                    grid,
-                    target,
-                    density_scale=density_scale,
-                    radiance=render.radiance,
-                    camera_distance=camera_distance,
-                )
+                shown = response.result() if index == 0 and response is not None else None
+                match = fit_colour_match(albedo, grid, target, **light, response=shown)
             except InvisibleMedium:
                 continue
             return [match.apply(albedo, grid, strength) for albedo, grid in zip(albedos, grids)]

@@ -364,3 +364,28 @@ def test_the_grey_response_of_a_density_is_kept_for_the_next_fit(mi, blob_densit
     monkeypatch.undo()
     other = grey_response(blob_density, density_scale=10.0, radiance=1.0, camera_distance=1.7)
     assert not np.array_equal(other, first)
+
+
+def test_the_grey_response_ahead_renders_on_another_thread_what_grey_response_gives(mi, blob_density, monkeypatch):
+    import threading
+
+    from mistyle import memo, response
+    from mistyle.colour_match import grey_response, grey_response_ahead
+
+    light = {"density_scale": 20.0, "radiance": 1.0, "camera_distance": 1.7}
+    memo.forget()
+    threads = []
+    render = response.uniform_display_response
+
+    def recorded(*args, **kwargs):
+        threads.append(threading.current_thread())
+        return render(*args, **kwargs)
+
+    monkeypatch.setattr(response, "uniform_display_response", recorded)
+    ahead = grey_response_ahead(blob_density, **light).result()
+    assert len(threads) == 1 and threads[0] is not threading.current_thread()
+    memo.forget()
+    np.testing.assert_array_equal(ahead, grey_response(blob_density, **light))
+    dense = blob_density / blob_density.max() * 8.4e5
+    with pytest.raises(ValueError, match="extinction"):
+        grey_response_ahead(dense, **light).result()

@@ -26,6 +26,8 @@ Great Wave).
     .venv/bin/python experiments/bench_scale.py --quick            # 32^3 and a 3-frame sequence, in seconds
 
 Writes ``rows.jsonl`` (one row per case and device, replaced when run again) and ``table.md``; with
+``--label L --append`` (one code's name; the rows of codes run in turn kept), ``repeats.md`` instead:
+each code's median and its ratio to the first code's. With
 ``--before ROWS`` (an earlier commit's rows, e.g. from a worktree of it run in the same session),
 ``compare.md``: each stage's time and the peak memory as ratios to those rows.
 """
@@ -165,6 +167,44 @@ def table(rows: list[dict]) -> str:
     return head + "\n".join(lines) + "\n"
 
 
+def repeats(rows: list[dict]) -> str:
+    """Rows of codes run alternately (``--label``, ``--append``): per case, each code's median of each
+    stage over its runs, and that median as a ratio to the first code's (the code before)."""
+    import statistics
+
+    stages = (
+        ("network_seconds", "network s"),
+        ("look_seconds", "look s"),
+        ("path_trace_first_seconds", "path trace s"),
+        ("total_seconds", "total s"),
+        ("peak_rss_gb", "peak RSS GB"),
+    )
+    lines = [
+        "Codes run one after the other, in turn, in one session: per case and code, the median of its runs, and "
+        "that median / the first code's (lower is faster or smaller); the runs' values in brackets.",
+        "",
+        "| case | code | runs | " + " | ".join(name for _, name in stages) + " |",
+        "|---|---|---|" + "---|" * len(stages),
+    ]
+    for case in dict.fromkeys(row["case"] for row in rows):
+        codes = {}
+        for row in rows:
+            if row["case"] == case:
+                codes.setdefault(row.get("code", "-"), []).append(row)
+        first = None
+        for code, runs in codes.items():
+            medians = {key: statistics.median(run[key] for run in runs) for key, _ in stages}
+            first = first or medians
+            cells = [
+                f"{medians[key]:.2f}"
+                + ("" if medians is first else f" ({medians[key] / first[key]:.2f}x)")
+                + f" [{', '.join(f'{run[key]:.2f}' for run in runs)}]"
+                for key, _ in stages
+            ]
+            lines.append(f"| {case} | {code} | {len(runs)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def comparison(rows: list[dict], before: list[dict], label: str) -> str:
     """``rows`` against the same cases of ``before`` (an earlier commit's rows, run in the same session):
     each stage's time as a ratio (lower is faster) and peak memory."""
@@ -206,6 +246,12 @@ def main(argv=None) -> None:
         "--before", help="rows.jsonl of an earlier commit's run (same session): compare.md gives the ratios"
     )
     parser.add_argument("--before-label", default="the earlier rows", help="what --before is, for compare.md")
+    parser.add_argument("--label", help="the code's name in each row (for --append runs of several codes)")
+    parser.add_argument(
+        "--append",
+        action="store_true",
+        help="keep the case's earlier rows (runs of codes in turn; repeats.md gives their medians)",
+    )
     parser.add_argument("--case", help=argparse.SUPPRESS)  # run one case in this process, print its row
     args = parser.parse_args(argv)
     cases = QUICK_CASES if args.quick else CASES
@@ -231,10 +277,17 @@ def main(argv=None) -> None:
         if result.returncode != 0:
             raise SystemExit(f"case {name} failed:\n{result.stderr[-3000:]}")
         row = {**json.loads(result.stdout.strip().splitlines()[-1]), **before}
+        if args.label:
+            row["code"] = args.label
         print(json.dumps(row), flush=True)
-        rows = [r for r in rows if (r["case"], r["device"]) != (name, args.device)] + [row]
-        rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))
-    (out / "table.md").write_text(table(rows))
+        if not args.append:
+            rows = [r for r in rows if (r["case"], r["device"]) != (name, args.device)]
+        rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows + [row]))
+        rows.append(row)
+    if any("code" in row for row in rows):
+        (out / "repeats.md").write_text(repeats(rows))
+    else:
+        (out / "table.md").write_text(table(rows))
     if args.before:
         before = [json.loads(line) for line in Path(args.before).read_text().splitlines() if line.strip()]
         (out / "compare.md").write_text(comparison(rows, before, args.before_label))

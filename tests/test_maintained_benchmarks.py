@@ -55,6 +55,24 @@ def test_scale_benchmark_quick(tmp_path):
     assert "| sequence32 (32^3 x 3) | cpu |" in (tmp_path / "table.md").read_text()
 
 
+def test_scale_benchmark_repeats_give_each_codes_median_and_its_ratio_to_the_first():
+    """``bench_scale.py --label L --append``: runs of two codes in turn, summarised per code."""
+    sys.path.insert(0, str(REPO / "experiments"))
+    try:
+        from bench_scale import repeats
+    finally:
+        sys.path.remove(str(REPO / "experiments"))
+    stages = ("network_seconds", "look_seconds", "path_trace_first_seconds", "total_seconds", "peak_rss_gb")
+
+    def row(code, seconds):
+        return {"case": "frame128", "code": code, **dict.fromkeys(stages, seconds)}
+
+    rows = [row("before", 8.0), row("after", 4.0), row("before", 6.0), row("after", 5.0), row("before", 7.0)]
+    lines = [line for line in repeats(rows).splitlines() if line.startswith("| frame128")]
+    assert lines[0].startswith("| frame128 | before | 3 | 7.00 [8.00, 6.00, 7.00] |")
+    assert lines[1].startswith("| frame128 | after | 2 | 4.50 (0.64x) [4.00, 5.00] |")
+
+
 @pytest.mark.benchmark
 @pytest.mark.slow
 def test_memory_trace_quick(tmp_path):

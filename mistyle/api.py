@@ -87,7 +87,7 @@ def _device(device) -> str:
 
 def _frame_count(density) -> int:
     """How many frames ``density`` (a frame, a sequence ``(T, Z, Y, X)`` or a list of frames) holds, each
-    checked (a valid density holding some medium); ``ValueError`` for none."""
+    checked as the pipeline checks them (``stylizer.checked_frames``); ``ValueError`` for none."""
     if isinstance(density, (list, tuple)):
         count = len(density)
     else:
@@ -98,7 +98,7 @@ def _frame_count(density) -> int:
             f"density holds no frames ({described(density)}); give a frame (Z, Y, X), a sequence (T, Z, Y, X) "
             "with T >= 1, a list of frames or a density file's path."
         )
-    return len(checked_frames(density)[0])
+    return len(checked_frames(density, empty_frames=True)[0])
 
 
 def _style(style_image, name: str = "style_image", mixes: bool = True) -> None:

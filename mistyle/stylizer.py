@@ -278,30 +278,52 @@ def check_enough_medium(grid: np.ndarray, name: str = "density") -> None:
         )
 
 
+def holds_medium(grid: np.ndarray) -> bool:
+    """Whether a density frame holds enough medium to stylize (``MIN_MEDIUM_VOXELS`` non-zero voxels)."""
+    return int(np.count_nonzero(grid)) >= MIN_MEDIUM_VOXELS
+
+
+EMPTY_FRAME_ALBEDO = 0.5
+"""The albedo, in every voxel and channel, of a sequence's frame that holds too little medium to stylize
+(``holds_medium``): a frame before a simulation's emitter starts, or a few voxels of its first puff."""
+
+
+def frame_list(indices: list[int]) -> str:
+    """Frame indices as a message names them: ``3-40`` for a run, else ``1, 5, 9``."""
+    first, last = indices[0], indices[-1]
+    run = last > first and list(indices) == list(range(first, last + 1))
+    return f"{first}-{last}" if run else ", ".join(map(str, indices))
+
+
 def _frames_with_medium(items: list) -> str:
     """What to say of a sequence holding empty frames (a simulation before its emitter starts, or after
     its smoke is gone): which of its frames hold medium, and the ``--frames`` range of them."""
     holding = [index for index, frame in enumerate(items) if np.any(np.asarray(frame) > 0)]
     if not holding:
         return " Every frame of the sequence is empty."
-    first, last = holding[0], holding[-1]
-    listed = f"{first}-{last}" if holding == list(range(first, last + 1)) else ", ".join(map(str, holding))
     return (
-        f" Frames {listed} (0-based) of its {len(items)} hold medium: move the empty frames out of the folder, "
-        "or with a look render only those (--look FILE --frames A-B)."
+        f" Frames {frame_list(holding)} (0-based) of its {len(items)} hold medium: move the empty frames out of the "
+        "folder, or with a look render only those (--look FILE --frames A-B)."
     )
 
 
-def checked_frames(density, names: list[str] | None = None) -> tuple[list[np.ndarray], bool]:
+def checked_frames(
+    density, names: list[str] | None = None, empty_frames: bool = False, chunk: bool = False
+) -> tuple[list[np.ndarray], bool]:
     """``(grids, sequence)``: ``density`` (one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
     frames) as checked float32 frames, and whether it was a sequence; ``names``: the frames' names in
-    messages. ``ValueError`` for a frame that is not a valid density, is all zero or holds too little medium."""
+    messages. ``ValueError`` for a frame that is not a valid density, is all zero or holds too little medium.
+
+    ``empty_frames``: a sequence's frames may hold too little medium to stylize (``holds_medium``; they
+    are rendered as they are, ``EMPTY_FRAME_ALBEDO``) as long as one of them holds enough, or (``chunk``:
+    frames of a longer sequence, whose other frames may) none does."""
     from .volume import validate_density
 
     listed = isinstance(density, (list, tuple))
     array = density if listed else np.asarray(density)
     items = list(array) if listed else list(array) if array.ndim == 4 and array.shape[-1] != 1 else [array]
     sequence = listed or len(items) > 1
+    passing = empty_frames and (len(items) > 1 or chunk)  # a single frame must hold medium
     grids = []
     for index, frame in enumerate(items):
         if names is not None:
@@ -309,9 +331,18 @@ def checked_frames(density, names: list[str] | None = None) -> tuple[list[np.nda
         else:
             name = f"density frame {index}" if len(items) > 1 else "density"
         grid = validate_density(frame, name=name)
+        grids.append(grid)
+        if passing:
+            continue
         if not grid.any():
             advice = _frames_with_medium(items) if sequence else ""
             raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.{advice}")
         check_enough_medium(grid, name)
-        grids.append(grid)
+    if passing and not chunk and not any(holds_medium(grid) for grid in grids):
+        held = [index for index, grid in enumerate(grids) if grid.any()]
+        few = f" (frames {frame_list(held)} hold fewer than {MIN_MEDIUM_VOXELS} non-zero voxels each)" if held else ""
+        raise ValueError(
+            f"None of the sequence's {len(grids)} frames holds medium enough to stylize{few}. "
+            "Check the folder (a cache of another domain, or frames before the simulation starts)."
+        )
     return grids, sequence

@@ -11,7 +11,7 @@ from PIL import Image
 
 from mistyle.farm import frame_chunks
 from mistyle.farm import main as farm_main
-from mistyle.files import write_vol
+from mistyle.files import read_vol, write_vol
 from mistyle.look import LOOK_VERSION, Look, LookSettings, default_key_frames, diverged, fit_look, parse_key_frames
 from mistyle.ownership import MANIFEST_FILE
 from mistyle.render_final import main
@@ -353,6 +353,30 @@ def test_a_look_saved_once_renders_chunks_that_merge_into_the_single_run(checkpo
     assert render(checkpoint, "--density", frames, "--look", other, "--out", chunked, "--frames", "0") == 2
     assert "holds frames of another look" in capsys.readouterr().err
     assert files_of(whole) == files_of(chunked)
+
+
+def test_a_sequence_starting_empty_renders_every_frame_and_its_chunks_merge(checkpoint, sequence, tmp_path):
+    """A simulation's cache whose first frames are empty (its emitter starts later): the command renders
+    every frame, the empty ones as they are, and a chunk of empty frames (a farm's first) renders too."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for index, source in enumerate(sorted((sequence / "frames").iterdir())):
+        density = read_vol(source)
+        write_vol(frames / f"smoke_{index + 2:03d}.vol", density)
+    for index in range(2):
+        write_vol(frames / f"smoke_{index:03d}.vol", np.zeros_like(density))
+    wave = tmp_path / "wave.look"
+    args = ["--density", frames, "--style", sequence / "style.png", "--save-look", wave, "--look-steps", STEPS]
+    assert render(checkpoint, *args) == 0
+    assert Look.load(wave, checkpoint=checkpoint).meta["key_frames"] == [2, 3, 5]  # first, middle, last with medium
+    whole, chunked = tmp_path / "whole", tmp_path / "chunked"
+    assert render(checkpoint, "--density", frames, "--look", wave, "--out", whole) == 0
+    for chunk in ("0-1", "2-5"):
+        assert render(checkpoint, "--density", frames, "--look", wave, "--out", chunked, "--frames", chunk) == 0
+    assert files_of(whole) == files_of(chunked)
+    report = json.loads((whole / "report.json").read_text())
+    assert len(report["frames"]) == 6 and any("0-1 hold no medium" in note for note in report["notes"])
+    assert np.all(np.load(whole / "albedo_frame0000.npy") == 0.5)
 
 
 def test_a_looks_texture_travels_with_the_frames_velocities(look, blob_density):

@@ -9,7 +9,7 @@ import pytest
 
 import mistyle
 from mistyle.files import read_vol, write_vol
-from mistyle.pipeline import Pipeline, PipelineSettings
+from mistyle.pipeline import Pipeline, PipelineSettings, RenderSettings
 from mistyle.render_final import main, parser, settings_from
 
 STYLE = "examples/style_marble.png"
@@ -93,6 +93,38 @@ def test_a_sequence_by_default_is_stylized_by_one_look_fitted_on_its_key_frames(
     assert not (feed_forward / "albedo_refined_frame0000.vol").exists()
 
 
+def test_a_sequences_frames_before_its_emitter_starts_are_rendered_as_they_are(mi, blob_density, one_thread):
+    """Frames with too little medium to stylize (a simulation before its emitter starts, its first puff of
+    three voxels) hold the grey ``EMPTY_FRAME_ALBEDO`` and are path traced; the others are stylized as they
+    would be without them, bit for bit: the network, its colour match and the look on their key frames."""
+    from mistyle.stylizer import EMPTY_FRAME_ALBEDO
+
+    empty = np.zeros_like(blob_density)
+    speck = empty.copy()
+    speck[8, 8, 8:11] = 1.0
+    smoke = [np.roll(blob_density, index, axis=2) for index in range(3)]
+    pipeline = Pipeline(PipelineSettings(look_steps=2, render=RenderSettings(res=16, spp=1, denoise="none")))
+    notes = []
+    stylized = pipeline.stylize([empty, speck, *smoke], STYLE, notes=notes)
+    alone = pipeline.stylize(smoke, STYLE)
+    assert stylized.look.meta["key_frames"] == [2, 3, 4]
+    assert any(note.startswith("frame(s) 0-1 hold no medium to stylize") for note in notes)
+    for index in range(2):
+        assert np.all(stylized.network[index] == EMPTY_FRAME_ALBEDO)
+        assert np.all(stylized.albedos[index] == EMPTY_FRAME_ALBEDO)
+    for index in range(3):
+        assert np.array_equal(stylized.network[2 + index], alone.network[index])
+        assert np.array_equal(stylized.albedos[2 + index], alone.albedos[index])
+    assert stylized.report["temporal_flicker_look_unwarped"] == alone.report["temporal_flicker_look_unwarped"]
+    images, _ = pipeline.path_trace(stylized.frames, stylized.albedos, notes=notes)
+    assert images[0].max() == 0 and images[2].max() > 0
+    assert not [note for note in notes if "shows no medium" in note]  # the empty frames are said once
+    applied = stylized.look.stylize([empty, *smoke])
+    assert np.all(applied[0] == EMPTY_FRAME_ALBEDO) and np.array_equal(applied[1], alone.albedos[0])
+    with pytest.raises(ValueError, match=r"Key frame\(s\) 1 hold too little medium to fit a look on; frames 2-4"):
+        pipeline.fit_look([empty, speck, *smoke], STYLE, key_frames=[1, 3])
+
+
 def test_the_feed_forward_colour_match_renders_at_the_settings_scale_and_orbit(mi, blob_density):
     """``mistyle-render --density-scale 40 --refine 0`` colour-matches the medium as it renders at 40."""
     settings = PipelineSettings(refine_steps=0, density_scale=40.0, camera_distance=2.2)
@@ -130,8 +162,11 @@ def test_pipeline_refuses_empty_and_mismatched_frames(blob_density):
     with pytest.raises(ValueError, match="all zero"):
         pipeline.frames(np.zeros((8, 8, 8), np.float32))
     empty = np.zeros_like(blob_density)
-    with pytest.raises(ValueError, match=r"Frames 1-2 \(0-based\) of its 4 hold medium: move the empty frames out"):
-        pipeline.frames([empty, blob_density, blob_density, empty])
+    speck = empty.copy()
+    speck[4, 4, 4:7] = 1.0  # three voxels: too few to stylize
+    with pytest.raises(ValueError, match=r"None of the sequence's 3 frames holds medium enough.*frames 1 hold fewer"):
+        pipeline.frames([empty, speck, empty])
+    assert pipeline.frames([empty, speck], chunk=True).holding == []  # frames of a longer sequence
     with pytest.raises(ValueError, match="one grid size"):
         pipeline.frames([blob_density, blob_density[:8]])
     with pytest.raises(ValueError, match="one velocity per frame"):

@@ -176,6 +176,23 @@ def test_the_page_switches_to_the_look_and_a_new_style_cancels_a_fit(mi, session
     assert fresh.fits_look(Controls(style=0)) and fresh.shown_look(Controls(style=0)) is None, "the cancelled fit"
 
 
+def test_a_sequence_starting_empty_shows_its_empty_frames_as_they_are(mi, session, blob_density):
+    """Frames before a simulation's emitter starts are shown as they are; the strength and the colour
+    match come from the first frame that holds medium, as in the final render."""
+    from mistyle.stylizer import EMPTY_FRAME_ALBEDO
+
+    frames = [np.zeros_like(blob_density), *session.frames]
+    page = PreviewSession(session.pipeline, frames, session.styles, res=32)
+    controls = page.checked(page.initial_controls())
+    assert page.first == 1 and np.all(page.albedo(controls) == EMPTY_FRAME_ALBEDO)
+    assert page.layer_image(controls).max() == 0
+    for frame in (1, 2):
+        shown, alone = (
+            one.albedo(replace(controls, frame=frame - offset)) for one, offset in ((page, 0), (session, 1))
+        )
+        assert np.array_equal(shown, alone)
+
+
 def test_controls_are_clamped_to_what_the_session_has(session):
     wild = Controls(style=7, mix_with=9, mix=3.0, strength=-1.0, frame=5, look=True, camera=Camera(0, 5, 100))
     checked = session.checked(wild)

@@ -63,7 +63,7 @@ def load_job(spec: OutputSpec, output, pipeline, styles: dict, frame_range: tupl
         velocities = None if velocities is None else velocities[chosen]
         transforms = None if transforms is None else transforms[chosen]
         sources = None if sources is None else sources[chosen]
-    frames = pipeline.frames(densities, velocities, names, motion, first)
+    frames = pipeline.frames(densities, velocities, names, motion, first, chunk=frame_range is not None)
     return Job(
         spec=spec,
         output=output,

@@ -51,9 +51,7 @@ def fit_look(
     settings = LookSettings() if settings is None else settings
     started = time.perf_counter()
     densities = [np.asarray(d, dtype=np.float32) for d in densities]
-    keys = default_key_frames(len(densities)) if key_frames is None else sorted(set(int(k) for k in key_frames))
-    if not keys or not all(0 <= k < len(densities) for k in keys):
-        raise ValueError(f"Key frames {keys} must lie within the sequence's frames 0-{len(densities) - 1}.")
+    keys = _key_frames(densities, key_frames)
     density_scale = stylizer.density_scale if density_scale is None else float(density_scale)
     config = stylizer.config
     camera_distance = config.render.camera_distance if camera_distance is None else float(camera_distance)
@@ -146,6 +144,28 @@ class _TunedParameters:
         from ..model.skpn import StylizingKernels
 
         return frame_albedo(self.network, frame, StylizingKernels(self.free), self.texture, whole)
+
+
+def _key_frames(densities: list, key_frames) -> list[int]:
+    """The frames a look is fitted on: ``key_frames``, checked, or ``default_key_frames`` of the frames
+    that hold medium enough to stylize (a simulation's frames before its emitter starts hold none)."""
+    from ..stylizer import frame_list, holds_medium
+
+    holding = [index for index, density in enumerate(densities) if holds_medium(density)]
+    if not holding:
+        raise ValueError("None of the frames holds medium enough to fit a look on.")
+    if key_frames is None:
+        return [holding[index] for index in default_key_frames(len(holding))]
+    keys = sorted(set(int(k) for k in key_frames))
+    if not keys or not all(0 <= k < len(densities) for k in keys):
+        raise ValueError(f"Key frames {keys} must lie within the sequence's frames 0-{len(densities) - 1}.")
+    empty = [k for k in keys if k not in holding]
+    if empty:
+        raise ValueError(
+            f"Key frame(s) {frame_list(empty)} hold too little medium to fit a look on; frames {frame_list(holding)} "
+            "hold enough (--key-frames)."
+        )
+    return keys
 
 
 def _tuned_parameters(stylizer, style, target: np.ndarray, shape: tuple, settings: LookSettings):

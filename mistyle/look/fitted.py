@@ -102,11 +102,12 @@ class Look:
         them (``advection``). ``density_scale`` (the scale the frames will be rendered at) other than
         the look's adds a note, as does a frame of a very different size from the key frames. Frames
         longer than ``working_size`` on a side are stylized on a copy resampled to it, their albedo
-        resampled back (``mistyle.resample``; 0: the full grid)."""
+        resampled back (``mistyle.resample``; 0: the full grid). A sequence's frames with too little
+        medium to stylize (``stylizer.holds_medium``) hold ``stylizer.EMPTY_FRAME_ALBEDO``."""
         from ..advection import TextureMotion
-        from ..stylizer import checked_frames
+        from ..stylizer import EMPTY_FRAME_ALBEDO, checked_frames, holds_medium
 
-        grids, sequence = checked_frames(density)
+        grids, sequence = checked_frames(density, empty_frames=True)
         if velocities is not None and len(velocities) != len(grids):
             raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
         validate_working_size(working_size)
@@ -117,7 +118,12 @@ class Look:
         if notes is not None:
             notes.extend(self.notes_for(grids[0].shape, density_scale))
         motion = None if velocities is None or not sequence else TextureMotion(list(velocities))
-        albedos = [self.apply(grid, None if motion is None else motion.phases(i)) for i, grid in enumerate(grids)]
+        albedos = [
+            self.apply(grid, None if motion is None else motion.phases(i))
+            if holds_medium(grid)
+            else np.full(grid.shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+            for i, grid in enumerate(grids)
+        ]
         albedos = [a if work is None else work.albedo(a, grid) for a, grid, work in zip(albedos, grids, working)]
         return albedos if sequence else albedos[0]
 

@@ -141,16 +141,18 @@ class Pipeline:
         s = self.settings
         return replace(self.refinement(1), layer_steps=s.refine_steps or 0, path_steps=s.refine_path_steps or 0)
 
-    def frames(self, density, velocities=None, names: list[str] | None = None, motion=None, first: int = 0) -> Frames:
+    def frames(self, density, velocities=None, names=None, motion=None, first: int = 0, chunk: bool = False) -> Frames:
         """``density`` as ``Frames``: one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
         frames; ``velocities`` ``(Z, Y, X, 3)`` per frame or None; ``names``: the frames' names in
         messages; ``motion`` (``advection.TextureMotion``) and ``first``: for frames ``first`` on of a
         longer sequence, the velocities of the frames before them that a look's texture follows
-        (default: ``velocities``'). ``ValueError`` for a frame that is not a valid density or holds too
-        little medium."""
+        (default: ``velocities``'). ``ValueError`` for a frame that is not a valid density, or a single
+        frame that holds too little medium. A sequence's frames may hold too little as long as one holds
+        enough (all of them in a ``chunk``, frames of a longer sequence): they are rendered as they are
+        (``Frames.filled``)."""
         if isinstance(density, Frames):
             return density
-        grids, _ = checked_frames(density, names)
+        grids, _ = checked_frames(density, names, empty_frames=True, chunk=chunk)
         if len({grid.shape for grid in grids}) > 1:
             raise ValueError(
                 f"The frames have different shapes {sorted({g.shape for g in grids})}; a sequence needs one grid size."
@@ -183,8 +185,10 @@ class Pipeline:
             )
         report: dict = {}
 
+        self.note_empty_frames(frames, notes)
         started = time.perf_counter()
-        stacked = np.stack(frames.densities) if frames.sequence else frames.densities[0]
+        holding = frames.holding
+        stacked = np.stack([frames.densities[i] for i in holding]) if frames.sequence else frames.densities[0]
         network = self.stylizer(
             stacked,
             style,
@@ -195,7 +199,7 @@ class Pipeline:
             density_scale=self.density_scale,
             camera_distance=self.camera_distance,
         )
-        network = list(network) if frames.sequence else [network]
+        network = frames.filled(list(network) if frames.sequence else [network])
         report["stylize_seconds"] = time.perf_counter() - started
         check_finite("The network's albedo of frame", network)
         self.log(
@@ -213,7 +217,7 @@ class Pipeline:
             started = time.perf_counter()
             with bar(LookSettings().steps if s.look_steps is None else s.look_steps, "fitting a look") as progress_bar:
                 look = self.default_look(frames, style, notes=notes, progress=fit_progress(progress_bar))
-            albedos = [look.apply(grid, frames.phases(i)) for i, grid in enumerate(frames.densities)]
+            albedos = frames.filled([look.apply(frames.densities[i], frames.phases(i)) for i in holding])
             report["look_seconds"] = time.perf_counter() - started
             report["look_key_frames"] = look.meta["key_frames"]
             report.update(flicker_report(albedos, frames, "_look"))
@@ -226,6 +230,14 @@ class Pipeline:
         check_finite("The corrected albedo of frame", albedos)
         network, albedos = self.full_albedos(frames, network, albedos, report)
         return Stylization(full, network, albedos, style.target, refinement, report, notes, look)
+
+    def note_empty_frames(self, frames: Frames, notes: list) -> None:
+        """Say in the log and ``notes`` which of ``frames`` are rendered without being stylized."""
+        note = frames.empty_note()
+        if note is not None:
+            self.log(note)
+            if note not in notes:
+                notes.append(note)
 
     def working_frames(self, frames: Frames, notes: list | None = None) -> Frames:
         """``frames`` as they are stylized: their copy at the settings' ``working_size``
@@ -306,9 +318,10 @@ class Pipeline:
         self.check_visible(full)
         frames = self.working_frames(full, notes)
         notes.extend(look.notes_for(frames.densities[0].shape, frames.density_scale))
+        self.note_empty_frames(frames, notes)
         report: dict = {}
         started = time.perf_counter()
-        network = [look.apply(grid, frames.phases(i)) for i, grid in enumerate(frames.densities)]
+        network = frames.filled([look.apply(frames.densities[i], frames.phases(i)) for i in frames.holding])
         report["stylize_seconds"] = time.perf_counter() - started
         check_finite("The look's albedo of frame", network)
         self.log(f"stylized {len(network)} frame(s) from the look in {report['stylize_seconds']:.2f} s")
@@ -319,6 +332,9 @@ class Pipeline:
             # Each frame on its own: a chunk of a sequence must not depend on the frames before it.
             albedos, seconds = [], 0.0
             for index in range(len(network)):
+                if index not in frames.holding:
+                    albedos.append(network[index])
+                    continue
                 one = Frames([frames.densities[index]], None, frames.density_scale)
                 refined, took = self.refine(one, [network[index]], look.style, refinement)
                 albedos += refined
@@ -341,6 +357,9 @@ class Pipeline:
 
         refined, seconds = [], 0.0
         for index, (grid, albedo) in enumerate(zip(frames.densities, albedos)):
+            if index not in frames.holding:  # before the emitter starts: nothing to refine
+                refined.append(albedo)
+                continue
             label = f"refining frame {index}" if frames.sequence else "refining"
             with bar(refinement.layer_steps + refinement.path_steps, label) as progress_bar:
 
@@ -349,7 +368,7 @@ class Pipeline:
                     progress_bar.update(1)
 
                 anchor = None
-                if index > 0:
+                if index - 1 in frames.holding:
                     previous = refined[-1]
                     anchor = (
                         warp_grid(previous, frames.velocities[index - 1]) if frames.velocities is not None else previous
@@ -464,12 +483,13 @@ class Pipeline:
             validate_extinction(density, frames.density_scale, f"Frame {index}" if frames.sequence else "The density")
         light = self.light()
         plan = self.render_plan(frames) if plan is None else plan
+        plan = [(frame, views) for frame, views in plan if frame in frames.holding]  # empty frames show nothing
         causes = [
             unseen_medium(frames.densities[frame], view, render.res, frames.density_scale, light)
             for frame, views in plan
             for view in views
         ]
-        if all(causes):
+        if causes and all(causes):
             self.refuse_unseen(self.image_labels(frames, plan), causes, "cannot show the", "can show the")
 
     def check_finite_render(self, image: np.ndarray, label: str) -> None:
@@ -504,12 +524,15 @@ class Pipeline:
         render = self.settings.render
         light = self.light()
         pairs = [(frame, view) for frame, views in plan for view in views]
-        causes = [
-            dark_render(image, frames.densities[frame], albedos[frame], view, render.res, frames.density_scale, light)
-            for image, (frame, view) in zip(images, pairs)
-        ]
-        if refuse and all(causes):
-            self.refuse_unseen(labels, causes, "shows no", "shows the")
+        # A frame with too little medium to stylize shows next to nothing, as it should (Frames.empty_note).
+        held = [index for index, (frame, _) in enumerate(pairs) if frame in frames.holding]
+        causes = [None] * len(pairs)
+        for index in held:
+            frame, view = pairs[index]
+            density, scale = frames.densities[frame], frames.density_scale
+            causes[index] = dark_render(images[index], density, albedos[frame], view, render.res, scale, light)
+        if refuse and held and all(causes[index] for index in held):
+            self.refuse_unseen([labels[i] for i in held], [causes[i] for i in held], "shows no", "shows the")
         for label, cause in zip(labels, causes):
             if cause:
                 warning = f"{label} shows no medium: {cause}"

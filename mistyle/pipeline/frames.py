@@ -4,6 +4,7 @@ once per frame) and ``Stylization``."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -12,14 +13,17 @@ def flicker_report(albedos: list, frames, suffix: str = "") -> dict:
     """How much a sequence's ``albedos`` flicker, for ``report.json``: ``temporal_flicker{suffix}``
     (``objective.metrics.temporal_flicker``, each frame against the previous one warped by its
     velocity), or ``temporal_flicker{suffix}_unwarped`` (mean absolute change) when the frames carry
-    no velocity; nothing for a single frame."""
+    no velocity, from the first frame that holds medium to the last (``Frames.holding``); nothing for
+    a single frame."""
     from ..objective.metrics import temporal_flicker
 
-    if not frames.sequence:
+    holding = frames.holding
+    if not frames.sequence or len(holding) < 2:
         return {}
-    stacked = np.stack(albedos)
+    span = slice(holding[0], holding[-1] + 1)  # frames before the emitter starts hold no stylized albedo
+    stacked = np.stack(albedos[span])
     if frames.velocities is not None:
-        return {f"temporal_flicker{suffix}": temporal_flicker(stacked, np.stack(frames.velocities))}
+        return {f"temporal_flicker{suffix}": temporal_flicker(stacked, np.stack(frames.velocities[span]))}
     return {f"temporal_flicker{suffix}_unwarped": float(np.mean(np.abs(np.diff(stacked, axis=0))))}
 
 
@@ -42,6 +46,37 @@ class Frames:
     @property
     def sequence(self) -> bool:
         return len(self.densities) > 1
+
+    @cached_property
+    def holding(self) -> list[int]:
+        """The frames that hold medium enough to stylize (``stylizer.holds_medium``): all of one frame, and
+        of a sequence all but those before its emitter starts (``filled``)."""
+        from ..stylizer import holds_medium
+
+        return [index for index, density in enumerate(self.densities) if holds_medium(density)]
+
+    def filled(self, albedos: list) -> list:
+        """An albedo per frame from ``albedos``, one per frame of ``holding`` in turn: the others (frames
+        with too little medium to stylize) hold ``stylizer.EMPTY_FRAME_ALBEDO``, one grid they share."""
+        from ..stylizer import EMPTY_FRAME_ALBEDO
+
+        if len(albedos) == len(self.densities):
+            return list(albedos)
+        empty = np.full(self.densities[0].shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+        stylized = dict(zip(self.holding, albedos, strict=True))
+        return [stylized.get(index, empty) for index in range(len(self.densities))]
+
+    def empty_note(self) -> str | None:
+        """What the log and the report say of the frames outside ``holding``, or None."""
+        from ..stylizer import EMPTY_FRAME_ALBEDO, MIN_MEDIUM_VOXELS, frame_list
+
+        empty = [index for index in range(len(self.densities)) if index not in self.holding]
+        if not empty:
+            return None
+        return (
+            f"frame(s) {frame_list([self.first + index for index in empty])} hold no medium to stylize (fewer than "
+            f"{MIN_MEDIUM_VOXELS} non-zero voxels): rendered as they are, albedo {EMPTY_FRAME_ALBEDO:g}"
+        )
 
     def phases(self, frame: int) -> list | None:
         """Frame ``frame``'s advected texture fields (``advection.TextureMotion.phases``), or None."""

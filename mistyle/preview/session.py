@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import HELD_OUT_VIEW, MIN_CAMERA_DISTANCE, ORBIT_DISTANCE
+from ..stylizer import EMPTY_FRAME_ALBEDO, holds_medium
 
 THUMBNAIL_SIDE = 96
 MAX_UPLOAD_BYTES = 64 * 1024 * 1024
@@ -168,6 +169,8 @@ class PreviewSession:
         self.pipeline = pipeline
         self.stylizer = pipeline.stylizer
         self.frames = frames
+        # The first frame that holds medium: what a sequence's strength and colour match are fitted on.
+        self.first = next(index for index, frame in enumerate(frames) if holds_medium(frame))
         self._motion = pipeline.frames(frames, velocities).motion if velocities is not None else None
         self.styles = list(styles)
         self.look = look
@@ -226,23 +229,24 @@ class PreviewSession:
             style = key[:3]
             if style not in self._full:
                 full = self.stylizer.kernels(self._style(controls))
-                self._full[style] = (full, self.stylizer.neutral(full, self.frames[0]))
+                self._full[style] = (full, self.stylizer.neutral(full, self.frames[self.first]))
             full, neutral = self._full[style]
-            self._kernels[key] = self.stylizer.weakened(full, self.frames[0], controls.strength, neutral)
+            self._kernels[key] = self.stylizer.weakened(full, self.frames[self.first], controls.strength, neutral)
         return self._kernels[key]
 
     def _match_for(self, controls: Controls):
-        """The colour match of the style (fitted on the first frame, shared by every frame, as a sequence's)."""
+        """The colour match of the style (fitted on the first frame that holds medium, shared by every frame, as
+        a sequence's)."""
         from ..colour_match import InvisibleMedium, fit_colour_match
 
         key = controls.style_key
         if key not in self._matches:
             target = self._style(controls).target
-            first = self.stylizer.network_albedo(self.frames[0], self._kernels_for(controls))
+            first = self.frames[self.first]
             try:
                 self._matches[key] = fit_colour_match(
+                    self.stylizer.network_albedo(first, self._kernels_for(controls)),
                     first,
-                    self.frames[0],
                     target,
                     density_scale=self.density_scale,
                     radiance=self.radiance,
@@ -262,7 +266,9 @@ class PreviewSession:
             return self._albedos[key]
         started = time.perf_counter()
         grid = self.frames[controls.frame]
-        if look is not None:
+        if not holds_medium(grid):  # before a simulation's emitter starts: rendered as it is
+            albedo = np.full(grid.shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+        elif look is not None:
             albedo = look.apply(grid, None if self._motion is None else self._motion.phases(controls.frame))
         else:
             albedo = self.stylizer.network_albedo(grid, self._kernels_for(controls))

@@ -98,7 +98,7 @@ def _frame_count(density) -> int:
             f"density holds no frames ({described(density)}); give a frame (Z, Y, X), a sequence (T, Z, Y, X) "
             "with T >= 1, a list of frames or a density file's path."
         )
-    return len(checked_frames(density, empty_frames=True)[0])
+    return len(checked_frames(density)[0])
 
 
 def _style(style_image, name: str = "style_image", mixes: bool = True) -> None:

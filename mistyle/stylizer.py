@@ -295,52 +295,33 @@ def frame_list(indices: list[int]) -> str:
     return f"{first}-{last}" if run else ", ".join(map(str, indices))
 
 
-def _frames_with_medium(items: list) -> str:
-    """What to say of a sequence holding empty frames (a simulation before its emitter starts, or after
-    its smoke is gone): which of its frames hold medium, and the ``--frames`` range of them."""
-    holding = [index for index, frame in enumerate(items) if np.any(np.asarray(frame) > 0)]
-    if not holding:
-        return " Every frame of the sequence is empty."
-    return (
-        f" Frames {frame_list(holding)} (0-based) of its {len(items)} hold medium: move the empty frames out of the "
-        "folder, or with a look render only those (--look FILE --frames A-B)."
-    )
-
-
-def checked_frames(
-    density, names: list[str] | None = None, empty_frames: bool = False, chunk: bool = False
-) -> tuple[list[np.ndarray], bool]:
+def checked_frames(density, names: list[str] | None = None, chunk: bool = False) -> tuple[list[np.ndarray], bool]:
     """``(grids, sequence)``: ``density`` (one ``(Z, Y, X)`` array, a sequence ``(T, Z, Y, X)`` or a list of
     frames) as checked float32 frames, and whether it was a sequence; ``names``: the frames' names in
-    messages. ``ValueError`` for a frame that is not a valid density, is all zero or holds too little medium.
-
-    ``empty_frames``: a sequence's frames may hold too little medium to stylize (``holds_medium``; they
-    are rendered as they are, ``EMPTY_FRAME_ALBEDO``) as long as one of them holds enough, or (``chunk``:
-    frames of a longer sequence, whose other frames may) none does."""
+    messages. ``ValueError`` for a frame that is not a valid density, or a single frame that is all zero or
+    holds too little medium. A sequence's frames may hold too little medium to stylize (``holds_medium``: a
+    simulation's frames before its emitter starts; they are rendered as they are, ``EMPTY_FRAME_ALBEDO``) as
+    long as one of them holds enough, or (``chunk``: frames of a longer sequence, whose others may) none does."""
     from .volume import validate_density
 
     listed = isinstance(density, (list, tuple))
     array = density if listed else np.asarray(density)
     items = list(array) if listed else list(array) if array.ndim == 4 and array.shape[-1] != 1 else [array]
     sequence = listed or len(items) > 1
-    passing = empty_frames and (len(items) > 1 or chunk)  # a single frame must hold medium
     grids = []
     for index, frame in enumerate(items):
         if names is not None:
             name = f"density {names[index]}"
         else:
             name = f"density frame {index}" if len(items) > 1 else "density"
-        grid = validate_density(frame, name=name)
-        grids.append(grid)
-        if passing:
-            continue
-        if not grid.any():
-            advice = _frames_with_medium(items) if sequence else ""
-            raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.{advice}")
-        check_enough_medium(grid, name)
-    if passing and not chunk and not any(holds_medium(grid) for grid in grids):
+        grids.append(validate_density(frame, name=name))
+    if len(grids) == 1 and not chunk:
+        if not grids[0].any():
+            raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
+        check_enough_medium(grids[0], name)
+    elif not chunk and not any(holds_medium(grid) for grid in grids):
         held = [index for index, grid in enumerate(grids) if grid.any()]
-        few = f" (frames {frame_list(held)} hold fewer than {MIN_MEDIUM_VOXELS} non-zero voxels each)" if held else ""
+        few = f" (frame(s) {frame_list(held)} hold fewer than {MIN_MEDIUM_VOXELS} non-zero voxels)" if held else ""
         raise ValueError(
             f"None of the sequence's {len(grids)} frames holds medium enough to stylize{few}. "
             "Check the folder (a cache of another domain, or frames before the simulation starts)."

@@ -164,7 +164,9 @@ def test_pipeline_refuses_empty_and_mismatched_frames(blob_density):
     empty = np.zeros_like(blob_density)
     speck = empty.copy()
     speck[4, 4, 4:7] = 1.0  # three voxels: too few to stylize
-    with pytest.raises(ValueError, match=r"None of the sequence's 3 frames holds medium enough.*frames 1 hold fewer"):
+    with pytest.raises(
+        ValueError, match=r"None of the sequence's 3 frames holds medium enough.*frame\(s\) 1 hold fewer"
+    ):
         pipeline.frames([empty, speck, empty])
     assert pipeline.frames([empty, speck], chunk=True).holding == []  # frames of a longer sequence
     with pytest.raises(ValueError, match="one grid size"):

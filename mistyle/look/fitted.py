@@ -107,7 +107,7 @@ class Look:
         from ..advection import TextureMotion
         from ..stylizer import EMPTY_FRAME_ALBEDO, checked_frames, holds_medium
 
-        grids, sequence = checked_frames(density, empty_frames=True)
+        grids, sequence = checked_frames(density)
         if velocities is not None and len(velocities) != len(grids):
             raise ValueError(f"Need one velocity per frame, got {len(velocities)} for {len(grids)} frames.")
         validate_working_size(working_size)

@@ -152,7 +152,7 @@ class Pipeline:
         (``Frames.filled``)."""
         if isinstance(density, Frames):
             return density
-        grids, _ = checked_frames(density, names, empty_frames=True, chunk=chunk)
+        grids, _ = checked_frames(density, names, chunk)
         if len({grid.shape for grid in grids}) > 1:
             raise ValueError(
                 f"The frames have different shapes {sorted({g.shape for g in grids})}; a sequence needs one grid size."

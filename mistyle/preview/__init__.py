@@ -77,7 +77,7 @@ def load(args) -> tuple:
     settings, spec = page_settings(args, paths[0])
     pipeline = Pipeline(settings)
     loaded = load_density_frames(args.density, grid=args.grid, up=args.up)
-    frames, _ = checked_frames(loaded.densities, loaded.names, empty_frames=True)
+    frames, _ = checked_frames(loaded.densities, loaded.names)
     styles = []
     for path in paths:
         image = load_style(path)

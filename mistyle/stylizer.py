@@ -139,43 +139,34 @@ class Stylizer:
         camera_distance: float | None = None,
     ) -> np.ndarray:
         """Albedo ``(Z, Y, X, 3)`` (or ``(T, Z, Y, X, 3)``) of ``density`` for ``style`` (see ``kernels``)
-        at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame).
+        at ``strength`` (see ``weakened``; a sequence's grey comes from its first frame that holds medium).
+        A sequence's frames with too little medium to stylize (``holds_medium``) hold ``EMPTY_FRAME_ALBEDO``.
 
         ``match_colours``: give the network's arrangement the style's colours (``colour_match``; for a
         mix, the colours of ``style_target``), moved ``strength`` of the way, as the medium renders at
         ``density_scale`` seen from ``camera_distance`` (None: the checkpoint's); a sequence shares the
         map fitted on its first frame. A medium too thin to be seen keeps the network's colours (said in
         ``notes``). False: the network's albedo as predicted."""
-        from .volume import validate_density
-
         array = np.asarray(density)
         sequence = array.ndim == 4 and array.shape[-1] != 1
-        frames = array if sequence else array[None]
+        grids, _ = checked_frames(list(array) if sequence else array)
         validate_scale_structures(scale_structures)
         validate_strength(strength)
-        style = Style.of(style, notes)
+        holding = [index for index, grid in enumerate(grids) if holds_medium(grid)]
+        first = grids[holding[0]]
         light = self.colour_match_light(density_scale, camera_distance)
-        inputs = self.kernels(style)
-        grids, albedos, response = [], [], None
-        for index, frame in enumerate(frames):
-            grid = validate_density(frame, name=f"density frame {index}" if sequence else "density")
-            if not grid.any():
-                raise ValueError(
-                    f"{'Frame ' + str(index) + ' of the density' if sequence else 'The density'} is all zero; "
-                    "there is no medium to stylize."
-                )
-            if index == 0:
-                if match_colours and strength > 0:  # rendered while the network runs
-                    from .colour_match import grey_response_ahead
+        matched = match_colours and strength > 0
+        if matched:  # rendered while the network runs
+            from .colour_match import grey_response_ahead
 
-                    response = grey_response_ahead(grid, **light)
-                inputs = self.weakened(inputs, grid, strength)
-            grids.append(grid)
-            albedos.append(self.network_albedo(grid, inputs, scale_structures))
-        if match_colours and strength > 0:
+            response = grey_response_ahead(first, **light)
+        style = Style.of(style, notes)
+        inputs = self.weakened(self.kernels(style), first, strength)
+        albedos = [self.network_albedo(grids[index], inputs, scale_structures) for index in holding]
+        if matched:
             albedos = self.match_colours(
                 albedos,
-                grids,
+                [grids[index] for index in holding],
                 style.target,
                 strength,
                 notes,
@@ -183,7 +174,11 @@ class Stylizer:
                 camera_distance=light["camera_distance"],
                 response=response,
             )
-        return np.stack(albedos) if sequence else albedos[0]
+        if not sequence:
+            return albedos[0]
+        stylized = dict(zip(holding, albedos))
+        empty = np.full(first.shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+        return np.stack([stylized.get(index, empty) for index in range(len(grids))])
 
     def colour_match_light(self, density_scale: float | None = None, camera_distance: float | None = None) -> dict:
         """The light the colour match renders the medium in: ``density_scale`` and ``camera_distance``

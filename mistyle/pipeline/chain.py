@@ -187,8 +187,7 @@ class Pipeline:
 
         self.note_empty_frames(frames, notes)
         started = time.perf_counter()
-        holding = frames.holding
-        stacked = np.stack([frames.densities[i] for i in holding]) if frames.sequence else frames.densities[0]
+        stacked = np.stack(frames.densities) if frames.sequence else frames.densities[0]
         network = self.stylizer(
             stacked,
             style,
@@ -199,7 +198,7 @@ class Pipeline:
             density_scale=self.density_scale,
             camera_distance=self.camera_distance,
         )
-        network = frames.filled(list(network) if frames.sequence else [network])
+        network = list(network) if frames.sequence else [network]
         report["stylize_seconds"] = time.perf_counter() - started
         check_finite("The network's albedo of frame", network)
         self.log(
@@ -217,7 +216,7 @@ class Pipeline:
             started = time.perf_counter()
             with bar(LookSettings().steps if s.look_steps is None else s.look_steps, "fitting a look") as progress_bar:
                 look = self.default_look(frames, style, notes=notes, progress=fit_progress(progress_bar))
-            albedos = frames.filled([look.apply(frames.densities[i], frames.phases(i)) for i in holding])
+            albedos = frames.filled([look.apply(frames.densities[i], frames.phases(i)) for i in frames.holding])
             report["look_seconds"] = time.perf_counter() - started
             report["look_key_frames"] = look.meta["key_frames"]
             report.update(flicker_report(albedos, frames, "_look"))

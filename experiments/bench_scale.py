@@ -115,6 +115,13 @@ def run_case(name: str, side: int, frames: int, device: str, denoise: str = "oid
                 "compiled": sum(1 for k in kernels if not k["cache_hit"] and not k["cache_disk"]),
             }
         )
+    # A look's application to the next frame (a sequence's per-frame cost after the fit): the frame moved by
+    # a voxel, so nothing of the fitted frame is reused.
+    look_apply = None
+    if frames == 1 and stylized.look is not None:
+        begin = time.perf_counter()
+        stylized.look.stylize(density(side, 1, fill))
+        look_apply = time.perf_counter() - begin
     report = stylized.report
     row = {
         "case": name,
@@ -124,6 +131,7 @@ def run_case(name: str, side: int, frames: int, device: str, denoise: str = "oid
         "occupied": float(np.mean(grids[0] > 0)),
         "network_seconds": report.get("stylize_seconds"),
         "look_seconds": report.get("look_seconds"),
+        "look_apply_seconds": look_apply,
         "stylize_total_seconds": stylize_total,
         "render": f"{res}^2, {spp} spp, " + ("OIDN" if denoise == "oidn" else "not denoised"),
         "path_trace_first_seconds": traced[0]["seconds"],
@@ -175,6 +183,7 @@ def repeats(rows: list[dict]) -> str:
     stages = (
         ("network_seconds", "network s"),
         ("look_seconds", "look s"),
+        ("look_apply_seconds", "look applied s"),
         ("path_trace_first_seconds", "path trace s"),
         ("total_seconds", "total s"),
         ("peak_rss_gb", "peak RSS GB"),
@@ -193,14 +202,16 @@ def repeats(rows: list[dict]) -> str:
                 codes.setdefault(row.get("code", "-"), []).append(row)
         first = None
         for code, runs in codes.items():
-            medians = {key: statistics.median(run[key] for run in runs) for key, _ in stages}
+            measured = [key for key, _ in stages if all(run.get(key) is not None for run in runs)]
+            medians = {key: statistics.median(run[key] for run in runs) for key in measured}
             first = first or medians
-            cells = [
-                f"{medians[key]:.2f}"
-                + ("" if medians is first else f" ({medians[key] / first[key]:.2f}x)")
-                + f" [{', '.join(f'{run[key]:.2f}' for run in runs)}]"
-                for key, _ in stages
-            ]
+            cells = []
+            for key, _ in stages:
+                if key not in medians:  # not measured by this code's runs
+                    cells.append("-")
+                    continue
+                ratio = "" if medians is first or key not in first else f" ({medians[key] / first[key]:.2f}x)"
+                cells.append(f"{medians[key]:.2f}{ratio} [{', '.join(f'{run[key]:.2f}' for run in runs)}]")
             lines.append(f"| {case} | {code} | {len(runs)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

@@ -183,9 +183,10 @@ def test_a_sequence_starting_empty_shows_its_empty_frames_as_they_are(mi, sessio
 
     frames = [np.zeros_like(blob_density), *session.frames]
     page = PreviewSession(session.pipeline, frames, session.styles, res=32)
-    controls = page.checked(page.initial_controls())
-    assert page.first == 1 and np.all(page.albedo(controls) == EMPTY_FRAME_ALBEDO)
-    assert page.layer_image(controls).max() == 0
+    start = page.checked(page.initial_controls())
+    assert page.first == 1 and start.frame == 1  # the page starts where the smoke is
+    controls = replace(start, frame=0)
+    assert np.all(page.albedo(controls) == EMPTY_FRAME_ALBEDO) and page.layer_image(controls).max() == 0
     for frame in (1, 2):
         shown, alone = (
             one.albedo(replace(controls, frame=frame - offset)) for one, offset in ((page, 0), (session, 1))

@@ -41,8 +41,8 @@ playwright = pytest.importorskip("playwright.sync_api", reason="make test-browse
 
 
 def start_server(folder: Path, render_options: str):
-    """A mistyle-preview process on a free port over two frames of the bundled smoke and ``STYLES``:
-    the process and its URL."""
+    """A mistyle-preview process on a free port over ``STYLES`` and a sequence of an empty frame (before a
+    simulation's emitter starts) and two frames of the bundled smoke: the process and its URL."""
     from mistyle.files import load_density
 
     styles, frames = folder / "styles", folder / "frames"
@@ -51,8 +51,9 @@ def start_server(folder: Path, render_options: str):
     for name in STYLES:
         shutil.copy(ROOT / "mistyle" / "data" / "heldout_styles" / name, styles / name)
     density = load_density(ROOT / "examples" / "smoke_64.vol")
-    np.save(frames / "frame_0000.npy", density)
-    np.save(frames / "frame_0001.npy", np.ascontiguousarray(density[:, :, ::-1]))  # a second, mirrored frame
+    np.save(frames / "frame_0000.npy", np.zeros_like(density))
+    np.save(frames / "frame_0001.npy", density)
+    np.save(frames / "frame_0002.npy", np.ascontiguousarray(density[:, :, ::-1]))  # a third, mirrored frame
     process = subprocess.Popen(
         [sys.executable, "-m", "mistyle.preview", "--density", str(frames), "--styles", str(styles),
          "--port", "0", "--out", str(folder / "out"), "--render-options", render_options],
@@ -160,10 +161,14 @@ def test_a_bad_upload_shows_an_error_and_the_page_goes_on(page, tmp_path):
 
 def test_the_frame_slider_shows_another_frame(page):
     assert page.locator("#frame-row").is_visible()
+    # The page starts on the first frame that holds medium, and its slider says so.
+    assert page.locator("#frame").input_value() == "1" and page.locator("#frame-value").inner_text() == "1"
     _, before = last_fast(page)
     other = after(page, lambda: (page.locator("#frame").focus(), page.keyboard.press("End")))
     assert changed(before, other) > 1.0
-    after(page, lambda: (page.locator("#frame").focus(), page.keyboard.press("Home")))
+    empty = after(page, lambda: (page.locator("#frame").focus(), page.keyboard.press("Home")))
+    assert np.abs(empty).max() < 2.0  # the empty frame: nothing but the background
+    after(page, lambda: (page.locator("#frame").focus(), page.keyboard.press("ArrowRight")))
 
 
 def test_final_output_and_a_look_from_the_page(page, server):

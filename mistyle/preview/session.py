@@ -189,7 +189,9 @@ class PreviewSession:
         self._sequence = None  # the frames as the pipeline's Frames, made at the first fit (_fitted_frames)
 
     def initial_controls(self) -> Controls:
-        return Controls(look=self.look is not None, camera=Camera(distance=self.camera_distance).clamped())
+        """What the page starts on: the look where there is one, the first frame that holds medium."""
+        camera = Camera(distance=self.camera_distance).clamped()
+        return Controls(frame=self.first, look=self.look is not None, camera=camera)
 
     def checked(self, controls: Controls) -> Controls:
         """``controls`` with indices and values in range (a stale client cannot point past the lists)."""

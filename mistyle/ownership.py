@@ -319,6 +319,32 @@ def _holder(lock_path: Path) -> str:
     return ""
 
 
+def _in_use(directory: Path, lock_path: Path) -> ValueError:
+    return ValueError(
+        f"Another mistyle run is writing to {directory}{_holder(lock_path)}; wait for it to finish or "
+        "choose another --out."
+    )
+
+
+def check_not_in_use(directory) -> None:
+    """``output_lock``'s refusal when another run holds ``directory``'s lock now, said before any work:
+    the lock itself is taken when the output is written, after the inputs and the network are loaded."""
+    import fcntl
+
+    directory = _output_path(directory)
+    lock_path = directory.parent / f".{directory.name}.lock"
+    try:
+        fd = os.open(lock_path, os.O_RDONLY)
+    except OSError:  # no lock file: no run holds it
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        raise _in_use(directory, lock_path) from None
+    finally:
+        os.close(fd)  # and with it the shared lock, at once
+
+
 @contextlib.contextmanager
 def output_lock(directory, wait: bool = False):
     """Hold the lock of ``directory`` for the block; yield ``(directory, parent)``. A second run into
@@ -342,10 +368,7 @@ def output_lock(directory, wait: bool = False):
             fcntl.flock(fd, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            raise ValueError(
-                f"Another mistyle run is writing to {directory}{_holder(lock_path)}; wait for it to finish or "
-                "choose another --out."
-            ) from None
+            raise _in_use(directory, lock_path) from None
         try:
             same = os.stat(lock_path).st_ino == os.fstat(fd).st_ino
         except FileNotFoundError:

@@ -477,9 +477,15 @@ def test_an_interrupted_run_leaves_the_previous_output_untouched(mi, checkpoint,
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging folder or lock left
 
 
-def test_a_second_run_into_an_output_in_use_is_refused(mi, checkpoint, inputs, tmp_path, capsys):
+def test_a_second_run_into_an_output_in_use_is_refused(mi, checkpoint, inputs, tmp_path, capsys, monkeypatch):
+    """At once, before the network loads: the lock is taken when the output is written."""
+    import mistyle.pipeline
     from mistyle.ownership import staged_directory
 
+    def loaded(*args, **kwargs):
+        raise AssertionError("the network was loaded for a run that is refused")
+
+    monkeypatch.setattr(mistyle.pipeline, "Pipeline", loaded)
     out = tmp_path / "out"
     with staged_directory(out):
         code = main(

@@ -73,6 +73,7 @@ def render_outputs(settings, spec: OutputSpec, request: RenderRequest, log: Call
     from ..backend import use_variant
     from ..files import load_style
     from ..outputs import is_mistyle_output, plan_outputs
+    from ..ownership import check_not_in_use
     from ..pipeline import Pipeline
     from .run import load_job, write_batch_index, write_output
 
@@ -95,6 +96,9 @@ def render_outputs(settings, spec: OutputSpec, request: RenderRequest, log: Call
         )
     keep = request.resume and not request.overwrite and not merging
     outputs = [output for output in planned if not (keep and is_mistyle_output(output.folder))]
+    if not merging:  # a chunk waits for a merging one; a whole run would be refused when it writes
+        for output in outputs:
+            check_not_in_use(output.folder)
     for output in planned:
         if output not in outputs:
             check_same_settings(

@@ -319,6 +319,11 @@ def _holder(lock_path: Path) -> str:
     return ""
 
 
+def _lock_path(directory: Path) -> Path:
+    """The file whose lock a run holds while it writes ``directory``: beside it, hidden."""
+    return directory.parent / f".{directory.name}.lock"
+
+
 def _in_use(directory: Path, lock_path: Path) -> ValueError:
     return ValueError(
         f"Another mistyle run is writing to {directory}{_holder(lock_path)}; wait for it to finish or "
@@ -332,7 +337,7 @@ def check_not_in_use(directory) -> None:
     import fcntl
 
     directory = _output_path(directory)
-    lock_path = directory.parent / f".{directory.name}.lock"
+    lock_path = _lock_path(directory)
     try:
         fd = os.open(lock_path, os.O_RDONLY)
     except OSError:  # no lock file: no run holds it
@@ -354,7 +359,7 @@ def output_lock(directory, wait: bool = False):
 
     directory = _output_path(directory)
     parent = directory.parent
-    lock_path = parent / f".{directory.name}.lock"
+    lock_path = _lock_path(directory)
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:

@@ -152,7 +152,7 @@ class Stylizer:
         grids, _ = checked_frames(list(array) if sequence else array)
         validate_scale_structures(scale_structures)
         validate_strength(strength)
-        holding = [index for index, grid in enumerate(grids) if holds_medium(grid)]
+        holding = holding_frames(grids)
         first = grids[holding[0]]
         light = self.colour_match_light(density_scale, camera_distance)
         matched = match_colours and strength > 0
@@ -177,7 +177,7 @@ class Stylizer:
         if not sequence:
             return albedos[0]
         stylized = dict(zip(holding, albedos))
-        empty = np.full(first.shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+        empty = empty_frame_albedo(first.shape)
         return np.stack([stylized.get(index, empty) for index in range(len(grids))])
 
     def colour_match_light(self, density_scale: float | None = None, camera_distance: float | None = None) -> dict:
@@ -278,9 +278,19 @@ def holds_medium(grid: np.ndarray) -> bool:
     return int(np.count_nonzero(grid)) >= MIN_MEDIUM_VOXELS
 
 
+def holding_frames(grids) -> list[int]:
+    """The indices of the frames of ``grids`` that hold medium enough to stylize (``holds_medium``)."""
+    return [index for index, grid in enumerate(grids) if holds_medium(grid)]
+
+
 EMPTY_FRAME_ALBEDO = 0.5
 """The albedo, in every voxel and channel, of a sequence's frame that holds too little medium to stylize
 (``holds_medium``): a frame before a simulation's emitter starts, or a few voxels of its first puff."""
+
+
+def empty_frame_albedo(shape: tuple) -> np.ndarray:
+    """The albedo ``(*shape, 3)`` of a frame of grid ``shape`` that holds too little medium to stylize."""
+    return np.full(tuple(shape) + (3,), EMPTY_FRAME_ALBEDO, np.float32)
 
 
 def frame_list(indices: list[int]) -> str:
@@ -314,7 +324,7 @@ def checked_frames(density, names: list[str] | None = None, chunk: bool = False)
         if not grids[0].any():
             raise ValueError(f"The {name} is all zero; there is no medium to stylize or render.")
         check_enough_medium(grids[0], name)
-    elif not chunk and not any(holds_medium(grid) for grid in grids):
+    elif not chunk and not holding_frames(grids):
         held = [index for index, grid in enumerate(grids) if grid.any()]
         few = f" (frame(s) {frame_list(held)} hold fewer than {MIN_MEDIUM_VOXELS} non-zero voxels)" if held else ""
         raise ValueError(

@@ -149,9 +149,9 @@ class _TunedParameters:
 def _key_frames(densities: list, key_frames) -> list[int]:
     """The frames a look is fitted on: ``key_frames``, checked, or ``default_key_frames`` of the frames
     that hold medium enough to stylize (a simulation's frames before its emitter starts hold none)."""
-    from ..stylizer import frame_list, holds_medium
+    from ..stylizer import frame_list, holding_frames
 
-    holding = [index for index, density in enumerate(densities) if holds_medium(density)]
+    holding = holding_frames(densities)
     if not holding:
         raise ValueError("None of the frames holds medium enough to fit a look on.")
     if key_frames is None:

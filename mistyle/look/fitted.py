@@ -105,7 +105,7 @@ class Look:
         resampled back (``mistyle.resample``; 0: the full grid). A sequence's frames with too little
         medium to stylize (``stylizer.holds_medium``) hold ``stylizer.EMPTY_FRAME_ALBEDO``."""
         from ..advection import TextureMotion
-        from ..stylizer import EMPTY_FRAME_ALBEDO, checked_frames, holds_medium
+        from ..stylizer import checked_frames, empty_frame_albedo, holds_medium
 
         grids, sequence = checked_frames(density)
         if velocities is not None and len(velocities) != len(grids):
@@ -121,7 +121,7 @@ class Look:
         albedos = [
             self.apply(grid, None if motion is None else motion.phases(i))
             if holds_medium(grid)
-            else np.full(grid.shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+            else empty_frame_albedo(grid.shape)
             for i, grid in enumerate(grids)
         ]
         albedos = [a if work is None else work.albedo(a, grid) for a, grid, work in zip(albedos, grids, working)]

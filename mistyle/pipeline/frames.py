@@ -51,18 +51,18 @@ class Frames:
     def holding(self) -> list[int]:
         """The frames that hold medium enough to stylize (``stylizer.holds_medium``): all of one frame, and
         of a sequence all but those before its emitter starts (``filled``)."""
-        from ..stylizer import holds_medium
+        from ..stylizer import holding_frames
 
-        return [index for index, density in enumerate(self.densities) if holds_medium(density)]
+        return holding_frames(self.densities)
 
     def filled(self, albedos: list) -> list:
         """An albedo per frame from ``albedos``, one per frame of ``holding`` in turn: the others (frames
         with too little medium to stylize) hold ``stylizer.EMPTY_FRAME_ALBEDO``, one grid they share."""
-        from ..stylizer import EMPTY_FRAME_ALBEDO
+        from ..stylizer import empty_frame_albedo
 
         if len(albedos) == len(self.densities):
             return list(albedos)
-        empty = np.full(self.densities[0].shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+        empty = empty_frame_albedo(self.densities[0].shape)
         stylized = dict(zip(self.holding, albedos, strict=True))
         return [stylized.get(index, empty) for index in range(len(self.densities))]
 

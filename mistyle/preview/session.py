@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import HELD_OUT_VIEW, MIN_CAMERA_DISTANCE, ORBIT_DISTANCE
-from ..stylizer import EMPTY_FRAME_ALBEDO, holds_medium
+from ..stylizer import empty_frame_albedo, holding_frames, holds_medium
 
 THUMBNAIL_SIDE = 96
 MAX_UPLOAD_BYTES = 64 * 1024 * 1024
@@ -170,7 +170,7 @@ class PreviewSession:
         self.stylizer = pipeline.stylizer
         self.frames = frames
         # The first frame that holds medium: what a sequence's strength and colour match are fitted on.
-        self.first = next(index for index, frame in enumerate(frames) if holds_medium(frame))
+        self.first = holding_frames(frames)[0]
         self._motion = pipeline.frames(frames, velocities).motion if velocities is not None else None
         self.styles = list(styles)
         self.look = look
@@ -269,7 +269,7 @@ class PreviewSession:
         started = time.perf_counter()
         grid = self.frames[controls.frame]
         if not holds_medium(grid):  # before a simulation's emitter starts: rendered as it is
-            albedo = np.full(grid.shape + (3,), EMPTY_FRAME_ALBEDO, np.float32)
+            albedo = empty_frame_albedo(grid.shape)
         elif look is not None:
             albedo = look.apply(grid, None if self._motion is None else self._motion.phases(controls.frame))
         else:
